@@ -1,0 +1,29 @@
+# Quick start: `make demo` (the paper scenario) and `make test` (the whole suite).
+# Each target creates the virtual environment and installs the project first.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: demo test bench install clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/visnav simulate --scenario paper --out out/paper
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+bench: $(STAMP)
+	$(PY) benchmarks/bench_paper_scenario.py
+	$(PY) benchmarks/bench_bdf_step.py
+
+clean:
+	rm -rf $(VENV) out .pytest_cache .hypothesis

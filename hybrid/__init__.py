@@ -1,0 +1,37 @@
+"""A small hybrid-automaton library: models, mode graph, executors, traces.
+
+It knows nothing of robots.  See :mod:`hybrid.model`, :mod:`hybrid.graph` and
+:mod:`hybrid.sampled`.
+"""
+
+from .errors import (
+    DivergenceError,
+    ExecutionError,
+    HybridError,
+    ModelDefinitionError,
+    NumericalFailure,
+    ZenoError,
+)
+from .graph import mode_graph, to_dot
+from .model import HybridAutomaton, MemoryVariable, Mode, Transition, transition_fires
+from .sampled import Plant, SampledEvent, SampledTrace, simulate_sampled
+
+__all__ = [
+    "DivergenceError",
+    "ExecutionError",
+    "HybridError",
+    "ModelDefinitionError",
+    "NumericalFailure",
+    "ZenoError",
+    "mode_graph",
+    "to_dot",
+    "HybridAutomaton",
+    "MemoryVariable",
+    "Mode",
+    "Transition",
+    "transition_fires",
+    "Plant",
+    "SampledEvent",
+    "SampledTrace",
+    "simulate_sampled",
+]

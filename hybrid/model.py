@@ -1,0 +1,339 @@
+"""Hybrid automata: modes, transitions, latched memory, validated at construction.
+
+A :class:`HybridAutomaton` reads a vector of real *signals* ``v`` (named by
+``variables``: a plant state, or measurements of it in a sampled-data loop) and
+carries *memory* variables ``m`` that only resets change (latched values such
+as the paper's ``dL``).  A transition is enabled when its guard value
+``g(v, m) >= 0``; with ``direction = +1`` (``-1``) it fires only when the guard
+*crosses* zero upwards (downwards) between two evaluations, which is how a
+guard that sits on zero after its own reset is kept from firing again.
+Among enabled transitions the smallest ``priority`` number wins; equal
+priorities are a modelling error reported at run time.
+
+Examples
+--------
+>>> from hybrid.model import HybridAutomaton, Mode, Transition, MemoryVariable
+>>> heat = Transition(name="on", source="off", target="on", guard=lambda v, m: 19.0 - v[0],
+...                   guard_text="T <= 19")
+>>> cool = Transition(name="off", source="on", target="off", guard=lambda v, m: v[0] - 21.0,
+...                   guard_text="T >= 21")
+>>> thermostat = HybridAutomaton(name="thermostat", modes=(Mode(name="off"), Mode(name="on")),
+...                              transitions=(heat, cool), variables=("T",), initial_mode="off")
+>>> [t.name for t in thermostat.enabled("off", (18.0,), {})]
+['on']
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from .errors import ExecutionError, ModelDefinitionError
+
+__all__ = [
+    "Guard",
+    "Reset",
+    "Mode",
+    "Transition",
+    "MemoryVariable",
+    "HybridAutomaton",
+    "transition_fires",
+]
+
+Guard = Callable[[Sequence[float], Mapping[str, float]], float]
+"""Guard value ``g(v, m)``; the transition is enabled when ``g >= 0``."""
+
+Reset = Callable[[Sequence[float], Mapping[str, float]], Mapping[str, float]]
+"""Reset ``r(v, m)`` returning the new values of the memory variables it writes."""
+
+Invariant = Callable[[Sequence[float], Mapping[str, float]], float]
+"""Invariant value; the state may stay in the mode while it is ``>= 0``."""
+
+
+def _frozen_mapping(value: Mapping[str, Any] | None) -> Mapping[str, Any]:
+    return MappingProxyType(dict(value or {}))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Mode:
+    """A discrete mode.
+
+    Attributes
+    ----------
+    name : str
+        Unique name.
+    description : str
+        One line for humans (docs, DOT labels).
+    invariant : callable or None
+        ``inv(v, m) >= 0`` while the mode may be kept; ``None`` means always.
+    invariant_text : str
+        Human-readable invariant.
+    labels : Mapping[str, Any]
+        Read-only annotations (e.g. the flag values a mode stands for).
+    """
+
+    name: str
+    description: str = ""
+    invariant: Invariant | None = None
+    invariant_text: str = ""
+    labels: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ModelDefinitionError(f"Mode.name = {self.name!r}: expected a non-empty string")
+        if self.invariant is not None and not callable(self.invariant):
+            raise ModelDefinitionError(
+                f"mode {self.name!r}: invariant = {self.invariant!r} is not callable; "
+                "pass a function inv(v, m) -> float (>= 0 inside) or None"
+            )
+        object.__setattr__(self, "labels", _frozen_mapping(self.labels))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Transition:
+    """A discrete transition (edge of the mode graph).
+
+    Attributes
+    ----------
+    name : str
+        Unique name.
+    source, target : str
+        Mode names.
+    guard : callable
+        ``g(v, m) -> float``, enabled when ``>= 0``.
+    reset : callable or None
+        ``r(v, m) -> {memory name: new value}`` for exactly the names in ``writes``.
+    writes : tuple of str
+        Memory variables the reset assigns.
+    reads : tuple of str
+        Signals the guard reads (documentation and structural checks; validated).
+    direction : int
+        ``0`` level-triggered, ``+1`` fires on an upward zero crossing of the
+        guard, ``-1`` on a downward one.
+    priority : int
+        Smaller fires first when several transitions are enabled together.
+    guard_text, reset_text : str
+        Human-readable guard and reset, used by the exports and the docs.
+    """
+
+    name: str
+    source: str
+    target: str
+    guard: Guard
+    reset: Reset | None = None
+    writes: tuple[str, ...] = ()
+    reads: tuple[str, ...] = ()
+    direction: int = 0
+    priority: int = 0
+    guard_text: str = ""
+    reset_text: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ModelDefinitionError(f"Transition.name = {self.name!r}: expected a non-empty string")
+        if not callable(self.guard):
+            raise ModelDefinitionError(
+                f"transition {self.name!r}: guard = {self.guard!r} is not callable; "
+                "pass a function g(v, m) -> float that is >= 0 when the transition may fire"
+            )
+        if self.reset is not None and not callable(self.reset):
+            raise ModelDefinitionError(
+                f"transition {self.name!r}: reset = {self.reset!r} is not callable; "
+                "pass a function r(v, m) -> dict of new memory values, or None"
+            )
+        if self.reset is None and self.writes:
+            raise ModelDefinitionError(
+                f"transition {self.name!r}: writes = {self.writes!r} but reset is None; "
+                "give a reset that assigns these memory variables or drop `writes`"
+            )
+        if self.direction not in (-1, 0, 1):
+            raise ModelDefinitionError(
+                f"transition {self.name!r}: direction = {self.direction!r}; expected -1, 0 or +1 "
+                "(falling crossing, level, rising crossing)"
+            )
+        if isinstance(self.priority, bool) or not isinstance(self.priority, int):
+            raise ModelDefinitionError(
+                f"transition {self.name!r}: priority = {self.priority!r}; expected an int (smaller fires first)"
+            )
+        object.__setattr__(self, "writes", tuple(self.writes))
+        object.__setattr__(self, "reads", tuple(self.reads))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class MemoryVariable:
+    """A latched real variable changed only by resets (e.g. ``dL``)."""
+
+    name: str
+    initial: float = 0.0
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ModelDefinitionError(f"MemoryVariable.name = {self.name!r}: expected a non-empty string")
+        if isinstance(self.initial, bool) or not isinstance(self.initial, (int, float)):
+            raise ModelDefinitionError(
+                f"memory variable {self.name!r}: initial = {self.initial!r}; expected a real number"
+            )
+
+
+def _duplicates(names: Sequence[str]) -> list[str]:
+    seen: set[str] = set()
+    return sorted({n for n in names if n in seen or seen.add(n)})  # type: ignore[func-returns-value]
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class HybridAutomaton:
+    """A validated hybrid automaton.
+
+    Raises
+    ------
+    ModelDefinitionError
+        On duplicate names, unknown modes or variables, or an empty automaton.
+    """
+
+    name: str
+    modes: tuple[Mode, ...]
+    transitions: tuple[Transition, ...]
+    variables: tuple[str, ...]
+    memory: tuple[MemoryVariable, ...] = ()
+    initial_mode: str = ""
+    description: str = ""
+    _outgoing: Mapping[str, tuple[Transition, ...]] = field(init=False, repr=False, compare=False)
+    _mode_index: Mapping[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "modes", tuple(self.modes))
+        object.__setattr__(self, "transitions", tuple(self.transitions))
+        object.__setattr__(self, "variables", tuple(self.variables))
+        object.__setattr__(self, "memory", tuple(self.memory))
+        if not self.modes:
+            raise ModelDefinitionError(f"automaton {self.name!r}: no modes; give at least one Mode")
+        for kind, items in (
+            ("mode", [m.name for m in self.modes]),
+            ("transition", [t.name for t in self.transitions]),
+            ("variable", list(self.variables)),
+            ("memory variable", [m.name for m in self.memory]),
+        ):
+            dup = _duplicates(items)
+            if dup:
+                raise ModelDefinitionError(
+                    f"automaton {self.name!r}: duplicate {kind} name(s) {dup}; every {kind} needs a unique name"
+                )
+        mode_names = [m.name for m in self.modes]
+        known = set(mode_names)
+        initial = self.initial_mode or mode_names[0]
+        if initial not in known:
+            raise ModelDefinitionError(
+                f"automaton {self.name!r}: initial_mode = {initial!r} is not a mode; expected one of {mode_names}"
+            )
+        object.__setattr__(self, "initial_mode", initial)
+        memory_names = {m.name for m in self.memory}
+        variable_names = set(self.variables)
+        for t in self.transitions:
+            for end, value in (("source", t.source), ("target", t.target)):
+                if value not in known:
+                    raise ModelDefinitionError(
+                        f"transition {t.name!r}: {end} = {value!r} is not a mode of automaton "
+                        f"{self.name!r}; expected one of {mode_names}"
+                    )
+            unknown = [w for w in t.writes if w not in memory_names]
+            if unknown:
+                raise ModelDefinitionError(
+                    f"transition {t.name!r}: writes unknown memory variable(s) {unknown}; "
+                    f"declared memory: {sorted(memory_names)}"
+                )
+            unknown = [r for r in t.reads if r not in variable_names]
+            if unknown:
+                raise ModelDefinitionError(
+                    f"transition {t.name!r}: reads unknown signal(s) {unknown}; "
+                    f"declared variables: {list(self.variables)}"
+                )
+        outgoing: dict[str, list[Transition]] = {n: [] for n in mode_names}
+        for t in self.transitions:
+            outgoing[t.source].append(t)
+        object.__setattr__(
+            self,
+            "_outgoing",
+            MappingProxyType({k: tuple(sorted(v, key=lambda tr: tr.priority)) for k, v in outgoing.items()}),
+        )
+        object.__setattr__(self, "_mode_index", MappingProxyType({n: i for i, n in enumerate(mode_names)}))
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def mode_names(self) -> tuple[str, ...]:
+        """Mode names in declaration order (the index used by traces)."""
+        return tuple(m.name for m in self.modes)
+
+    def mode(self, name: str) -> Mode:
+        """The mode called ``name``."""
+        try:
+            return self.modes[self._mode_index[name]]
+        except KeyError:
+            raise ModelDefinitionError(
+                f"automaton {self.name!r}: no mode {name!r}; expected one of {list(self.mode_names)}"
+            ) from None
+
+    def mode_index(self, name: str) -> int:
+        """Index of mode ``name`` in :attr:`modes`."""
+        self.mode(name)
+        return self._mode_index[name]
+
+    def outgoing(self, mode: str) -> tuple[Transition, ...]:
+        """Transitions leaving ``mode``, sorted by priority (smallest first)."""
+        self.mode(mode)
+        return self._outgoing[mode]
+
+    def initial_memory(self) -> dict[str, float]:
+        """A fresh dict of the memory variables' initial values."""
+        return {m.name: float(m.initial) for m in self.memory}
+
+    def check_signals(self, v: Sequence[float]) -> None:
+        """Raise :class:`ExecutionError` unless ``v`` has one finite-or-inf real per variable."""
+        if len(v) != len(self.variables):
+            raise ExecutionError(
+                f"automaton {self.name!r}: got {len(v)} signal values, expected {len(self.variables)} "
+                f"({', '.join(self.variables)})"
+            )
+        for name, value in zip(self.variables, v):
+            if isinstance(value, float) and math.isnan(value):
+                raise ExecutionError(f"automaton {self.name!r}: signal {name!r} is NaN")
+
+    def enabled(
+        self,
+        mode: str,
+        v: Sequence[float],
+        memory: Mapping[str, float],
+        previous: Sequence[float] | None = None,
+    ) -> tuple[Transition, ...]:
+        """Transitions of ``mode`` enabled at signals ``v`` (priority order).
+
+        Parameters
+        ----------
+        previous : sequence of float or None
+            Signals at the previous evaluation, needed by crossing-triggered
+            transitions (``direction != 0``); without them such transitions are
+            never enabled.
+        """
+        result = []
+        for t in self.outgoing(mode):
+            if transition_fires(t, v, memory, previous):
+                result.append(t)
+        return tuple(result)
+
+
+def transition_fires(
+    t: Transition, v: Sequence[float], memory: Mapping[str, float], previous: Sequence[float] | None
+) -> bool:
+    """Whether ``t`` is enabled at ``v`` given the previous signals (crossing semantics)."""
+    g = t.guard(v, memory)
+    if t.direction == 0:
+        return g >= 0.0
+    if previous is None:
+        return False
+    g_prev = t.guard(previous, memory)
+    if t.direction > 0:
+        return g_prev < 0.0 <= g
+    return g_prev > 0.0 >= g

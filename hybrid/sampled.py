@@ -1,0 +1,421 @@
+"""Sampled-data execution of a hybrid automaton wrapped around a plant.
+
+Every sampling period ``T`` the executor
+
+1. lets the controller *measure* the plant (it may update its own discrete
+   state, e.g. an estimator, from the input held over the period just ended);
+2. evaluates the automaton on the measured signals and fires enabled
+   transitions one at a time, in priority order, each a jump of the hybrid
+   time domain ``(t, j)``, until none is enabled (a limit on jumps per sample
+   turns Zeno behaviour into a :class:`~hybrid.errors.ZenoError`);
+3. asks the controller for the input ``u`` of the new mode and holds it
+   (zero-order hold) while the plant is integrated over ``[t, t + T]`` by its
+   exact flow map when it has one, otherwise by ``scipy.integrate.solve_ivp``
+   (DOP853, ``rtol = 1e-10``, ``atol = 1e-12``).
+
+A :class:`~hybrid.errors.NumericalFailure` raised by user code, or a NaN in a
+state, a signal or an input, stops the run with a
+:class:`~hybrid.errors.DivergenceError` naming the time, the mode and the cause.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from .errors import DivergenceError, ExecutionError, NumericalFailure, ZenoError
+from .model import HybridAutomaton, transition_fires
+
+__all__ = [
+    "Plant",
+    "SampledController",
+    "SampledEvent",
+    "SampledTrace",
+    "simulate_sampled",
+    "FLOW_RTOL",
+    "FLOW_ATOL",
+]
+
+FLOW_RTOL = 1e-10
+"""Relative tolerance of the fallback plant integration."""
+FLOW_ATOL = 1e-12
+"""Absolute tolerance of the fallback plant integration."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Plant:
+    """A continuous plant ``ẋ = f(x, u)`` under zero-order hold.
+
+    Attributes
+    ----------
+    state_names : tuple of str
+        Names of the state components (dimension ``n``).
+    input_names : tuple of str
+        Names of the input components (dimension ``p``).
+    derivative : callable
+        ``f(x, u) -> ẋ`` (sequences of floats).
+    exact_flow : callable or None
+        ``phi(x, u, dt) -> x(t + dt)`` when the flow under a constant input is
+        known in closed form; preferred over numerical integration.
+    """
+
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    derivative: Callable[[Sequence[float], Sequence[float]], Sequence[float]]
+    exact_flow: Callable[[Sequence[float], Sequence[float], float], Sequence[float]] | None = None
+
+    def flow(self, x: Sequence[float], u: Sequence[float], dt: float) -> tuple[float, ...]:
+        """State after ``dt`` under the constant input ``u``."""
+        if self.exact_flow is not None:
+            return tuple(self.exact_flow(x, u, dt))
+        sol = solve_ivp(
+            lambda _t, y: np.asarray(self.derivative(y, u), dtype=float),
+            (0.0, dt),
+            np.asarray(x, dtype=float),
+            method="DOP853",
+            rtol=FLOW_RTOL,
+            atol=FLOW_ATOL,
+        )
+        if not sol.success:
+            raise NumericalFailure(f"plant integration failed: {sol.message}")
+        return tuple(float(c) for c in sol.y[:, -1])
+
+
+class SampledController(Protocol):
+    """What :func:`simulate_sampled` needs from the controller side.
+
+    ``c`` is the controller's own discrete state (opaque to the executor).
+    """
+
+    record_names: tuple[str, ...]
+
+    def initial_state(self, t: float, x: Sequence[float]) -> Any:
+        """Controller state at the start of the run."""
+
+    def measure(self, t: float, x: Sequence[float], c: Any) -> tuple[Sequence[float], Any]:
+        """Signals ``v`` for the automaton at a sample, and the updated controller state."""
+
+    def control(
+        self, t: float, x: Sequence[float], c: Any, v: Sequence[float], mode: str, memory: Mapping[str, float]
+    ) -> tuple[Sequence[float], Any, Sequence[float]]:
+        """Input held over the next period, the updated state, and a row of recorded values."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SampledEvent:
+    """One discrete jump.
+
+    Attributes
+    ----------
+    time : float
+        Sample time of the jump [s].
+    jump : int
+        Jump counter ``j`` after the jump (hybrid time ``(time, jump)``).
+    sample : int
+        Sample index ``k``.
+    transition, source, target : str
+        What fired.
+    outranked : tuple of str
+        Other transitions enabled at the same instant that a smaller priority
+        number beat (reported, not silent).
+    memory : tuple of (str, float)
+        Memory after the reset.
+    """
+
+    time: float
+    jump: int
+    sample: int
+    transition: str
+    source: str
+    target: str
+    outranked: tuple[str, ...] = ()
+    memory: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SampledTrace:
+    """Result of :func:`simulate_sampled` on the hybrid time domain.
+
+    Arrays are read-only; row ``k`` holds the sample at ``times[k]`` *after*
+    the jumps of that instant, with the input chosen there.
+
+    Attributes
+    ----------
+    times : ndarray, shape (N,)
+    jumps : ndarray of int, shape (N,)
+        Jump counter ``j`` after each sample's jumps.
+    modes : ndarray of int, shape (N,)
+        Index into ``mode_names``.
+    states : ndarray, shape (N, n)
+    signals : ndarray, shape (N, len(variables))
+    inputs : ndarray, shape (N, p)
+    records : ndarray, shape (N, len(record_names))
+    events : tuple of SampledEvent
+    termination : str
+        ``"end_time"`` or the reason returned by the stop condition.
+    """
+
+    automaton: str
+    mode_names: tuple[str, ...]
+    state_names: tuple[str, ...]
+    variable_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    record_names: tuple[str, ...]
+    period: float
+    times: np.ndarray
+    jumps: np.ndarray
+    modes: np.ndarray
+    states: np.ndarray
+    signals: np.ndarray
+    inputs: np.ndarray
+    records: np.ndarray
+    events: tuple[SampledEvent, ...]
+    termination: str
+    final_state: tuple[float, ...]
+    final_mode: str
+    final_memory: Mapping[str, float] = field(default_factory=dict)
+
+    def record(self, name: str) -> np.ndarray:
+        """Column of the recorded values called ``name``."""
+        return self.records[:, self._index(self.record_names, name, "record")]
+
+    def signal(self, name: str) -> np.ndarray:
+        """Column of the signal called ``name``."""
+        return self.signals[:, self._index(self.variable_names, name, "signal")]
+
+    def state(self, name: str) -> np.ndarray:
+        """Column of the state called ``name``."""
+        return self.states[:, self._index(self.state_names, name, "state")]
+
+    def input(self, name: str) -> np.ndarray:
+        """Column of the input called ``name``."""
+        return self.inputs[:, self._index(self.input_names, name, "input")]
+
+    @staticmethod
+    def _index(names: tuple[str, ...], name: str, kind: str) -> int:
+        try:
+            return names.index(name)
+        except ValueError:
+            raise KeyError(f"no {kind} called {name!r}; available: {list(names)}") from None
+
+    @property
+    def visited_modes(self) -> tuple[str, ...]:
+        """Modes in order of first visit."""
+        seen: dict[str, None] = {}
+        for i in self.modes:
+            seen.setdefault(self.mode_names[int(i)], None)
+        return tuple(seen)
+
+
+def _readonly(rows: list[Sequence[float]], width: int, dtype: type = float) -> np.ndarray:
+    array = np.asarray(rows, dtype=dtype).reshape(len(rows), width)
+    array.setflags(write=False)
+    return array
+
+
+def _first_nan(values: Sequence[float], names: Sequence[str]) -> str | None:
+    for name, value in zip(names, values):
+        if value != value:  # NaN test without a function call
+            return name
+    return None
+
+
+def simulate_sampled(
+    automaton: HybridAutomaton,
+    plant: Plant,
+    controller: SampledController,
+    x0: Sequence[float],
+    *,
+    period: float,
+    duration: float,
+    t0: float = 0.0,
+    initial_mode: str | None = None,
+    initial_memory: Mapping[str, float] | None = None,
+    stop: Callable[[float, Sequence[float], Any, Sequence[float], str, Mapping[str, float]], str | None]
+    | None = None,
+    max_jumps_per_sample: int = 8,
+) -> SampledTrace:
+    """Run the sampled-data closed loop for ``duration`` seconds.
+
+    Parameters
+    ----------
+    automaton : HybridAutomaton
+        The supervisor; its signals are what ``controller.measure`` returns.
+    plant : Plant
+        Continuous plant integrated exactly between samples.
+    controller : SampledController
+        Measurement, control law and recorded values.
+    x0 : sequence of float, shape (n,)
+        Initial plant state.
+    period : float
+        Sampling period ``T > 0`` [s].
+    duration : float
+        Simulated time ``> 0`` [s]; the last sample is at ``t0 + K T <= t0 + duration``.
+    stop : callable or None
+        ``stop(t, x, c, v, mode, memory)`` returning a termination reason to
+        end the run after the current sample, or ``None`` to go on.
+    max_jumps_per_sample : int
+        Jumps allowed at one instant before a :class:`ZenoError`.
+
+    Returns
+    -------
+    SampledTrace
+
+    Raises
+    ------
+    ExecutionError
+        On invalid arguments or wrong signal dimensions.
+    ZenoError
+        When more than ``max_jumps_per_sample`` jumps happen at one instant.
+    DivergenceError
+        When user code raises :class:`NumericalFailure` or a value becomes NaN.
+    """
+    if not (isinstance(period, (int, float)) and period > 0 and math.isfinite(period)):
+        raise ExecutionError(f"simulate_sampled: period = {period!r}; expected a positive finite time step [s]")
+    if not (isinstance(duration, (int, float)) and duration > 0 and math.isfinite(duration)):
+        raise ExecutionError(f"simulate_sampled: duration = {duration!r}; expected a positive finite time [s]")
+    if len(x0) != len(plant.state_names):
+        raise ExecutionError(
+            f"simulate_sampled: x0 has {len(x0)} components, plant state has {len(plant.state_names)} "
+            f"({', '.join(plant.state_names)})"
+        )
+    if max_jumps_per_sample < 1:
+        raise ExecutionError(f"simulate_sampled: max_jumps_per_sample = {max_jumps_per_sample}; expected >= 1")
+    mode = initial_mode or automaton.initial_mode
+    automaton.mode(mode)
+    memory = automaton.initial_memory()
+    if initial_memory:
+        unknown = set(initial_memory) - set(memory)
+        if unknown:
+            raise ExecutionError(f"simulate_sampled: initial_memory names unknown variable(s) {sorted(unknown)}")
+        memory.update({k: float(val) for k, val in initial_memory.items()})
+
+    n_samples = int(math.floor(duration / period + 1e-9)) + 1
+    x = tuple(float(c) for c in x0)
+    mode_index = {name: i for i, name in enumerate(automaton.mode_names)}
+    outgoing = {name: automaton.outgoing(name) for name in automaton.mode_names}
+    n_vars = len(automaton.variables)
+    times: list[float] = []
+    jumps: list[int] = []
+    modes: list[int] = []
+    states: list[tuple[float, ...]] = []
+    signals: list[Sequence[float]] = []
+    inputs: list[Sequence[float]] = []
+    records: list[Sequence[float]] = []
+    events: list[SampledEvent] = []
+    j = 0
+    previous: Sequence[float] | None = None
+    termination = "end_time"
+    t = t0
+    try:
+        c = controller.initial_state(t0, x)
+    except NumericalFailure as err:
+        raise DivergenceError(t0, mode, err.cause) from err
+
+    for k in range(n_samples):
+        t = t0 + k * period
+        bad = _first_nan(x, plant.state_names)
+        if bad is not None:
+            raise DivergenceError(t, mode, f"plant state {bad!r} is NaN")
+        try:
+            v, c = controller.measure(t, x, c)
+            if len(v) != n_vars:
+                automaton.check_signals(v)
+            bad = _first_nan(v, automaton.variables)
+            if bad is not None:
+                raise NumericalFailure(f"signal {bad!r} is NaN")
+            # --- discrete jumps at this instant -------------------------------------
+            fired: list[str] = []
+            while True:
+                candidates = [tr for tr in outgoing[mode] if transition_fires(tr, v, memory, previous)]
+                if not candidates:
+                    break
+                winner = candidates[0]
+                ties = [tr.name for tr in candidates[1:] if tr.priority == winner.priority]
+                if ties:
+                    raise ExecutionError(
+                        f"non-determinism at t = {t:.6g} s in mode {mode!r}: transitions "
+                        f"{[winner.name, *ties]} are enabled together with the same priority "
+                        f"{winner.priority}; give them distinct priorities or exclusive guards"
+                    )
+                if len(fired) >= max_jumps_per_sample:
+                    raise ZenoError(
+                        f"Zeno behaviour at t = {t:.6g} s: {len(fired)} jumps at one instant "
+                        f"({' -> '.join(fired)}), limit max_jumps_per_sample = {max_jumps_per_sample}; "
+                        "make the guards of the target modes exclusive of the resets' results"
+                    )
+                if winner.reset is not None:
+                    update = winner.reset(v, memory)
+                    if set(update) != set(winner.writes):
+                        raise ExecutionError(
+                            f"transition {winner.name!r}: reset returned {sorted(update)}, "
+                            f"declared writes {sorted(winner.writes)}"
+                        )
+                    memory = {**memory, **update}
+                j += 1
+                fired.append(winner.name)
+                events.append(
+                    SampledEvent(
+                        time=t,
+                        jump=j,
+                        sample=k,
+                        transition=winner.name,
+                        source=mode,
+                        target=winner.target,
+                        outranked=tuple(tr.name for tr in candidates[1:]),
+                        memory=tuple(sorted(memory.items())),
+                    )
+                )
+                mode = winner.target
+            # --- control --------------------------------------------------------------
+            u, c, row = controller.control(t, x, c, v, mode, memory)
+            bad = _first_nan(u, plant.input_names)
+            if bad is not None:
+                raise NumericalFailure(f"input {bad!r} is NaN")
+        except NumericalFailure as err:
+            raise DivergenceError(t, mode, err.cause) from err
+        times.append(t)
+        jumps.append(j)
+        modes.append(mode_index[mode])
+        states.append(x)
+        signals.append(v)
+        inputs.append(u)
+        records.append(row)
+        previous = v
+        if stop is not None:
+            reason = stop(t, x, c, v, mode, memory)
+            if reason:
+                termination = reason
+                break
+        if k + 1 < n_samples:
+            try:
+                x = plant.flow(x, u, period)
+            except NumericalFailure as err:
+                raise DivergenceError(t, mode, err.cause) from err
+
+    return SampledTrace(
+        automaton=automaton.name,
+        mode_names=automaton.mode_names,
+        state_names=tuple(plant.state_names),
+        variable_names=automaton.variables,
+        input_names=tuple(plant.input_names),
+        record_names=tuple(controller.record_names),
+        period=float(period),
+        times=_readonly(times, 1).reshape(-1),
+        jumps=_readonly(jumps, 1, int).reshape(-1),
+        modes=_readonly(modes, 1, int).reshape(-1),
+        states=_readonly(states, len(plant.state_names)),
+        signals=_readonly(signals, n_vars),
+        inputs=_readonly(inputs, len(plant.input_names)),
+        records=_readonly(records, len(controller.record_names)),
+        events=tuple(events),
+        termination=termination,
+        final_state=x,
+        final_mode=mode,
+        final_memory=dict(memory),
+    )

@@ -1,0 +1,164 @@
+"""The ``visnav`` command line.
+
+Subcommands print a human summary, or with ``--json`` one JSON object on
+standard output.  Exit codes: 0 success, 1 the run finished but the task
+failed (collision, timeout), 2 bad input (scenario, options, output folder),
+3 the simulation diverged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["main", "build_parser"]
+
+EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 1, 2, 3
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse exits with 2 too; keep its usage line
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_BAD_INPUT, f"visnav: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``visnav``."""
+    parser = _Parser(prog="visnav", description="Verify the Folio & Cadenat switching controller as a hybrid automaton.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sim = sub.add_parser("simulate", help="run a scenario's closed loop, write its data and figures")
+    sim.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file (default: paper)")
+    sim.add_argument("--out", default=None, help="folder for trajectory.csv, summary.json and the figures")
+    sim.add_argument("--json", action="store_true", help="print one JSON object instead of the human summary")
+    sim.add_argument("--no-figures", action="store_true", help="skip the figures (data and summary only)")
+    sim.set_defaults(func=_cmd_simulate)
+    graph = sub.add_parser("mode-graph", help="print the supervisor's mode graph as Graphviz DOT")
+    graph.add_argument("--scenario", default="paper")
+    graph.set_defaults(func=_cmd_mode_graph)
+    return parser
+
+
+def _summary(result: Any, digest: str) -> dict[str, Any]:
+    out = {"scenario": result.scenario.name, "scenario_digest": digest}
+    out.update(result.metrics.as_dict())
+    out["wall_time_s"] = result.wall_time_s
+    out["real_time_factor"] = result.metrics.sim_time_s / result.wall_time_s if result.wall_time_s > 0 else None
+    return out
+
+
+def _trajectory_csv(result: Any) -> str:
+    trace = result.trace
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    header = ["t_s", "jump", "mode", *trace.state_names, *trace.input_names, *trace.variable_names, *trace.record_names]
+    writer.writerow(header)
+    for k in range(len(trace.times)):
+        row: list[Any] = [repr(float(trace.times[k])), int(trace.jumps[k]), trace.mode_names[int(trace.modes[k])]]
+        for block in (trace.states[k], trace.inputs[k], trace.signals[k], trace.records[k]):
+            row.extend(repr(float(v)) for v in block)
+        writer.writerow(row)
+    return buffer.getvalue()
+
+
+def _human(summary: dict[str, Any], written: list[str]) -> str:
+    def fmt(value: Any) -> str:
+        if isinstance(value, float):
+            return f"{value:.6g}"
+        if value is None:
+            return "inf"
+        return str(value)
+
+    lines = [
+        f"scenario {summary['scenario']} ({summary['scenario_digest'][:12]}): {summary['termination']}",
+        f"  success                     {fmt(summary['success'])}",
+        f"  collided                    {fmt(summary['collided'])}",
+        f"  min clearance               {fmt(summary['min_clearance_m'])} m",
+        f"  final feature error         {fmt(summary['final_feature_error_px'])} px",
+        f"  occlusion (>=1 hidden)      {fmt(summary['occlusion_duration_s'])} s"
+        f"  (all hidden {fmt(summary['all_hidden_duration_s'])} s)",
+        f"  max |s - s~| while hidden   {fmt(summary['max_reconstruction_error_px'])} px",
+        f"  max |z - z~| while hidden   {fmt(summary['max_depth_error_mm'])} mm",
+        f"  max |v|, |w|, |pan rate|    {', '.join(fmt(v) for v in summary['max_abs_input'])}"
+        f"  (within limits: {summary['within_actuator_limits']})",
+        f"  transitions                 {len(summary['transitions'])}  (chatter: {summary['chatter_count']})",
+        f"  modes visited               {' -> '.join(summary['modes_visited'])}",
+        f"  simulated {fmt(summary['sim_time_s'])} s in {summary['steps']} steps, "
+        f"wall {fmt(summary['wall_time_s'])} s ({fmt(summary['real_time_factor'])}x real time)",
+    ]
+    lines += [f"  wrote {path}" for path in written]
+    return "\n".join(lines)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .io import figure_png_bytes, prepare_output_dir, write_text_atomic, write_bytes_atomic
+    from .scenario import load_scenario, scenario_digest
+    from .simulation import simulate
+
+    scenario = load_scenario(args.scenario)
+    folder = prepare_output_dir(args.out) if args.out else None
+    result = simulate(scenario)
+    summary = _summary(result, scenario_digest(scenario))
+    written: list[str] = []
+    if folder is not None:
+        write_text_atomic(folder / "trajectory.csv", _trajectory_csv(result))
+        write_text_atomic(folder / "summary.json", json.dumps(summary, indent=2, sort_keys=True) + "\n")
+        written += [str(folder / "trajectory.csv"), str(folder / "summary.json")]
+        if not args.no_figures:
+            import matplotlib.pyplot as plt
+
+            from .figures import paper_figures
+
+            for stem, figure in paper_figures(result).items():
+                write_bytes_atomic(folder / f"{stem}.png", figure_png_bytes(figure))
+                plt.close(figure)
+                written.append(str(folder / f"{stem}.png"))
+    if args.json:
+        print(json.dumps(summary, sort_keys=True))
+    else:
+        print(_human(summary, written))
+    return EXIT_OK if summary["success"] else EXIT_TASK_FAILED
+
+
+def _cmd_mode_graph(args: argparse.Namespace) -> int:
+    from hybrid import to_dot
+
+    from .scenario import load_scenario
+    from .supervisor import build_supervisor
+
+    scenario = load_scenario(args.scenario)
+    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+    print(to_dot(model.automaton), end="")
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``visnav`` console script; returns the exit code."""
+    from hybrid import DivergenceError
+
+    from .io import OutputError
+    from .scenario import ScenarioError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (ScenarioError, OutputError) as err:
+        print(f"visnav: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except DivergenceError as err:
+        if getattr(args, "json", False):
+            print(json.dumps({"success": False, "diverged": True, "time_s": err.time, "mode": err.mode,
+                              "cause": err.cause}, sort_keys=True))
+        print(f"visnav: {err}", file=sys.stderr)
+        return EXIT_DIVERGED
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
+

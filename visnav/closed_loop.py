@@ -1,0 +1,277 @@
+"""The paper's closed loop as a sampled-data system around the supervisor automaton.
+
+:class:`ClosedLoop` implements :class:`hybrid.sampled.SampledController`:
+at every sample it measures (camera image and proximity sensors, from the
+exact geometry), advances the feature/depth estimator over the period that
+just ended, and, once the supervisor has jumped, computes the global control
+(19) from the risk parameters of the new mode.  The plant is the cart with its
+pan-platform, integrated exactly under zero-order hold.
+
+Per-sample cost matters (the paper scenario must run 1000× faster than real
+time): everything here works on Python floats and tuples.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+from hybrid import NumericalFailure, Plant
+
+from .controllers import (
+    avoidance_control,
+    blend,
+    occlusion_avoidance,
+    pan_tracking,
+    path_following,
+    visual_servoing,
+)
+from .estimator import FeatureEstimator
+from .geometry import (
+    ImageMeasurement,
+    camera_pose,
+    choose_bypass_side,
+    image_measurement,
+    project_points,
+    propagate_pose,
+    proximity,
+    wrap_angle,
+)
+from .parameters import Scenario
+from .supervisor import I_FIRST_OBSTACLE, SupervisorModel, build_supervisor, split_mode
+
+__all__ = ["ClosedLoop", "LoopState", "robot_plant", "desired_features", "RECORD_NAMES"]
+
+Point = tuple[float, float, float]
+
+
+def robot_plant() -> Plant:
+    """The cart with pan-platform: state ``(x, y, theta, pan)``, input ``(v, omega, pan_rate)``."""
+
+    def derivative(x: Sequence[float], u: Sequence[float]) -> tuple[float, float, float, float]:
+        return (u[0] * math.cos(x[2]), u[0] * math.sin(x[2]), u[1], u[2])
+
+    def exact(x: Sequence[float], u: Sequence[float], dt: float) -> tuple[float, float, float, float]:
+        return propagate_pose((x[0], x[1], x[2], x[3]), u[0], u[1], u[2], dt)
+
+    return Plant(
+        state_names=("x_m", "y_m", "theta_rad", "pan_rad"),
+        input_names=("v_mps", "omega_radps", "pan_rate_radps"),
+        derivative=derivative,
+        exact_flow=exact,
+    )
+
+
+def desired_features(scenario: Scenario) -> tuple[Point, ...]:
+    """Features ``(X*, Y*, z*)`` of the target seen from the goal pose."""
+    goal = scenario.goal
+    cam = camera_pose(goal.x_m, goal.y_m, goal.theta_rad, goal.pan_rad, scenario.robot)
+    return project_points(*cam, scenario.robot.camera_height_m, scenario.target.points_m)
+
+
+def _record_names(n_points: int, n_obstacles: int) -> tuple[str, ...]:
+    names = ["mu_coll", "mu_occ"]
+    names += [f"{c}{i}" for i in range(n_points) for c in ("X", "Y")]
+    names += [f"{c}{i}_est" for i in range(n_points) for c in ("X", "Y")]
+    names += [f"z{i}" for i in range(n_points)]
+    names += [f"z{i}_est" for i in range(n_points)]
+    names += ["n_hidden", "n_occluded", "reconstructing", "clearance_m", "feature_error_px"]
+    names += ["occluder_y_minus", "occluder_y_plus"]
+    return tuple(names)
+
+
+RECORD_NAMES = _record_names
+"""Function giving the recorded column names for ``(n_points, n_obstacles)``."""
+
+
+@dataclass(kw_only=True, slots=True)
+class LoopState:
+    """Controller-side state carried from sample to sample (owned by one run)."""
+
+    estimator: FeatureEstimator
+    reconstructing: bool = False
+    last_input: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    last_pan: float = 0.0
+    true_features: tuple[Point, ...] = ()
+    estimated: tuple[Point, ...] = ()
+    image: ImageMeasurement | None = None
+    clearance: float = math.inf
+    feature_error_px: float = math.inf
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ClosedLoop:
+    """Measurement, supervision and control of the paper's robot.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    supervisor : SupervisorModel
+    desired : tuple of (X*, Y*, z*)
+        Image of the target at the goal pose.
+    """
+
+    scenario: Scenario
+    supervisor: SupervisorModel = field(init=False)
+    desired: tuple[Point, ...] = field(init=False)
+    record_names: tuple[str, ...] = field(init=False)
+    _desired_xy: tuple[tuple[float, float], ...] = field(init=False, repr=False)
+    _y_gc_desired: float = field(init=False, repr=False)
+    _occluding: tuple[bool, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        s = self.scenario
+        object.__setattr__(self, "supervisor", build_supervisor(s.envelopes, s.supervisor, len(s.obstacles)))
+        desired = desired_features(s)
+        object.__setattr__(self, "desired", desired)
+        object.__setattr__(self, "_desired_xy", tuple((p[0], p[1]) for p in desired))
+        object.__setattr__(self, "_y_gc_desired", sum(p[1] for p in desired) / len(desired))
+        object.__setattr__(
+            self, "_occluding", tuple(o.occludes(s.robot.camera_height_m) for o in s.obstacles)
+        )
+        object.__setattr__(self, "record_names", _record_names(len(s.target.points_m), len(s.obstacles)))
+
+    # ------------------------------------------------------------------ protocol
+    def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
+        """A fresh estimator, not reconstructing."""
+        s = self.scenario
+        return LoopState(
+            estimator=FeatureEstimator(s.estimator, s.robot, n_points=len(s.target.points_m)),
+            last_pan=float(x[3]),
+        )
+
+    def measure(self, t: float, x: Sequence[float], c: LoopState) -> tuple[tuple[float, ...], LoopState]:
+        """Image and proximity measurements at a sample; advances the estimator."""
+        s = self.scenario
+        px, py, theta, pan = x
+        cam = camera_pose(px, py, theta, pan, s.robot)
+        true = project_points(*cam, s.robot.camera_height_m, s.target.points_m)
+        if c.reconstructing:
+            estimated = c.estimator.advance(c.last_pan, c.last_input, s.sampling_period_s)
+        else:
+            c.estimator.observe(true)
+            estimated = true
+        image = image_measurement(
+            cam, s.robot.camera_height_m, true, s.target.points_m, s.obstacles, s.camera, self._occluding,
+        )
+        distances = []
+        nearest, d_nearest = -1, math.inf
+        for i, obstacle in enumerate(s.obstacles):
+            ox, oy = obstacle.center_m
+            d = math.hypot(px - ox, py - oy) - obstacle.radius_m
+            distances.append(d)
+            if d < d_nearest:
+                nearest, d_nearest = i, d
+        side = choose_bypass_side(px, py, theta, s.obstacles[nearest]) if nearest >= 0 else 0
+        c.true_features = true
+        c.estimated = estimated
+        c.image = image
+        c.clearance = d_nearest
+        f = s.camera.focal_px
+        c.feature_error_px = f * math.sqrt(
+            sum((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 for a, b in zip(true, self.desired))
+        )
+        v = (
+            d_nearest,
+            float(max(nearest, 0)),
+            float(side),
+            image.d_occ_px,
+            image.d_bord_px,
+            wrap_angle(pan),
+            *distances,
+        )
+        return v, c
+
+    def control(
+        self,
+        t: float,
+        x: Sequence[float],
+        c: LoopState,
+        v: Sequence[float],
+        mode: str,
+        memory: Mapping[str, float],
+    ) -> tuple[tuple[float, float, float], LoopState, tuple[float, ...]]:
+        """Global control (19) in ``mode``; starts/stops the reconstruction with µ_occ."""
+        s = self.scenario
+        g = s.gains
+        px, py, theta, pan = x
+        collision, occlusion = split_mode(mode)
+        mu_coll = self.supervisor.mu_coll(collision, v, memory)
+        mu_occ = self.supervisor.mu_occ(occlusion, v, memory)
+        # Open question 11: reconstruction runs exactly while mu_occ > 0; it starts
+        # from the measured history (the current sample is already in it).
+        if mu_occ > 0.0 and not c.reconstructing:
+            c.estimator.start()
+            c.reconstructing = True
+        elif mu_occ == 0.0 and c.reconstructing:
+            c.estimator.stop()
+            c.reconstructing = False
+            c.estimated = c.true_features
+        image = c.image
+        assert image is not None
+        features = _merge(c.true_features, c.estimated, image.visible)
+        w_vs = (1.0 - mu_occ) * (1.0 - mu_coll)
+        w_occ = (1.0 - mu_coll) * mu_occ
+        q_vs = visual_servoing(features, self._desired_xy, pan, s.robot, g.lambda_vs) if w_vs > 0.0 else None
+        q_occ = None
+        if w_occ > 0.0:
+            if image.occluder_index >= 0 and math.isfinite(image.d_occ_px):
+                q_occ = occlusion_avoidance(
+                    features, self._desired_xy, image, pan, s.robot, s.camera, s.envelopes, g.lambda_occ, g.beta_occ
+                )
+            else:  # no occluder in front any more: the occlusion task is void
+                q_occ = visual_servoing(features, self._desired_xy, pan, s.robot, g.lambda_vs)
+        q_coll = None
+        if mu_coll > 0.0:
+            obstacle = s.obstacles[int(memory["obstacle"])]
+            prox = proximity(px, py, theta, obstacle, int(memory["side"]))
+            v_coll, omega_coll = path_following(prox, s.envelopes.d_zero_m, g.v_coll_mps, g.k_path)
+            pan_real = (
+                pan_tracking(features, pan, v_coll, omega_coll, s.robot, g.lambda_gc, self._y_gc_desired)
+                if mu_occ < 1.0
+                else None
+            )
+            pan_rec = (
+                pan_tracking(c.estimated, pan, v_coll, omega_coll, s.robot, g.lambda_gc, self._y_gc_desired)
+                if mu_occ > 0.0
+                else None
+            )
+            q_coll = avoidance_control(v_coll, omega_coll, pan_real, pan_rec, mu_occ)
+        u = blend(mu_coll, mu_occ, q_vs, q_occ, q_coll)
+        c.last_input = u
+        c.last_pan = pan
+        n_hidden = sum(1 for vis in image.visible if not vis)
+        n_occluded = sum(1 for occ in image.occluded if occ)
+        row = [mu_coll, mu_occ]
+        for p in c.true_features:
+            row += (p[0], p[1])
+        for p in c.estimated:
+            row += (p[0], p[1])
+        row += [p[2] for p in c.true_features]
+        row += [p[2] for p in c.estimated]
+        row += [float(n_hidden), float(n_occluded), float(c.reconstructing), c.clearance, c.feature_error_px]
+        row += [image.y_o_minus, image.y_o_plus]
+        return u, c, tuple(row)
+
+    def stop(
+        self, t: float, x: Sequence[float], c: LoopState, v: Sequence[float], mode: str, memory: Mapping[str, float]
+    ) -> str | None:
+        """Termination: ``"collision"``, ``"success"`` or ``None`` to go on."""
+        if c.clearance <= 0.0:
+            return "collision"
+        if c.feature_error_px <= self.scenario.success_tolerance_px and mode == "FAR|CLEAR":
+            return "success"
+        return None
+
+
+def _merge(true: tuple[Point, ...], estimated: tuple[Point, ...], visible: tuple[bool, ...]) -> tuple[Point, ...]:
+    """Measured features where visible, reconstructed ones elsewhere."""
+    return tuple(t if vis else e for t, e, vis in zip(true, estimated, visible))
+
+
+def check_finite_features(features: tuple[Point, ...]) -> None:
+    """Raise :class:`NumericalFailure` on a non-positive or non-finite reconstructed depth."""
+    for i, (_, _, z) in enumerate(features):
+        if not z > 0.0:
+            raise NumericalFailure(f"reconstructed depth of point {i} is {z!r} m (must be > 0)")

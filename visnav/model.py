@@ -1,0 +1,190 @@
+"""The paper's kinematic and image equations, written once for every backend.
+
+Every function here uses only arithmetic operators and the ``sin``/``cos``
+functions of the ``ops`` namespace it is given.  With the default ``ops=math``
+the functions take and return Python floats (the fast path used by the
+closed-loop simulation, where a numpy call per scalar would cost more than the
+arithmetic); with ``ops=casadi`` and ``casadi.SX`` arguments they build the
+symbolic expressions from which ``analysis`` and the tests derive Jacobians by
+automatic differentiation.  This module is the single source of truth for
+equations (1), (5), the depth row and (13) of Folio & Cadenat.
+
+Conventions (see ``docs/model.md``)
+-----------------------------------
+* Robot reference point ``M = (x, y)`` [m], heading ``theta`` [rad], pan angle
+  ``pan`` (the paper's ϑ) [rad] relative to the base.
+* Inputs ``q̇ = (v, omega, pan_rate)`` [m/s, rad/s, rad/s].
+* Reduced camera screw ``T_rc = (V_y, V_z, Omega_x)`` in the camera frame:
+  ``z_C`` is the optical axis (forward), ``y_C`` points left, ``x_C`` points
+  down.  Image coordinates are normalised (``X = x/z`` vertical, ``Y = y/z``
+  horizontal, positive to the left).
+"""
+
+from __future__ import annotations
+
+import math
+from types import ModuleType
+from typing import Any
+
+__all__ = [
+    "reduced_jacobian",
+    "reduced_jacobian_inverse",
+    "camera_screw",
+    "joint_rates_from_screw",
+    "interaction_x_row",
+    "interaction_y_row",
+    "depth_row",
+    "feature_depth_rate",
+    "feature_depth_rate_jacobian",
+    "pan_column",
+]
+
+Scalar = Any  # float, or casadi.SX/MX when ops=casadi
+
+
+def reduced_jacobian(
+    pan: Scalar, pan_offset: float, cam_forward: float, cam_lateral: float, ops: ModuleType = math
+) -> tuple[tuple[Scalar, Scalar, Scalar], ...]:
+    """Reduced robot Jacobian ``J_r(ϑ)`` of equation (1), ``T_rc = J_r q̇``.
+
+    Parameters
+    ----------
+    pan : float
+        Pan angle ϑ [rad].
+    pan_offset : float
+        ``Dx``, distance from M to the pan centre P [m].
+    cam_forward, cam_lateral : float
+        Camera offset ``(a, b)`` in the pan frame [m].
+    ops : module
+        ``math`` (floats) or ``casadi`` (symbolic).
+
+    Returns
+    -------
+    tuple of 3 rows of 3 entries
+        Rows ``(V_y, V_z, Omega_x)``, columns ``(v, omega, pan_rate)``.
+        ``det J_r = +Dx`` for every ϑ.
+    """
+    s, c = ops.sin(pan), ops.cos(pan)
+    a, b = cam_forward, cam_lateral
+    return (
+        (-s, pan_offset * c + a, a),
+        (c, pan_offset * s - b, -b),
+        (0.0, -1.0, -1.0),
+    )
+
+
+def pan_column(cam_forward: float, cam_lateral: float) -> tuple[float, float, float]:
+    """Third column ``J_ϖ = (a, -b, -1)`` of ``J_r``: the screw per unit pan rate."""
+    return (cam_forward, -cam_lateral, -1.0)
+
+
+def camera_screw(
+    pan: Scalar,
+    v: Scalar,
+    omega: Scalar,
+    pan_rate: Scalar,
+    pan_offset: float,
+    cam_forward: float,
+    cam_lateral: float,
+    ops: ModuleType = math,
+) -> tuple[Scalar, Scalar, Scalar]:
+    """Reduced camera screw ``T_rc = J_r(ϑ) q̇`` [m/s, m/s, rad/s]."""
+    s, c = ops.sin(pan), ops.cos(pan)
+    a, b = cam_forward, cam_lateral
+    heading_rate = omega + pan_rate
+    return (
+        -s * v + pan_offset * c * omega + a * heading_rate,
+        c * v + pan_offset * s * omega - b * heading_rate,
+        -heading_rate,
+    )
+
+
+def joint_rates_from_screw(
+    pan: Scalar,
+    v_y: Scalar,
+    v_z: Scalar,
+    omega_x: Scalar,
+    pan_offset: float,
+    cam_forward: float,
+    cam_lateral: float,
+    ops: ModuleType = math,
+) -> tuple[Scalar, Scalar, Scalar]:
+    """Closed-form ``J_r(ϑ)^{-1} T_rc``: the joint rates ``(v, omega, pan_rate)``.
+
+    ``J_r`` is invertible for every ϑ because ``det J_r = Dx > 0``.
+    """
+    s, c = ops.sin(pan), ops.cos(pan)
+    lateral = v_y + cam_forward * omega_x
+    forward = v_z - cam_lateral * omega_x
+    v = -s * lateral + c * forward
+    omega = (c * lateral + s * forward) / pan_offset
+    return (v, omega, -omega_x - omega)
+
+
+def reduced_jacobian_inverse(
+    pan: Scalar, pan_offset: float, cam_forward: float, cam_lateral: float, ops: ModuleType = math
+) -> tuple[tuple[Scalar, Scalar, Scalar], ...]:
+    """``J_r(ϑ)^{-1}`` in closed form (rows ``v, omega, pan_rate``)."""
+    s, c = ops.sin(pan), ops.cos(pan)
+    a, b, dx = cam_forward, cam_lateral, pan_offset
+    # columns: d/dV_y, d/dV_z, d/dOmega_x of joint_rates_from_screw
+    v_row = (-s, c, -s * a - c * b)
+    w_row = (c / dx, s / dx, (c * a - s * b) / dx)
+    p_row = (-c / dx, -s / dx, -1.0 - (c * a - s * b) / dx)
+    return (v_row, w_row, p_row)
+
+
+def interaction_x_row(x_img: Scalar, y_img: Scalar, depth: Scalar) -> tuple[Scalar, Scalar, Scalar]:
+    """Row ``L_X = (0, X/z, X Y)`` of equation (5) (columns ``V_y, V_z, Omega_x``)."""
+    return (0.0, x_img / depth, x_img * y_img)
+
+
+def interaction_y_row(y_img: Scalar, depth: Scalar) -> tuple[Scalar, Scalar, Scalar]:
+    """Row ``L_Y = (-1/z, Y/z, 1 + Y²)`` of equation (5)."""
+    return (-1.0 / depth, y_img / depth, 1.0 + y_img * y_img)
+
+
+def depth_row(y_img: Scalar, depth: Scalar) -> tuple[Scalar, Scalar, Scalar]:
+    """Depth row ``L_z = (0, -1, -z Y)``: ``ż = L_z T_rc`` for a fixed world point."""
+    return (0.0, -1.0, -depth * y_img)
+
+
+def feature_depth_rate(
+    x_img: Scalar, y_img: Scalar, depth: Scalar, v_y: Scalar, v_z: Scalar, omega_x: Scalar
+) -> tuple[Scalar, Scalar, Scalar]:
+    """One point's block of equation (13): ``(Ẋ, Ẏ, ż) = (L_X; L_Y; L_z) T_rc``.
+
+    Parameters
+    ----------
+    x_img, y_img : float
+        Normalised image coordinates ``X, Y`` [-].
+    depth : float
+        Depth ``z`` along the optical axis [m], must be positive.
+    v_y, v_z, omega_x : float
+        Reduced camera screw [m/s, m/s, rad/s].
+    """
+    inv_z = 1.0 / depth
+    return (
+        x_img * (v_z * inv_z + y_img * omega_x),
+        -v_y * inv_z + y_img * v_z * inv_z + (1.0 + y_img * y_img) * omega_x,
+        -v_z - depth * y_img * omega_x,
+    )
+
+
+def feature_depth_rate_jacobian(
+    x_img: Scalar, y_img: Scalar, depth: Scalar, v_y: Scalar, v_z: Scalar, omega_x: Scalar
+) -> tuple[tuple[Scalar, Scalar, Scalar], ...]:
+    """``∂(Ẋ, Ẏ, ż)/∂(X, Y, z)`` of :func:`feature_depth_rate` (one 3×3 block).
+
+    The full Jacobian of (13) is block diagonal with one such block per point.
+    It is lower block-triangular inside the block: ``X`` feeds neither ``Ẏ``
+    nor ``ż``.  Checked against CasADi's automatic differentiation of
+    :func:`feature_depth_rate` in the tests.
+    """
+    inv_z = 1.0 / depth
+    inv_z2 = inv_z * inv_z
+    return (
+        (v_z * inv_z + y_img * omega_x, x_img * omega_x, -x_img * v_z * inv_z2),
+        (0.0, v_z * inv_z + 2.0 * y_img * omega_x, (v_y - y_img * v_z) * inv_z2),
+        (0.0, -depth * omega_x, -y_img * omega_x),
+    )

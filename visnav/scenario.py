@@ -1,0 +1,841 @@
+"""Scenario files: load, validate and write the TOML description of one run.
+
+A scenario file has one table per parameter record of :mod:`visnav.parameters`
+(keys are the dataclass field names), plus the start and goal poses, the target
+and a list of obstacles.  ``docs/scenarios.md`` describes the format, every key
+with its unit and default, and every validation rule.
+
+Validation happens here, before any dataclass is built, so that every problem is
+reported as a :class:`ScenarioError` naming the file, the dotted key, the value
+found, what was expected and how to fix it::
+
+    scenario 'my.toml': envelopes.d_zero_m = 0.7: expected d_minus_m < d_zero_m
+    < d_plus_m (0.3 < 0.7 < 0.6 is false); fix: choose d_zero_m between d_minus_m
+    and d_plus_m
+
+Obstacle indices in keys (``obstacles[1].radius_m``) count from 0, in file order.
+
+Examples
+--------
+>>> scenario = load_scenario("paper")
+>>> scenario.envelopes.d_plus_m
+0.6
+>>> scenario_from_toml(scenario_to_toml(scenario), "copy") == scenario
+True
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import importlib.resources
+import math
+import os
+import re
+import tomllib
+import typing
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from visnav.parameters import (
+    ActuatorLimits,
+    CameraModel,
+    Envelopes,
+    EstimatorSettings,
+    Gains,
+    Obstacle,
+    Pose,
+    RobotGeometry,
+    Scenario,
+    SupervisorSettings,
+    Target,
+)
+
+__all__ = [
+    "ScenarioError",
+    "SCREW_MODELS",
+    "ESTIMATOR_ORDERS",
+    "builtin_scenario_names",
+    "load_scenario",
+    "scenario_from_toml",
+    "scenario_from_mapping",
+    "scenario_to_toml",
+    "scenario_digest",
+    "target_square",
+    "camera_pose",
+    "point_in_camera",
+]
+
+#: Accepted values of ``estimator.screw_model``.
+SCREW_MODELS = ("end", "start", "mean", "histopolated")
+#: Zero-stable BDF orders accepted for ``estimator.order``.
+ESTIMATOR_ORDERS = range(1, 7)
+#: Minimum number of target points (``C = (LᵀL)⁻¹Lᵀ`` needs ``2N >= 3`` independent rows; the
+#: paper uses 4).
+MIN_TARGET_POINTS = 3
+
+_MISSING = object()
+
+# Tables holding one dataclass each, in canonical order.
+_SECTIONS: dict[str, type] = {
+    "robot": RobotGeometry,
+    "camera": CameraModel,
+    "envelopes": Envelopes,
+    "gains": Gains,
+    "limits": ActuatorLimits,
+    "estimator": EstimatorSettings,
+    "supervisor": SupervisorSettings,
+}
+_POSES = ("start", "goal")
+_TOP_SCALARS = ("name", "description", "sampling_period_s", "duration_s", "success_tolerance_px")
+_TOP_KEYS = (*_TOP_SCALARS, *_SECTIONS, *_POSES, "target", "obstacles")
+_REQUIRED_TOP = ("name", "target", "start", "goal")
+_OBSTACLE_KEYS = ("name", "center_m", "radius_m", "height_m")
+_TARGET_POINTS_KEYS = ("points_m",)
+_TARGET_SQUARE_KEYS = ("center_m", "normal_rad", "side_m", "n_points")
+_TARGET_KEYS = (*_TARGET_POINTS_KEYS, *_TARGET_SQUARE_KEYS)
+
+
+class ScenarioError(ValueError):
+    """A scenario file or mapping that cannot describe a run.
+
+    Attributes
+    ----------
+    source : str
+        The file, built-in name or label the scenario came from.
+    key : str or None
+        Dotted path of the offending entry (``"envelopes.d_zero_m"``,
+        ``"obstacles[1].radius_m"``); ``None`` for problems with the file itself.
+    value : object
+        The value found (``None`` when the key is missing or for file problems).
+    expected : str
+        What a valid entry looks like.
+    fix : str
+        How to correct it.
+    line, column : int or None
+        Position of a TOML syntax error (1-based), else ``None``.
+    """
+
+    def __init__(
+        self,
+        source: str,
+        key: str | None,
+        value: object,
+        expected: str,
+        fix: str,
+        *,
+        line: int | None = None,
+        column: int | None = None,
+    ) -> None:
+        self.source = source
+        self.key = key
+        self.value = value
+        self.expected = expected
+        self.fix = fix
+        self.line = line
+        self.column = column
+        if key is None:
+            where = ""
+        elif value is _MISSING:
+            where = f"{key} is missing: "
+        else:
+            where = f"{key} = {_show(value)}: "
+        super().__init__(f"scenario {source!r}: {where}expected {expected}; fix: {fix}")
+        if value is _MISSING:
+            self.value = None
+
+    def __reduce__(self):  # keep the exception picklable (multiprocessing campaigns)
+        return (
+            _rebuild_error,
+            (self.source, self.key, self.value, self.expected, self.fix, self.line, self.column),
+        )
+
+
+def _rebuild_error(source, key, value, expected, fix, line, column) -> ScenarioError:
+    return ScenarioError(source, key, value, expected, fix, line=line, column=column)
+
+
+def _show(value: object) -> str:
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_show(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k} = {_show(v)}" for k, v in value.items()) + "}"
+    return repr(value)
+
+
+def _num(x: float) -> str:
+    """Short human form of a number for messages."""
+    return f"{x:.4g}"
+
+
+def _mm_up(x: float) -> str:
+    """A distance rounded *up* to the millimetre, so that a suggested move is sufficient."""
+    return f"{math.ceil(x * 1000.0 - 1e-9) / 1000.0:g}"
+
+
+# ---------------------------------------------------------------------------------------------
+# Geometry shared by the validator (and usable by tests and plots)
+# ---------------------------------------------------------------------------------------------
+
+
+def target_square(
+    center: Sequence[float], normal_rad: float, side_m: float
+) -> tuple[tuple[float, float, float], ...]:
+    """Corners of a vertical square target, each ``(x, y, height)`` [m].
+
+    Parameters
+    ----------
+    center : (x, y, height)
+        Centre of the square [m].
+    normal_rad : float
+        Direction the target faces, i.e. towards the robot that looks at it [rad]:
+        ``pi`` is a target on the robot's +x axis, seen by a robot heading along +x.
+    side_m : float
+        Side length [m].
+
+    Returns
+    -------
+    tuple of 4 points
+        Ordered as seen by a camera facing the target: top-left, top-right,
+        bottom-right, bottom-left.  "Left" is the viewer's left,
+        ``(sin normal, -cos normal)``; in the camera frame point 1 has
+        ``Y > 0`` (left) and ``X < 0`` (up).
+
+    Examples
+    --------
+    >>> target_square((9.0, 0.0, 0.5), math.pi, 0.3)
+    ((9.0, 0.15, 0.65), (9.0, -0.15, 0.65), (9.0, -0.15, 0.35), (9.0, 0.15, 0.35))
+    """
+    cx, cy, ch = (float(c) for c in center)
+    half = 0.5 * float(side_m)
+    lx, ly = math.sin(normal_rad), -math.cos(normal_rad)  # viewer's left
+    corners = ((+1, +1), (-1, +1), (-1, -1), (+1, -1))  # (left sign, up sign)
+    return tuple(
+        (cx + sl * half * lx, cy + sl * half * ly, ch + su * half) for sl, su in corners
+    )
+
+
+def camera_pose(pose: Pose, robot: RobotGeometry) -> tuple[float, float, float]:
+    """Optical centre ``(x, y)`` [m] and heading ``phi`` [rad] of the camera for ``pose``.
+
+    ``P = M + Dx (cos θ, sin θ)``, ``φ = θ + ϑ``,
+    ``C = P + a (cos φ, sin φ) + b (−sin φ, cos φ)``.
+    """
+    th = pose.theta_rad
+    px = pose.x_m + robot.pan_offset_m * math.cos(th)
+    py = pose.y_m + robot.pan_offset_m * math.sin(th)
+    phi = th + pose.pan_rad
+    c, s = math.cos(phi), math.sin(phi)
+    a, b = robot.camera_forward_m, robot.camera_lateral_m
+    return (px + a * c - b * s, py + a * s + b * c, phi)
+
+
+def point_in_camera(
+    point: Sequence[float], pose: Pose, robot: RobotGeometry
+) -> tuple[float, float, float]:
+    """Camera-frame coordinates ``(x_c, y_c, z)`` [m] of a world point ``(x, y, height)``.
+
+    ``z`` is the depth along the optical axis, ``y_c`` points left and
+    ``x_c = camera_height − height`` points down.
+    """
+    cx, cy, phi = camera_pose(pose, robot)
+    dx, dy = point[0] - cx, point[1] - cy
+    c, s = math.cos(phi), math.sin(phi)
+    return (robot.camera_height_m - point[2], -s * dx + c * dy, c * dx + s * dy)
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading
+# ---------------------------------------------------------------------------------------------
+
+
+def _builtin_dir():
+    return importlib.resources.files("visnav").joinpath("scenarios")
+
+
+def builtin_scenario_names() -> tuple[str, ...]:
+    """Names of the scenario files shipped in ``visnav/scenarios/`` (sorted, without ``.toml``)."""
+    return tuple(
+        sorted(
+            entry.name[: -len(".toml")]
+            for entry in _builtin_dir().iterdir()
+            if entry.name.endswith(".toml") and entry.is_file()
+        )
+    )
+
+
+def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
+    """Load and validate a built-in scenario by name, or a ``.toml`` file by path.
+
+    A string without a path separator and without the ``.toml`` suffix is looked
+    up among :func:`builtin_scenario_names` first; anything else is a path.
+
+    Raises
+    ------
+    ScenarioError
+        Unknown name or missing file (the message lists the built-in names),
+        TOML syntax error (with line and column), or any validation failure.
+    """
+    text_name = os.fspath(name_or_path)
+    names = builtin_scenario_names()
+    available = ", ".join(names) if names else "(none)"
+    looks_like_path = (
+        isinstance(name_or_path, os.PathLike)
+        or text_name.endswith(".toml")
+        or "/" in text_name
+        or os.sep in text_name
+    )
+    if not looks_like_path and text_name in names:
+        text = _builtin_dir().joinpath(f"{text_name}.toml").read_text(encoding="utf-8")
+        return scenario_from_toml(text, text_name)
+    path = Path(text_name)
+    if not path.is_file():
+        if looks_like_path:
+            expected = f"an existing scenario file (no file at {str(path.resolve())!r})"
+        else:
+            expected = (
+                f"a built-in scenario name (one of: {available}) or the path of a .toml file, "
+                f"found neither for {text_name!r}"
+            )
+        raise ScenarioError(
+            text_name,
+            None,
+            text_name,
+            expected,
+            f"use one of the built-in names {available}, or check the path",
+        )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise ScenarioError(
+            text_name, None, text_name, f"a readable UTF-8 text file ({err})", "check the file"
+        ) from err
+    return scenario_from_toml(text, text_name)
+
+
+_POSITION = re.compile(r"line (\d+), column (\d+)")
+
+
+def scenario_from_toml(text: str, source: str = "<string>") -> Scenario:
+    """Parse TOML ``text`` and validate it with :func:`scenario_from_mapping`."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        message = str(err)
+        found = _POSITION.search(message)
+        line, column = (int(found[1]), int(found[2])) if found else (None, None)
+        at = f"line {line}, column {column}" if found else "an unknown position"
+        raise ScenarioError(
+            source,
+            None,
+            None,
+            f"valid TOML (syntax error at {at}: {message})",
+            f"correct the TOML syntax at {at}",
+            line=line,
+            column=column,
+        ) from err
+    return scenario_from_mapping(data, source)
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation
+# ---------------------------------------------------------------------------------------------
+
+
+class _Checker:
+    """Type checks for one source; every failure raises a :class:`ScenarioError`."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, key: str | None, value: object, expected: str, fix: str) -> typing.NoReturn:
+        raise ScenarioError(self.source, key, value, expected, fix)
+
+    def table(self, key: str, value: object, required: bool = False) -> Mapping[str, Any]:
+        if value is _MISSING:
+            if required:
+                self.fail(key, _MISSING, f"a [{key}] table", f"add a [{key}] table (see docs/scenarios.md)")
+            return {}
+        if not isinstance(value, Mapping):
+            self.fail(key, value, f"a table [{key}]", f"write the entries under a [{key}] header")
+        return value
+
+    def unknown_keys(self, prefix: str, table: Mapping[str, Any], valid: Sequence[str]) -> None:
+        for key in table:
+            if key in valid:
+                continue
+            close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.6)
+            if close:
+                fix = f"did you mean {close[0]!r}? rename {key!r} to {close[0]!r}"
+            else:
+                fix = f"remove {key!r} (valid keys: {', '.join(valid)})"
+            where = f"{prefix}.{key}" if prefix else str(key)
+            self.fail(where, table[key], f"one of the keys {', '.join(valid)}", fix)
+
+    def number(self, key: str, value: object, unit: str = "") -> float:
+        unit_text = f" [{unit}]" if unit else ""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            hint = (
+                "write the number without quotes"
+                if isinstance(value, str)
+                else "write a number such as 0.5 (true/false are not numbers)"
+                if isinstance(value, bool)
+                else "write a single number"
+            )
+            self.fail(key, value, f"a number{unit_text}, found {_toml_type(value)}", hint)
+        number = float(value)
+        if not math.isfinite(number):
+            self.fail(key, value, f"a finite number{unit_text}", "replace inf/nan by a finite value")
+        return number
+
+    def integer(self, key: str, value: object) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            hint = (
+                "write the number without quotes"
+                if isinstance(value, str)
+                else f"write a whole number without a decimal point (e.g. {int(value)})"
+                if isinstance(value, float) and math.isfinite(value) and value == int(value)
+                else "write a whole number"
+            )
+            self.fail(key, value, f"an integer, found {_toml_type(value)}", hint)
+        return value
+
+    def string(self, key: str, value: object) -> str:
+        if not isinstance(value, str):
+            self.fail(
+                key,
+                value,
+                f"a string, found {_toml_type(value)}",
+                'write the text in double quotes, e.g. "name"',
+            )
+        return value
+
+    def vector(self, key: str, value: object, length: int, form: str, unit: str) -> tuple[float, ...]:
+        if not isinstance(value, list) or len(value) != length:
+            found = f"an array of {len(value)}" if isinstance(value, list) else _toml_type(value)
+            self.fail(
+                key,
+                value,
+                f"an array of {length} numbers {form} [{unit}], found {found}",
+                f"write {key.rsplit('.', 1)[-1]} = {form}",
+            )
+        return tuple(self.number(f"{key}[{i}]", v, unit) for i, v in enumerate(value))
+
+    def positive(self, key: str, value: float, why: str = "") -> None:
+        if not value > 0:
+            reason = f" ({why})" if why else ""
+            self.fail(key, value, f"a value > 0{reason}", f"set {key.rsplit('.', 1)[-1]} to a positive value")
+
+
+def _toml_type(value: object) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, int):
+        return "an integer"
+    if isinstance(value, float):
+        return "a float"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, Mapping):
+        return "a table"
+    return f"a {type(value).__name__}"
+
+
+_UNITS = {"_m": "m", "_px": "px", "_s": "s", "_rad": "rad", "_mps": "m/s", "_radps": "rad/s"}
+
+
+def _unit(field_name: str) -> str:
+    for suffix, unit in _UNITS.items():
+        if field_name.endswith(suffix):
+            return unit
+    return ""
+
+
+def _fields(cls: type) -> dict[str, type]:
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls)}
+
+
+def _section(check: _Checker, prefix: str, cls: type, table: Mapping[str, Any]) -> dict[str, Any]:
+    """Type-check the scalar keys of a table against a dataclass; return kwargs."""
+    types = _fields(cls)
+    check.unknown_keys(prefix, table, tuple(types))
+    values: dict[str, Any] = {}
+    for name, value in table.items():
+        key = f"{prefix}.{name}" if prefix else name
+        kind = types[name]
+        if kind is float:
+            values[name] = check.number(key, value, _unit(name))
+        elif kind is int:
+            values[name] = check.integer(key, value)
+        elif kind is str:
+            values[name] = check.string(key, value)
+        else:  # pragma: no cover - only scalar records are read by this helper
+            raise TypeError(f"{cls.__name__}.{name}: unsupported field type {kind!r}")
+    return values
+
+
+def _ordered(check: _Checker, prefix: str, names: tuple[str, str, str], env: Envelopes) -> None:
+    low, mid, high = (getattr(env, n) for n in names)
+    for n in names:
+        check.positive(f"{prefix}.{n}", getattr(env, n), "envelope distances are positive")
+    if low < mid < high:
+        return
+    chain = f"{names[0]} < {names[1]} < {names[2]} ({low!r} < {mid!r} < {high!r} is false)"
+    if not low < high:
+        check.fail(
+            f"{prefix}.{names[0]}",
+            low,
+            chain,
+            f"choose {names[0]} below {names[2]} and {names[1]} between them",
+        )
+    check.fail(f"{prefix}.{names[1]}", mid, chain, f"choose {names[1]} between {names[0]} and {names[2]}")
+
+
+def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
+    """Validate a parsed scenario (e.g. the output of ``tomllib``) and build the :class:`Scenario`.
+
+    Parameters
+    ----------
+    data : mapping
+        Top-level keys and tables as described in ``docs/scenarios.md``.
+    source : str
+        Name used in error messages (file path or built-in name).
+
+    Raises
+    ------
+    ScenarioError
+        On the first problem found; the message names the key, the value, the
+        expectation and the fix.
+    """
+    check = _Checker(source)
+    if not isinstance(data, Mapping):
+        check.fail(
+            None, data, f"a mapping of tables, found {_toml_type(data)}", "pass the parsed TOML document"
+        )
+    check.unknown_keys("", data, _TOP_KEYS)
+    for key in _REQUIRED_TOP:
+        if key not in data:
+            fix = 'add name = "..." at the top of the file' if key == "name" else f"add a [{key}] table"
+            check.fail(key, _MISSING, "a value (name, target, start and goal are required)", fix)
+
+    # -- top-level scalars
+    top = _section(check, "", Scenario, {k: data[k] for k in _TOP_SCALARS if k in data})
+    if not top["name"].strip():
+        check.fail("name", top["name"], "a non-empty name", 'write a short name such as name = "paper"')
+    for key in ("sampling_period_s", "duration_s", "success_tolerance_px"):
+        if key in top:
+            check.positive(key, top[key])
+
+    # -- parameter records
+    records: dict[str, Any] = {}
+    for prefix, cls in _SECTIONS.items():
+        table = check.table(prefix, data.get(prefix, _MISSING))
+        records[prefix] = cls(**_section(check, prefix, cls, table))
+
+    robot: RobotGeometry = records["robot"]
+    check.positive(
+        "robot.pan_offset_m", robot.pan_offset_m, "Dx must be > 0: J_r is singular otherwise, det J_r = Dx"
+    )
+    check.positive("robot.camera_height_m", robot.camera_height_m, "the camera is above the floor")
+
+    for name in ("focal_px", "half_width_px", "half_height_px"):
+        check.positive(f"camera.{name}", getattr(records["camera"], name))
+
+    env: Envelopes = records["envelopes"]
+    _ordered(check, "envelopes", ("d_minus_m", "d_zero_m", "d_plus_m"), env)
+    _ordered(check, "envelopes", ("D_minus_px", "D_zero_px", "D_plus_px"), env)
+
+    for f in dataclasses.fields(Gains):
+        why = "v_coll is the constant avoidance speed" if f.name == "v_coll_mps" else "every gain is positive"
+        check.positive(f"gains.{f.name}", getattr(records["gains"], f.name), why)
+    for f in dataclasses.fields(ActuatorLimits):
+        check.positive(f"limits.{f.name}", getattr(records["limits"], f.name), "limits are magnitudes")
+
+    est: EstimatorSettings = records["estimator"]
+    if est.order not in ESTIMATOR_ORDERS:
+        check.fail(
+            "estimator.order",
+            est.order,
+            "a BDF order in 1-6 (orders 7 and up are not zero-stable)",
+            "use 4, as in the paper",
+        )
+    if est.screw_model not in SCREW_MODELS:
+        close = difflib.get_close_matches(est.screw_model, SCREW_MODELS, n=1)
+        hint = f"did you mean {close[0]!r}? " if close else ""
+        check.fail(
+            "estimator.screw_model",
+            est.screw_model,
+            f"one of {', '.join(repr(m) for m in SCREW_MODELS)}",
+            f"{hint}use one of {', '.join(SCREW_MODELS)}",
+        )
+    check.positive("estimator.newton_tol", est.newton_tol)
+    if est.newton_maxiter < 1:
+        check.fail("estimator.newton_maxiter", est.newton_maxiter, "an iteration limit >= 1", "use 8")
+
+    sup: SupervisorSettings = records["supervisor"]
+    if not 0.0 < sup.arm_angle_rad < math.pi / 2:
+        check.fail(
+            "supervisor.arm_angle_rad",
+            sup.arm_angle_rad,
+            f"0 < arm_angle_rad < pi/2 = {math.pi / 2:.6g} (the pan angle must move away from 0 before "
+            "its return to 0 can mean 'obstacle overcome')",
+            "choose an angle such as 0.2 rad",
+        )
+    if not sup.detection_hysteresis_m >= 0.0:
+        check.fail(
+            "supervisor.detection_hysteresis_m", sup.detection_hysteresis_m, "a value >= 0 [m]", "use 0.02"
+        )
+
+    # -- poses
+    poses = {
+        key: Pose(**_section(check, key, Pose, check.table(key, data[key], required=True))) for key in _POSES
+    }
+
+    # -- obstacles
+    obstacles = _obstacles(check, data.get("obstacles", _MISSING), env, poses)
+
+    # -- target
+    target_table = check.table("target", data["target"], required=True)
+    target = _target(check, target_table, robot, records["camera"], poses)
+
+    return Scenario(
+        **top, **records, obstacles=obstacles, target=target, start=poses["start"], goal=poses["goal"]
+    )
+
+
+def _obstacles(
+    check: _Checker, raw: object, env: Envelopes, poses: Mapping[str, Pose]
+) -> tuple[Obstacle, ...]:
+    if raw is _MISSING:
+        return ()
+    if not isinstance(raw, list) or not all(isinstance(item, Mapping) for item in raw):
+        check.fail(
+            "obstacles",
+            raw,
+            "an array of tables [[obstacles]]",
+            "write each obstacle under its own [[obstacles]] header",
+        )
+    obstacles: list[Obstacle] = []
+    seen: dict[str, int] = {}
+    for i, table in enumerate(raw):
+        prefix = f"obstacles[{i}]"
+        check.unknown_keys(prefix, table, _OBSTACLE_KEYS)
+        for key in _OBSTACLE_KEYS:
+            if key not in table:
+                check.fail(
+                    f"{prefix}.{key}",
+                    _MISSING,
+                    "name, center_m, radius_m and height_m for every obstacle",
+                    f"add {key} to the obstacle",
+                )
+        name = check.string(f"{prefix}.name", table["name"])
+        if not name.strip():
+            check.fail(f"{prefix}.name", name, "a non-empty name", "name the obstacle")
+        if name in seen:
+            check.fail(
+                f"{prefix}.name",
+                name,
+                f"a unique name (obstacles[{seen[name]}] is also {name!r})",
+                "rename one of the obstacles",
+            )
+        seen[name] = i
+        center = check.vector(f"{prefix}.center_m", table["center_m"], 2, "[x, y]", "m")
+        radius = check.number(f"{prefix}.radius_m", table["radius_m"], "m")
+        height = check.number(f"{prefix}.height_m", table["height_m"], "m")
+        check.positive(f"{prefix}.radius_m", radius)
+        check.positive(f"{prefix}.height_m", height)
+        obstacle = Obstacle(name=name, center_m=center, radius_m=radius, height_m=height)
+
+        for j, other in enumerate(obstacles):
+            gap = math.dist(center, other.center_m) - radius - other.radius_m
+            if gap < 2 * env.d_plus_m:
+                check.fail(
+                    f"{prefix}.center_m",
+                    center,
+                    f"at least 2*d_plus_m = {_num(2 * env.d_plus_m)} m surface to surface from "
+                    f"obstacles[{j}] {other.name!r} (found {_num(gap)} m): "
+                    "the paper's hypothesis is that obstacles are separated by at least 2*d+ "
+                    "so that the robot is within d+ of one obstacle at a time",
+                    f"move {name!r} at least {_mm_up(2 * env.d_plus_m - gap)} m further from {other.name!r}, "
+                    "or reduce envelopes.d_plus_m",
+                )
+        for where, verb in (("start", "start"), ("goal", "end")):
+            pose = poses[where]
+            distance = math.dist((pose.x_m, pose.y_m), center)
+            limit = radius + env.d_minus_m
+            if distance < limit:
+                check.fail(
+                    f"{prefix}.center_m",
+                    center,
+                    f"the {where} point M = ({_num(pose.x_m)}, {_num(pose.y_m)}) at least "
+                    f"radius_m + d_minus_m = {_num(limit)} m from the centre (found {_num(distance)} m): "
+                    f"the robot would {verb} inside the critical envelope",
+                    f"move {name!r} or the {where} pose at least {_mm_up(limit - distance)} m further apart",
+                )
+        obstacles.append(obstacle)
+    return tuple(obstacles)
+
+
+def _target(
+    check: _Checker,
+    table: Mapping[str, Any],
+    robot: RobotGeometry,
+    camera: CameraModel,
+    poses: Mapping[str, Pose],
+) -> Target:
+    check.unknown_keys("target", table, _TARGET_KEYS)
+    square_keys = [k for k in _TARGET_SQUARE_KEYS if k in table]
+    if "points_m" in table:
+        if square_keys:
+            check.fail(
+                f"target.{square_keys[0]}",
+                table[square_keys[0]],
+                "either points_m or a generated square (center_m, normal_rad, side_m), not both",
+                f"remove {square_keys[0]} or remove points_m",
+            )
+        raw = table["points_m"]
+        if not isinstance(raw, list):
+            check.fail(
+                "target.points_m",
+                raw,
+                f"an array of [x, y, h] points [m], found {_toml_type(raw)}",
+                "write points_m = [[x, y, h], ...]",
+            )
+        points = tuple(
+            check.vector(f"target.points_m[{i}]", p, 3, "[x, y, h]", "m") for i, p in enumerate(raw)
+        )
+    else:
+        for key in ("center_m", "normal_rad", "side_m"):
+            if key not in table:
+                check.fail(
+                    f"target.{key}",
+                    _MISSING,
+                    "either points_m = [[x, y, h], ...] or center_m, normal_rad and side_m of a square",
+                    f"add target.{key} (or give points_m)",
+                )
+        center = check.vector("target.center_m", table["center_m"], 3, "[x, y, h]", "m")
+        normal = check.number("target.normal_rad", table["normal_rad"], "rad")
+        side = check.number("target.side_m", table["side_m"], "m")
+        check.positive("target.side_m", side)
+        if "n_points" in table and check.integer("target.n_points", table["n_points"]) != 4:
+            check.fail(
+                "target.n_points",
+                table["n_points"],
+                "4 (a generated square has 4 corners)",
+                "use n_points = 4, or list the points in points_m",
+            )
+        points = target_square(center, normal, side)
+
+    if len(points) < MIN_TARGET_POINTS:
+        check.fail(
+            "target.points_m",
+            [list(p) for p in points],
+            f"at least {MIN_TARGET_POINTS} points (the paper uses 4)",
+            "add points, e.g. the 4 corners of a square",
+        )
+    for where in ("goal", "start"):
+        for i, point in enumerate(points):
+            _, _, depth = point_in_camera(point, poses[where], robot)
+            if not depth > 0:
+                check.fail(
+                    f"target.points_m[{i}]",
+                    list(point),
+                    f"a point in front of the camera at the {where} pose (depth {_num(depth)} m <= 0)",
+                    f"place the target ahead of the {where} pose "
+                    f"or turn {where}.theta_rad/{where}.pan_rad towards it",
+                )
+    goal = poses["goal"]
+    for i, point in enumerate(points):
+        x_c, y_c, z = point_in_camera(point, goal, robot)
+        horizontal, vertical = abs(y_c / z) * camera.focal_px, abs(x_c / z) * camera.focal_px
+        outside = []
+        if horizontal > camera.half_width_px:
+            outside.append(f"|Y|*f = {_num(horizontal)} px > half_width_px = {_num(camera.half_width_px)}")
+        if vertical > camera.half_height_px:
+            outside.append(f"|X|*f = {_num(vertical)} px > half_height_px = {_num(camera.half_height_px)}")
+        if outside:
+            check.fail(
+                f"target.points_m[{i}]",
+                list(point),
+                f"a point inside the image at the goal pose, otherwise s* is unobservable "
+                f"(found {' and '.join(outside)})",
+                "move the goal pose further from the target, shrink the target, or widen the image",
+            )
+    return Target(points_m=points)
+
+
+# ---------------------------------------------------------------------------------------------
+# Canonical TOML
+# ---------------------------------------------------------------------------------------------
+
+
+def _toml_string(text: str) -> str:
+    out = ['"']
+    escapes = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+    for ch in text:
+        if ch in escapes:
+            out.append(escapes[ch])
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    out.append('"')
+    return "".join(out)
+
+
+def _toml_value(value: object, integer: bool = False) -> str:
+    """One TOML value; numbers are written as floats unless ``integer`` (int-typed fields)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int) and integer:
+        return str(value)
+    if isinstance(value, (int, float)):
+        value = float(value)  # an int in a float field (built in Python) gets the same text as the float
+        if not math.isfinite(value):
+            raise ValueError(f"cannot write non-finite float {value!r} to a scenario")
+        return repr(value)
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_toml_value(v, integer) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} to a scenario")
+
+
+def _toml_line(record: object, name: str) -> str:
+    integer = _fields(type(record))[name] is int
+    return f"{name} = {_toml_value(getattr(record, name), integer)}"
+
+
+def _toml_table(record: object) -> list[str]:
+    return [_toml_line(record, f.name) for f in dataclasses.fields(record)]
+
+
+def scenario_to_toml(scenario: Scenario) -> str:
+    """Canonical TOML text of ``scenario``: every key written, in dataclass order.
+
+    The text is deterministic (floats as ``repr``, so they round-trip exactly)
+    and loads back into an equal :class:`Scenario`.  The target is always
+    written as explicit ``points_m``.
+    """
+    lines = ["# Canonical scenario written by visnav.scenario.scenario_to_toml", ""]
+    lines += [_toml_line(scenario, key) for key in _TOP_SCALARS]
+    for key in (*_SECTIONS, *_POSES):
+        lines += ["", f"[{key}]", *_toml_table(getattr(scenario, key))]
+    lines += ["", "[target]", "points_m = ["]
+    lines += [f"    {_toml_value(point)}," for point in scenario.target.points_m]
+    lines.append("]")
+    for obstacle in scenario.obstacles:
+        lines += ["", "[[obstacles]]", *_toml_table(obstacle)]
+    return "\n".join(lines) + "\n"
+
+
+def scenario_digest(scenario: Scenario) -> str:
+    """SHA-256 (hex) of :func:`scenario_to_toml`: identifies the run parameters in reports."""
+    return hashlib.sha256(scenario_to_toml(scenario).encode("utf-8")).hexdigest()
