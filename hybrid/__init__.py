@@ -14,7 +14,7 @@ from .errors import (
 )
 from .graph import mode_graph, to_dot
 from .model import HybridAutomaton, MemoryVariable, Mode, Transition, transition_fires
-from .sampled import Plant, SampledEvent, SampledTrace, simulate_sampled
+from .sampled import Plant, SampledEvent, SampledTrace, settle, simulate_sampled
 
 __all__ = [
     "DivergenceError",
@@ -34,4 +34,5 @@ __all__ = [
     "SampledEvent",
     "SampledTrace",
     "simulate_sampled",
+    "settle",
 ]

@@ -37,6 +37,7 @@ __all__ = [
     "SampledEvent",
     "SampledTrace",
     "simulate_sampled",
+    "settle",
     "FLOW_RTOL",
     "FLOW_ATOL",
 ]
@@ -225,6 +226,93 @@ def _first_nan(values: Sequence[float], names: Sequence[str]) -> str | None:
     return None
 
 
+def settle(
+    automaton: HybridAutomaton,
+    mode: str,
+    memory: Mapping[str, float],
+    v: Sequence[float],
+    previous: Sequence[float] | None = None,
+    *,
+    time: float = 0.0,
+    sample: int = 0,
+    jump: int = 0,
+    max_jumps: int = 8,
+    outgoing: Mapping[str, tuple[Any, ...]] | None = None,
+) -> tuple[str, dict[str, float], list[SampledEvent]]:
+    """Fire enabled transitions at one instant until none is enabled.
+
+    One transition fires per jump, the smallest priority number first; the
+    others enabled at that jump are reported as ``outranked``.
+
+    Parameters
+    ----------
+    mode, memory : str, mapping
+        Discrete state before the instant.
+    v, previous : sequences of float
+        Signals now and at the previous evaluation (for crossing guards).
+    time, sample, jump : float, int, int
+        Hybrid time before the instant (recorded in the events).
+    max_jumps : int
+        More jumps than this at one instant raise :class:`ZenoError`.
+
+    Returns
+    -------
+    mode, memory, events
+        The discrete state after the instant and the jumps taken.
+
+    Raises
+    ------
+    ExecutionError
+        Two enabled transitions with the same priority (non-determinism), or a
+        reset that does not return exactly its declared ``writes``.
+    ZenoError
+        More than ``max_jumps`` jumps.
+    """
+    table = outgoing if outgoing is not None else {name: automaton.outgoing(name) for name in automaton.mode_names}
+    memory = dict(memory)
+    events: list[SampledEvent] = []
+    while True:
+        candidates = [tr for tr in table[mode] if transition_fires(tr, v, memory, previous)]
+        if not candidates:
+            return mode, memory, events
+        winner = candidates[0]
+        ties = [tr.name for tr in candidates[1:] if tr.priority == winner.priority]
+        if ties:
+            raise ExecutionError(
+                f"non-determinism at t = {time:.6g} s in mode {mode!r}: transitions "
+                f"{[winner.name, *ties]} are enabled together with the same priority "
+                f"{winner.priority}; give them distinct priorities or exclusive guards"
+            )
+        if len(events) >= max_jumps:
+            raise ZenoError(
+                f"Zeno behaviour at t = {time:.6g} s: {len(events)} jumps at one instant "
+                f"({' -> '.join(e.transition for e in events)}), limit max_jumps_per_sample = {max_jumps}; "
+                "make the guards of the target modes exclusive of the resets' results"
+            )
+        if winner.reset is not None:
+            update = winner.reset(v, memory)
+            if set(update) != set(winner.writes):
+                raise ExecutionError(
+                    f"transition {winner.name!r}: reset returned {sorted(update)}, "
+                    f"declared writes {sorted(winner.writes)}"
+                )
+            memory.update(update)
+        jump += 1
+        events.append(
+            SampledEvent(
+                time=time,
+                jump=jump,
+                sample=sample,
+                transition=winner.name,
+                source=mode,
+                target=winner.target,
+                outranked=tuple(tr.name for tr in candidates[1:]),
+                memory=tuple(sorted(memory.items())),
+            )
+        )
+        mode = winner.target
+
+
 def simulate_sampled(
     automaton: HybridAutomaton,
     plant: Plant,
@@ -330,48 +418,13 @@ def simulate_sampled(
             if bad is not None:
                 raise NumericalFailure(f"signal {bad!r} is NaN")
             # --- discrete jumps at this instant -------------------------------------
-            fired: list[str] = []
-            while True:
-                candidates = [tr for tr in outgoing[mode] if transition_fires(tr, v, memory, previous)]
-                if not candidates:
-                    break
-                winner = candidates[0]
-                ties = [tr.name for tr in candidates[1:] if tr.priority == winner.priority]
-                if ties:
-                    raise ExecutionError(
-                        f"non-determinism at t = {t:.6g} s in mode {mode!r}: transitions "
-                        f"{[winner.name, *ties]} are enabled together with the same priority "
-                        f"{winner.priority}; give them distinct priorities or exclusive guards"
-                    )
-                if len(fired) >= max_jumps_per_sample:
-                    raise ZenoError(
-                        f"Zeno behaviour at t = {t:.6g} s: {len(fired)} jumps at one instant "
-                        f"({' -> '.join(fired)}), limit max_jumps_per_sample = {max_jumps_per_sample}; "
-                        "make the guards of the target modes exclusive of the resets' results"
-                    )
-                if winner.reset is not None:
-                    update = winner.reset(v, memory)
-                    if set(update) != set(winner.writes):
-                        raise ExecutionError(
-                            f"transition {winner.name!r}: reset returned {sorted(update)}, "
-                            f"declared writes {sorted(winner.writes)}"
-                        )
-                    memory = {**memory, **update}
-                j += 1
-                fired.append(winner.name)
-                events.append(
-                    SampledEvent(
-                        time=t,
-                        jump=j,
-                        sample=k,
-                        transition=winner.name,
-                        source=mode,
-                        target=winner.target,
-                        outranked=tuple(tr.name for tr in candidates[1:]),
-                        memory=tuple(sorted(memory.items())),
-                    )
-                )
-                mode = winner.target
+            mode, memory, fired = settle(
+                automaton, mode, memory, v, previous, time=t, sample=k, jump=j,
+                max_jumps=max_jumps_per_sample, outgoing=outgoing,
+            )
+            if fired:
+                events.extend(fired)
+                j = fired[-1].jump
             # --- control --------------------------------------------------------------
             u, c, row = controller.control(t, x, c, v, mode, memory)
             bad = _first_nan(u, plant.input_names)

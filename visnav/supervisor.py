@@ -5,7 +5,8 @@ The supervisor is the synchronous product of a *collision* component and an
 answer to every open question of the paper's flag logic):
 
 collision phases
-    ``FAR``      no obstacle within d+ (AVOID = LEAVE = 0), µ_coll = 0.
+    ``FAR``      no obstacle within d+ (AVOID = LEAVE = 0), µ_coll = 0 (the formula of
+                 APPROACH on the nearest obstacle, which is 0 beyond d0).
     ``APPROACH`` an obstacle within d+ is latched with its bypass side
                  (AVOID = LEAVE = 0); µ_coll = clip((d0 − d)/(d0 − d−)), case 1–2 of (2).
     ``AVOID``    entered ξ− (AVOID = 1, LEAVE = 0), µ_coll = 1.
@@ -104,8 +105,8 @@ class SupervisorModel:
     def mu_coll(self, collision_phase: str, v: Sequence[float], memory: Mapping[str, float]) -> float:
         """Collision risk µ_coll ∈ [0, 1], eq. (2) as resolved in ``docs/supervisor.md``."""
         env = self.envelopes
-        if collision_phase == "FAR":
-            return 0.0
+        if collision_phase == "FAR":  # cases 1-2 of (2) on the nearest obstacle (0 beyond d0)
+            return _clip01((env.d_zero_m - v[I_D_NEAREST]) / (env.d_zero_m - env.d_minus_m))
         d = v[I_FIRST_OBSTACLE + int(memory["obstacle"])]
         if collision_phase == "APPROACH":
             return _clip01((env.d_zero_m - d) / (env.d_zero_m - env.d_minus_m))
@@ -208,8 +209,9 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
          "pan back through 0 and mu_occ > 0", "", 11, None),
         ("PASSED", "LEAVE", lambda v, m: v[I_D_OCC] - D_zero, latch_dl, ("dL", "d_end"),
          "mu_occ = 0", "dL := d; d_end := max(d+, dL + d+ - d0)", 10, ("CLEAR",)),
-        ("LEAVE", "FAR", lambda v, m: d_latched(v, m) - m["d_end"], forget_obstacle,
-         ("obstacle", "side", "arm_sign", "dL", "d_end"), "d >= d_end", "AVOID := LEAVE := 0", 10, None),
+        ("LEAVE", "FAR", lambda v, m: d_latched(v, m) - max(m["d_end"], d_plus + hysteresis), forget_obstacle,
+         ("obstacle", "side", "arm_sign", "dL", "d_end"), "d >= max(d_end, d+ + hysteresis)", "AVOID := LEAVE := 0",
+         10, None),
         ("LEAVE", "AVOID", lambda v, m: min(d_minus - d_latched(v, m), m["dL"] - 0.01 - d_latched(v, m)), disarm,
          ("arm_sign", "dL", "d_end"), "d <= min(d-, dL - 1 cm)", "LEAVE := 0; disarm", 11, None),
     ]

@@ -96,7 +96,7 @@ def test_equal_priorities_enabled_together_is_non_determinism():
         modes=(Mode(name="up"), Mode(name="down"), Mode(name="other")),
         transitions=(
             Transition(name="t1", source="up", target="down", guard=lambda v, m: v[0] - 0.5),
-            Transition(name="t2", source="up", target="other", guard=lambda v, m: v[0] - 0.25),
+            Transition(name="t2", source="up", target="other", guard=lambda v, m: v[0] - 0.5),
         ),
         variables=("x",),
     )

@@ -1,0 +1,643 @@
+"""Reconstruction of image features and depths during an occlusion: equations (13)–(14).
+
+While the target is visible, :class:`FeatureEstimator` records the measured
+states ``ψ = ((X_1, Y_1, z_1), ..., (X_N, Y_N, z_N))`` at the sampling
+instants and the zero-order-hold (ZOH) inputs of every sampling period.  When
+the target becomes hidden, :meth:`FeatureEstimator.start` switches it to
+reconstruction: each call of :meth:`FeatureEstimator.advance` then performs one
+fixed-step BDF step of (13)::
+
+    ψ_{k+1} = sum_j c_j ψ_{k+1-j} + β h F(ψ_{k+1}),   F = blockdiag(L_i) T_rc
+
+with the camera screw ``T_rc`` chosen by ``EstimatorSettings.screw_model``
+(NOTES.md, open question 13; see ``docs/estimator.md`` for the measured effect).
+
+Newton structure
+----------------
+``∂F/∂ψ`` is block diagonal (one 3×3 block per point) and inside a block ``X``
+feeds neither ``Ẏ`` nor ``ż``.  So every point is corrected on its own, Newton
+runs on the 2×2 ``(Y, z)`` system (closed-form solve) and ``X`` follows from the
+scalar linear equation ``X (1 - βh (V_z/z + Y Ω_x)) = r_X``.  The predictor is
+the extrapolation polynomial through the stored history, so one or two Newton
+iterations suffice.  The step uses Python floats and :mod:`math` only (a numpy
+call costs about 1 µs, more than the whole arithmetic of a point).
+
+Start-up
+--------
+The buffer is filled while the features are measured (the normal case: reconstruction
+then starts from a full, exact history of ``order`` values).  If fewer values
+exist when reconstruction starts, the order ramps up (BDF1, BDF2, ... with every
+value the history allows) unless ``start(require_full_history=True)`` was asked
+for.  The histopolated screw likewise uses as many period means as exist, up to
+``order``.
+
+Examples
+--------
+>>> from visnav.parameters import EstimatorSettings, RobotGeometry
+>>> est = FeatureEstimator(RobotGeometry(), EstimatorSettings(order=1, screw_model="end"))
+>>> est.observe(((0.1, 0.2, 2.0),))
+>>> est.start()
+>>> ((x, y, z),) = est.advance(0.0, (0.2, 0.0, 0.0), 0.05)
+>>> round(z, 12)  # moving 1 cm forward along the optical axis
+1.99
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+from analysis.bdf import bdf_coefficients, extrapolation_weights, histopolation_weights, validate_order
+from hybrid.errors import NumericalFailure
+from visnav.model import camera_screw
+from visnav.parameters import EstimatorSettings, RobotGeometry
+
+__all__ = [
+    "SCREW_MODELS",
+    "PERIOD_RELATIVE_TOLERANCE",
+    "EstimatorSettingsError",
+    "EstimatorInputError",
+    "EstimatorUsageError",
+    "HeldInputs",
+    "validate_settings",
+    "mean_camera_screw",
+    "held_inputs",
+    "FeatureEstimator",
+]
+
+SCREW_MODELS = ("end", "start", "mean", "histopolated")
+"""Allowed ``EstimatorSettings.screw_model`` values (see :func:`FeatureEstimator.screw_for_step`)."""
+
+PERIOD_RELATIVE_TOLERANCE = 1e-9
+"""Relative tolerance within which two sampling periods count as equal (fixed-step BDF)."""
+
+_SINC_SERIES_BOUND = 1e-3  # below |x| this, sin(x)/x = 1 - x²/6 + x⁴/120 to 1e-22
+
+
+class EstimatorSettingsError(ValueError):
+    """Invalid :class:`~visnav.parameters.EstimatorSettings` (tolerance, iteration limit, screw model)."""
+
+
+class EstimatorInputError(ValueError):
+    """A malformed measurement, joint-rate record or step size given to the estimator."""
+
+
+class EstimatorUsageError(RuntimeError):
+    """A method called in the wrong phase (e.g. ``advance`` while tracking measurements)."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class HeldInputs:
+    """Zero-order-hold record of one sampling period ``[t_k, t_k + h]``.
+
+    Attributes
+    ----------
+    pan_start : float
+        Pan angle ϑ_k at the start of the period [rad].
+    v, omega, pan_rate : float
+        Joint rates held over the period [m/s, rad/s, rad/s].
+    period : float
+        Period length ``h`` [s].
+    mean_screw : tuple of 3 float
+        Exact mean of ``J_r(ϑ(t)) q̇_k`` over the period (:func:`mean_camera_screw`).
+    """
+
+    pan_start: float
+    v: float
+    omega: float
+    pan_rate: float
+    period: float
+    mean_screw: tuple[float, float, float]
+
+
+def validate_settings(settings: EstimatorSettings) -> None:
+    """Check ``settings`` (order 1–6, known screw model, tolerance > 0, maxiter >= 1).
+
+    Raises
+    ------
+    analysis.bdf.BdfOrderError
+        Order outside 1..6.
+    EstimatorSettingsError
+        Any other invalid field; the message names it, the value and the fix.
+    """
+    validate_order(settings.order, name="EstimatorSettings.order")
+    if settings.screw_model not in SCREW_MODELS:
+        raise EstimatorSettingsError(
+            f"EstimatorSettings.screw_model = {settings.screw_model!r}: expected one of "
+            f"{', '.join(map(repr, SCREW_MODELS))} (default 'histopolated', see docs/estimator.md)"
+        )
+    tol = settings.newton_tol
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (tol > 0.0 and math.isfinite(tol)):
+        raise EstimatorSettingsError(
+            f"EstimatorSettings.newton_tol = {tol!r}: expected a positive finite tolerance, e.g. 1e-12"
+        )
+    maxiter = settings.newton_maxiter
+    if isinstance(maxiter, bool) or not isinstance(maxiter, int) or maxiter < 1:
+        raise EstimatorSettingsError(
+            f"EstimatorSettings.newton_maxiter = {maxiter!r}: expected an integer >= 1, e.g. 8"
+        )
+
+
+def _sinc(x: float) -> float:
+    """``sin(x)/x`` with its series near 0."""
+    if abs(x) < _SINC_SERIES_BOUND:
+        x2 = x * x
+        return 1.0 - x2 / 6.0 * (1.0 - x2 / 20.0)
+    return math.sin(x) / x
+
+
+def mean_camera_screw(
+    pan_start: float, v: float, omega: float, pan_rate: float, h: float, geometry: RobotGeometry
+) -> tuple[float, float, float]:
+    """Exact mean of ``T_rc(t) = J_r(ϑ_k + ϖ (t - t_k)) q̇`` over ``[t_k, t_k + h]`` (ZOH ``q̇``).
+
+    Only ``sin ϑ`` and ``cos ϑ`` vary in ``J_r``; their means are
+    ``sinc(ϖh/2) · (sin, cos)(ϑ_mid)`` with ``ϑ_mid = ϑ_k + ϖh/2`` (the ``sinc``
+    uses its series when ``ϖh → 0``).  So the mean is :func:`visnav.model.camera_screw`
+    at ``ϑ_mid`` with ``v, ω`` scaled by the ``sinc`` factor and the heading rate
+    ``ω + ϖ`` unchanged.
+    """
+    half = 0.5 * pan_rate * h
+    k = _sinc(half)
+    return camera_screw(
+        pan_start + half,
+        k * v,
+        k * omega,
+        omega + pan_rate - k * omega,
+        geometry.pan_offset_m,
+        geometry.camera_forward_m,
+        geometry.camera_lateral_m,
+    )
+
+
+def held_inputs(
+    pan_start: float, joint_rates: Sequence[float], h: float, geometry: RobotGeometry
+) -> HeldInputs:
+    """Validated :class:`HeldInputs` of one period (computes the exact mean screw)."""
+    try:
+        v, omega, pan_rate = (float(x) for x in joint_rates)
+        pan = float(pan_start)
+        period = float(h)
+    except (TypeError, ValueError) as err:
+        raise EstimatorInputError(
+            f"joint_rates = {joint_rates!r}, pan_start = {pan_start!r}, h = {h!r}: expected three joint "
+            f"rates (v, omega, pan_rate), a pan angle and a period, all numbers"
+        ) from err
+    if not (period > 0.0 and math.isfinite(period)):
+        raise EstimatorInputError(f"h = {h!r}: expected a positive finite sampling period [s]")
+    if not all(math.isfinite(x) for x in (v, omega, pan_rate, pan)):
+        raise EstimatorInputError(
+            f"pan_start = {pan_start!r}, joint_rates = {joint_rates!r}: expected finite values"
+        )
+    return HeldInputs(
+        pan_start=pan,
+        v=v,
+        omega=omega,
+        pan_rate=pan_rate,
+        period=period,
+        mean_screw=mean_camera_screw(pan, v, omega, pan_rate, period, geometry),
+    )
+
+
+@lru_cache(maxsize=None)
+def _history_combiner(order: int) -> Callable:
+    """Unrolled ``states -> [(r_X, r_Y, r_z, p_Y, p_z) per point]`` for ``order`` past states.
+
+    ``r = sum_j c_j ψ_{k+1-j}`` (BDF history term) and ``p = sum_j e_j ψ_{k+1-j}``
+    (extrapolation predictor; only ``Y, z`` need one).  Generated once per order
+    because a Python loop over the history costs about 2.5× the unrolled form
+    (the step budget is 20 µs for 4 points).  ``states`` is ``[ψ_k, ψ_{k-1}, ...]``,
+    each a tuple of ``(X, Y, z)`` per point; the source below uses only the
+    numeric coefficients and fixed names.
+    """
+    coeffs = bdf_coefficients(order).history
+    weights = extrapolation_weights(order)
+    names = [(f"X{j}", f"Y{j}", f"z{j}") for j in range(order)]
+
+    def combo(ws: Sequence[float], axis: int) -> str:
+        return " + ".join(f"({w!r}) * {names[j][axis]}" for j, w in enumerate(ws))
+
+    targets = ", ".join(f"({x}, {y}, {z})" for x, y, z in names)
+    source = (
+        "def combine(states):\n"
+        f"    return [({combo(coeffs, 0)}, {combo(coeffs, 1)}, {combo(coeffs, 2)},"
+        f" {combo(weights, 1)}, {combo(weights, 2)})\n"
+        f"            for {targets}{',' if order == 1 else ''} in zip(*states)]\n"
+    )
+    namespace: dict = {}
+    exec(compile(source, f"<bdf history combiner, order {order}>", "exec"), namespace)  # noqa: S102
+    return namespace["combine"]
+
+
+def _as_state(psi: object, n_points: int | None) -> tuple[tuple[float, float, float], ...]:
+    """Validate a measured ψ and return it as a tuple of float triples."""
+    try:
+        state = tuple((float(x), float(y), float(z)) for x, y, z in psi)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as err:
+        raise EstimatorInputError(
+            f"psi = {psi!r}: expected a sequence of (X, Y, z) triples, one per point"
+        ) from err
+    if not state:
+        raise EstimatorInputError("psi is empty: expected at least one (X, Y, z) point")
+    if n_points is not None and len(state) != n_points:
+        raise EstimatorInputError(
+            f"psi has {len(state)} points but the stored history has {n_points}; "
+            f"call reset() before changing the number of points"
+        )
+    for i, (x, y, z) in enumerate(state):
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            raise EstimatorInputError(f"psi point {i} = {(x, y, z)!r}: expected finite values")
+        if z <= 0.0:
+            raise EstimatorInputError(f"psi point {i}: depth z = {z!r} m, expected > 0 (point in front of the camera)")
+    return state
+
+
+class FeatureEstimator:
+    """Fixed-step BDF reconstruction of ``ψ`` (features and depths) under ZOH joint rates.
+
+    Parameters
+    ----------
+    geometry : RobotGeometry
+        ``Dx, a, b`` of ``J_r``.
+    settings : EstimatorSettings
+        Order, screw model and Newton settings (validated here).
+
+    Notes
+    -----
+    Phases: *tracking* (initial; :meth:`observe` records measurements) and
+    *reconstructing* (after :meth:`start`; :meth:`advance` produces estimates;
+    :meth:`stop` returns to tracking).  The ring buffer holds the last ``order``
+    states (measured or reconstructed, the newest first) and the last ``order``
+    period records; they must share one period ``h`` (fixed-step BDF).
+    After :meth:`stop` the buffer keeps the reconstructed values, which the next
+    measurements progressively replace.
+    """
+
+    __slots__ = (
+        "_geometry",
+        "_settings",
+        "_order",
+        "_tol",
+        "_maxiter",
+        "_model",
+        "_states",
+        "_periods",
+        "_period",
+        "_n_points",
+        "_reconstructing",
+        "_last_iterations",
+        "_steps",
+        "_combiners",
+        "_betas",
+        "_hist_weights",
+    )
+
+    def __init__(self, geometry: RobotGeometry, settings: EstimatorSettings | None = None) -> None:
+        settings = EstimatorSettings() if settings is None else settings
+        validate_settings(settings)
+        self._geometry = geometry
+        self._settings = settings
+        self._order = settings.order
+        self._tol = float(settings.newton_tol)
+        self._maxiter = settings.newton_maxiter
+        self._model = settings.screw_model
+        self._combiners = {q: _history_combiner(q) for q in range(1, self._order + 1)}
+        self._betas = {q: bdf_coefficients(q).beta for q in range(1, self._order + 1)}
+        self._hist_weights = {p: histopolation_weights(p) for p in range(1, self._order + 1)}
+        self._states: deque = deque(maxlen=self._order)
+        self._periods: deque = deque(maxlen=self._order)
+        self._period: float | None = None
+        self._n_points: int | None = None
+        self._reconstructing = False
+        self._last_iterations = 0
+        self._steps = 0
+
+    # ------------------------------------------------------------------ properties
+
+    @property
+    def settings(self) -> EstimatorSettings:
+        """The (validated) settings."""
+        return self._settings
+
+    @property
+    def reconstructing(self) -> bool:
+        """``True`` between :meth:`start` and :meth:`stop`."""
+        return self._reconstructing
+
+    @property
+    def history_length(self) -> int:
+        """Number of stored states (at most ``order``)."""
+        return len(self._states)
+
+    @property
+    def period(self) -> float | None:
+        """The sampling period shared by the stored history, or ``None`` before the first period."""
+        return self._period
+
+    @property
+    def psi(self) -> tuple[tuple[float, float, float], ...] | None:
+        """The newest stored state (measured or reconstructed), or ``None``."""
+        return self._states[0] if self._states else None
+
+    @property
+    def last_newton_iterations(self) -> int:
+        """Newton iterations of the last step (maximum over the points)."""
+        return self._last_iterations
+
+    @property
+    def reconstruction_steps(self) -> int:
+        """BDF steps performed since the last :meth:`start`."""
+        return self._steps
+
+    # ------------------------------------------------------------------ phases
+
+    def reset(self) -> None:
+        """Forget the history and return to tracking."""
+        self._states.clear()
+        self._periods.clear()
+        self._period = None
+        self._n_points = None
+        self._reconstructing = False
+        self._last_iterations = 0
+        self._steps = 0
+
+    def observe(
+        self,
+        psi: Sequence[Sequence[float]],
+        pan_start: float | None = None,
+        joint_rates: Sequence[float] | None = None,
+        h: float | None = None,
+    ) -> None:
+        """Record a measured ``ψ`` at a sampling instant (tracking phase).
+
+        Parameters
+        ----------
+        psi : sequence of (X, Y, z)
+            Measured features (normalised) and depths [m] of every point.
+        pan_start, joint_rates, h : optional
+            ZOH record of the period that ended at this sample: pan angle at its
+            start, joint rates ``(v, omega, pan_rate)`` held over it, its length.
+            Give all three, or none: without them the history restarts from this
+            sample (first sample, or after a gap in the measurements).
+
+        Raises
+        ------
+        EstimatorUsageError
+            While reconstructing (call :meth:`stop` first).
+        EstimatorInputError
+            Malformed ``psi`` (depth <= 0, wrong number of points) or record,
+            or a period different from the stored history's.
+        """
+        if self._reconstructing:
+            raise EstimatorUsageError(
+                "observe() called while reconstructing: call stop() when the features are measured again"
+            )
+        given = (pan_start is not None, joint_rates is not None, h is not None)
+        if any(given) and not all(given):
+            raise EstimatorInputError(
+                "observe(): give pan_start, joint_rates and h together (the ZOH record of the period "
+                "that just ended), or none of them to restart the history from this sample"
+            )
+        restart = not all(given) or not self._states
+        state = _as_state(psi, None if restart else self._n_points)
+        if restart:
+            self._states.clear()
+            self._periods.clear()
+            self._period = None
+            self._n_points = len(state)
+        if all(given):
+            record = held_inputs(pan_start, joint_rates, h, self._geometry)  # type: ignore[arg-type]
+            self._check_period(record.period)
+            if not restart:
+                self._periods.appendleft(record)
+        self._states.appendleft(state)
+
+    def start(self, *, require_full_history: bool = False) -> None:
+        """Switch to reconstruction from the stored history.
+
+        Parameters
+        ----------
+        require_full_history : bool
+            If ``True``, refuse to start with fewer than ``order`` stored states
+            (no low-order ramp-up).
+
+        Raises
+        ------
+        EstimatorUsageError
+            No stored state, already reconstructing, or history too short when
+            ``require_full_history``.
+        """
+        if self._reconstructing:
+            raise EstimatorUsageError("start() called while already reconstructing; call stop() first")
+        if not self._states:
+            raise EstimatorUsageError(
+                "start(): no measured state stored; call observe(psi) while the features are visible"
+            )
+        if require_full_history and len(self._states) < self._order:
+            raise EstimatorUsageError(
+                f"start(require_full_history=True): {len(self._states)} stored states but order = "
+                f"{self._order} needs {self._order}; observe more samples or allow the ramp-up"
+            )
+        self._reconstructing = True
+        self._steps = 0
+
+    def stop(self) -> None:
+        """Return to tracking (the history is kept; later measurements replace it)."""
+        self._reconstructing = False
+
+    # ------------------------------------------------------------------ screw
+
+    def screw_for_step(
+        self, pan_start: float, joint_rates: Sequence[float], h: float
+    ) -> tuple[float, float, float]:
+        """Camera screw entering the implicit stage at ``t_{k+1}`` for the configured model.
+
+        Does not change the estimator.  With ``q̇_k`` held over ``[t_k, t_{k+1}]``:
+
+        * ``"end"``: ``J_r(ϑ_{k+1}) q̇_k`` (left limit at ``t_{k+1}``);
+        * ``"start"``: ``J_r(ϑ_k) q̇_k``;
+        * ``"mean"``: the exact period mean ``T̄_k`` (:func:`mean_camera_screw`);
+        * ``"histopolated"``: ``sum_i w_i T̄_{k-i}`` over the last ``p = min(order,
+          available)`` period means: the value at ``t_{k+1}`` of the polynomial
+          whose cell means are the ``T̄`` (:func:`analysis.bdf.histopolation_weights`).
+        """
+        record = held_inputs(pan_start, joint_rates, h, self._geometry)
+        return self._screw(record, self._periods)
+
+    def _screw(self, record: HeldInputs, previous: deque) -> tuple[float, float, float]:
+        model = self._model
+        if model == "histopolated":
+            p = min(self._order, len(previous) + 1)
+            weights = self._hist_weights[p]
+            w0 = weights[0]
+            vy, vz, wx = record.mean_screw
+            vy, vz, wx = w0 * vy, w0 * vz, w0 * wx
+            for w, past in zip(weights[1:], previous):
+                py, pz, px = past.mean_screw
+                vy += w * py
+                vz += w * pz
+                wx += w * px
+            return (vy, vz, wx)
+        if model == "mean":
+            return record.mean_screw
+        geometry = self._geometry
+        pan = record.pan_start + record.pan_rate * record.period if model == "end" else record.pan_start
+        return camera_screw(
+            pan,
+            record.v,
+            record.omega,
+            record.pan_rate,
+            geometry.pan_offset_m,
+            geometry.camera_forward_m,
+            geometry.camera_lateral_m,
+        )
+
+    def _check_period(self, h: float) -> None:
+        if self._period is None:
+            self._period = h
+        elif abs(h - self._period) > PERIOD_RELATIVE_TOLERANCE * self._period:
+            raise EstimatorInputError(
+                f"h = {h!r} s differs from the period {self._period!r} s of the stored history: the "
+                f"fixed-step BDF needs equal periods; call reset() (or observe(psi) without a record "
+                f"to restart the history) before changing the period"
+            )
+
+    # ------------------------------------------------------------------ steps
+
+    def advance(
+        self, pan_start: float, joint_rates: Sequence[float], h: float
+    ) -> tuple[tuple[float, float, float], ...]:
+        """One BDF step over the period that just ended; returns the reconstructed ``ψ_{k+1}``.
+
+        Parameters
+        ----------
+        pan_start : float
+            Pan angle at the start of the period [rad].
+        joint_rates : (v, omega, pan_rate)
+            Joint rates held over the period.
+        h : float
+            Period length [s] (must equal the history's).
+
+        Raises
+        ------
+        EstimatorUsageError
+            Not reconstructing.
+        EstimatorInputError
+            Non-positive or changed ``h``, malformed rates.
+        hybrid.errors.NumericalFailure
+            Newton did not converge, or a depth became <= 0.
+        """
+        if not self._reconstructing:
+            raise EstimatorUsageError("advance() called while tracking measurements: call start() first")
+        record = held_inputs(pan_start, joint_rates, h, self._geometry)
+        self._check_period(record.period)
+        screw = self._screw(record, self._periods)
+        psi = self._bdf_step(screw, record.period)
+        self._periods.appendleft(record)
+        return psi
+
+    def advance_with_screw(
+        self, screw: Sequence[float], h: float
+    ) -> tuple[tuple[float, float, float], ...]:
+        """One BDF step with the camera screw at ``t_{k+1}`` given directly (smooth inputs, tests).
+
+        Bypasses the screw model.  The period records are cleared (the inputs of
+        this period are unknown), so a later ``"histopolated"`` :meth:`advance`
+        restarts its histopolation from one mean.
+        """
+        if not self._reconstructing:
+            raise EstimatorUsageError("advance_with_screw() called while tracking: call start() first")
+        try:
+            v_y, v_z, omega_x = (float(x) for x in screw)
+            period = float(h)
+        except (TypeError, ValueError) as err:
+            raise EstimatorInputError(f"screw = {screw!r}, h = {h!r}: expected (V_y, V_z, Omega_x) and a number") from err
+        if not (period > 0.0 and math.isfinite(period)):
+            raise EstimatorInputError(f"h = {h!r}: expected a positive finite sampling period [s]")
+        self._check_period(period)
+        psi = self._bdf_step((v_y, v_z, omega_x), period)
+        self._periods.clear()
+        return psi
+
+    def _bdf_step(self, screw: tuple[float, float, float], h: float) -> tuple[tuple[float, float, float], ...]:
+        """Predictor + per-point 2×2 Newton on (Y, z) + linear X; pushes and returns ψ_{k+1}."""
+        states = self._states
+        q = len(states)
+        parts = self._combiners[q](states)
+        bh = self._betas[q] * h
+        v_y, v_z, omega_x = screw
+        bh_vy, bh_vz, bh_wx = bh * v_y, bh * v_z, bh * omega_x
+        tol, maxiter = self._tol, self._maxiter
+        out = []
+        worst = 0
+        try:
+            psi = self._solve_points(parts, bh, bh_vy, bh_vz, bh_wx, h)
+        except ZeroDivisionError as err:
+            raise NumericalFailure(
+                f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): singular Newton matrix or "
+                f"X equation ({err}); reduce h"
+            ) from err
+
+            # G(Y, z) = (Y - bh*Ydot - r_Y, z - bh*zdot - r_z) with
+            # Ydot = (-V_y + Y V_z)/z + (1 + Y²) Ω_x,  zdot = -V_z - z Y Ω_x.
+            for iteration in range(1, maxiter + 1):
+                if z <= 0.0:
+                    raise self._depth_failure(i, z, iteration, h)
+                inv_z = 1.0 / z
+                g_y = y - (y * bh_vz - bh_vy) * inv_z - (1.0 + y * y) * bh_wx - r_y
+                g_z = z + bh_vz + z * y * bh_wx - r_z
+                a11 = 1.0 - bh_vz * inv_z - 2.0 * y * bh_wx
+                a12 = (y * bh_vz - bh_vy) * inv_z * inv_z
+                a21 = z * bh_wx
+                a22 = 1.0 + y * bh_wx
+                det = a11 * a22 - a12 * a21
+                d_y = (a22 * g_y - a12 * g_z) / det
+                d_z = (a11 * g_z - a21 * g_y) / det
+                y -= d_y
+                z -= d_z
+                if abs(d_y) <= tol * (1.0 + abs(y)) and abs(d_z) <= tol * (1.0 + abs(z)):
+                    break
+            else:
+                raise self._newton_failure(i, y, z, r_y, r_z, (bh_vy, bh_vz, bh_wx), max(abs(d_y), abs(d_z)), h)
+            if z <= 0.0:
+                raise self._depth_failure(i, z, iteration, h)
+            if iteration > worst:
+                worst = iteration
+            out.append((r_x / (1.0 - bh_vz / z - y * bh_wx), y, z))
+        psi = tuple(out)
+        states.appendleft(psi)
+        self._last_iterations = worst
+        self._steps += 1
+        return psi
+
+    def _depth_failure(self, point: int, z: float, iteration: int, h: float) -> NumericalFailure:
+        return NumericalFailure(
+            f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): depth of point {point} became "
+            f"z = {z:.6g} m at Newton iteration {iteration} (must be > 0): the point passed behind the camera "
+            f"or the step is too large for the motion"
+        )
+
+    def _newton_failure(
+        self,
+        point: int,
+        y: float,
+        z: float,
+        r_y: float,
+        r_z: float,
+        scaled_screw: tuple[float, float, float],
+        update: float,
+        h: float,
+    ) -> NumericalFailure:
+        bh_vy, bh_vz, bh_wx = scaled_screw
+        residual = max(
+            abs(y - (y * bh_vz - bh_vy) / z - (1.0 + y * y) * bh_wx - r_y),
+            abs(z + bh_vz + z * y * bh_wx - r_z),
+        )
+        return NumericalFailure(
+            f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): Newton for point {point} did not "
+            f"converge after {self._maxiter} iterations (last update {update:.3e}, residual {residual:.3e}, "
+            f"tolerance {self._tol:.1e} relative); reduce h or raise EstimatorSettings.newton_maxiter"
+        )
