@@ -6,8 +6,8 @@ roots (zero-stability), the extrapolation weights of the natural predictor,
 the histopolation weights that turn interval means into a point value, and a
 dense-Newton fixed-step integrator for ``y' = f(t, y)`` used as a reference.
 
-The ``m``-step BDF in backward-difference form is (Hairer & Wanner, *Solving
-ODEs II*, §III.1, eq. (1.22'))::
+The ``m``-step BDF in backward-difference form is (Hairer, Nørsett & Wanner, *Solving
+ODEs I*, §III.1)::
 
     sum_{j=1}^{m} (1/j) ∇^j y_{k+1} = h f(t_{k+1}, y_{k+1})
 

@@ -91,6 +91,7 @@ class LoopState:
 
     estimator: FeatureEstimator
     reconstructing: bool = False
+    samples: int = 0
     last_input: tuple[float, float, float] = (0.0, 0.0, 0.0)
     last_pan: float = 0.0
     true_features: tuple[Point, ...] = ()
@@ -137,7 +138,7 @@ class ClosedLoop:
         """A fresh estimator, not reconstructing."""
         s = self.scenario
         return LoopState(
-            estimator=FeatureEstimator(s.estimator, s.robot, n_points=len(s.target.points_m)),
+            estimator=FeatureEstimator(s.robot, s.estimator),
             last_pan=float(x[3]),
         )
 
@@ -150,8 +151,12 @@ class ClosedLoop:
         if c.reconstructing:
             estimated = c.estimator.advance(c.last_pan, c.last_input, s.sampling_period_s)
         else:
-            c.estimator.observe(true)
+            if c.samples:
+                c.estimator.observe(true, c.last_pan, c.last_input, s.sampling_period_s)
+            else:
+                c.estimator.observe(true)
             estimated = true
+        c.samples += 1
         image = image_measurement(
             cam, s.robot.camera_height_m, true, s.target.points_m, s.obstacles, s.camera, self._occluding,
         )
@@ -213,7 +218,11 @@ class ClosedLoop:
         features = _merge(c.true_features, c.estimated, image.visible)
         w_vs = (1.0 - mu_occ) * (1.0 - mu_coll)
         w_occ = (1.0 - mu_coll) * mu_occ
-        q_vs = visual_servoing(features, self._desired_xy, pan, s.robot, g.lambda_vs) if w_vs > 0.0 else None
+        q_vs = (
+            visual_servoing(features, self._desired_xy, pan, s.robot, g.lambda_vs, self.desired)
+            if w_vs > 0.0
+            else None
+        )
         q_occ = None
         if w_occ > 0.0:
             if image.occluder_index >= 0 and math.isfinite(image.d_occ_px):
@@ -221,7 +230,7 @@ class ClosedLoop:
                     features, self._desired_xy, image, pan, s.robot, s.camera, s.envelopes, g.lambda_occ, g.beta_occ
                 )
             else:  # no occluder in front any more: the occlusion task is void
-                q_occ = visual_servoing(features, self._desired_xy, pan, s.robot, g.lambda_vs)
+                q_occ = visual_servoing(features, self._desired_xy, pan, s.robot, g.lambda_vs, self.desired)
         q_coll = None
         if mu_coll > 0.0:
             obstacle = s.obstacles[int(memory["obstacle"])]

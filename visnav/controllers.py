@@ -74,12 +74,16 @@ def _solve_sym3(
 
 
 def visual_servoing_error(
-    features: tuple[tuple[float, float, float], ...], desired: tuple[tuple[float, float], ...]
+    features: tuple[tuple[float, float, float], ...],
+    desired: tuple[tuple[float, float], ...],
+    interaction_at: tuple[tuple[float, float, float], ...] | None = None,
 ) -> tuple[float, float, float]:
-    """``e_VS = (L^T L)^{-1} L^T (s - s*)`` with the current interaction matrix ``L``.
+    """``e_VS = C (s - s*)``, ``C = (L^T L)^{-1} L^T``.
 
-    ``L`` stacks the rows ``L_X, L_Y`` of every point at its current
-    ``(X, Y, z)``.  The result lives in screw space ``(V_y, V_z, Omega_x)``.
+    ``L`` stacks the rows ``L_X, L_Y`` of every point evaluated at
+    ``interaction_at`` (``(X, Y, z)`` per point): the current features by
+    default, or e.g. the desired ones ``(X*, Y*, z*)`` for the classical
+    constant ``C = L*^+``.  The result lives in screw space ``(V_y, V_z, Omega_x)``.
 
     Raises
     ------
@@ -91,9 +95,12 @@ def visual_servoing_error(
         raise ValueError(f"visual_servoing: {len(features)} features but {len(desired)} desired points")
     a11 = a12 = a13 = a22 = a23 = a33 = b1 = b2 = b3 = 0.0
     x_row, y_row = model.interaction_x_row, model.interaction_y_row
-    for (x, y, z), (xd, yd) in zip(features, desired):
-        _, lx2, lx3 = x_row(x, y, z)  # first entry is 0
-        ly1, ly2, ly3 = y_row(y, z)
+    at = features if interaction_at is None else interaction_at
+    if len(at) != len(features):
+        raise ValueError(f"visual_servoing: {len(features)} features but {len(at)} interaction points")
+    for (x, y, _), (xd, yd), (xl, yl, zl) in zip(features, desired, at):
+        _, lx2, lx3 = x_row(xl, yl, zl)  # first entry is 0
+        ly1, ly2, ly3 = y_row(yl, zl)
         ex, ey = x - xd, y - yd
         a11 += ly1 * ly1
         a12 += ly1 * ly2
@@ -113,8 +120,12 @@ def visual_servoing(
     pan: float,
     robot: RobotGeometry,
     lambda_vs: float,
+    interaction_at: tuple[tuple[float, float, float], ...] | None = None,
 ) -> Joint:
     """Nominal visual servoing (7): ``q̇_VS = -lambda_vs J_r^{-1} e_VS``.
+
+    ``interaction_at`` selects where ``L`` (hence ``C``) is evaluated, see
+    :func:`visual_servoing_error`; the closed loop uses the desired features.
 
     Parameters
     ----------
@@ -128,7 +139,7 @@ def visual_servoing(
     lambda_vs : float
         Gain [1/s].
     """
-    e1, e2, e3 = visual_servoing_error(features, desired)
+    e1, e2, e3 = visual_servoing_error(features, desired, interaction_at)
     return model.joint_rates_from_screw(
         pan,
         -lambda_vs * e1,

@@ -178,7 +178,8 @@ def held_inputs(
 ) -> HeldInputs:
     """Validated :class:`HeldInputs` of one period (computes the exact mean screw)."""
     try:
-        v, omega, pan_rate = (float(x) for x in joint_rates)
+        v, omega, pan_rate = joint_rates
+        v, omega, pan_rate = float(v), float(omega), float(pan_rate)
         pan = float(pan_start)
         period = float(h)
     except (TypeError, ValueError) as err:
@@ -188,7 +189,7 @@ def held_inputs(
         ) from err
     if not (period > 0.0 and math.isfinite(period)):
         raise EstimatorInputError(f"h = {h!r}: expected a positive finite sampling period [s]")
-    if not all(math.isfinite(x) for x in (v, omega, pan_rate, pan)):
+    if not (math.isfinite(v) and math.isfinite(omega) and math.isfinite(pan_rate) and math.isfinite(pan)):
         raise EstimatorInputError(
             f"pan_start = {pan_start!r}, joint_rates = {joint_rates!r}: expected finite values"
         )
@@ -336,6 +337,11 @@ class FeatureEstimator:
     def period(self) -> float | None:
         """The sampling period shared by the stored history, or ``None`` before the first period."""
         return self._period
+
+    @property
+    def history(self) -> tuple[tuple[tuple[float, float, float], ...], ...]:
+        """The stored states, newest first (at most ``order``)."""
+        return tuple(self._states)
 
     @property
     def psi(self) -> tuple[tuple[float, float, float], ...] | None:
@@ -566,7 +572,6 @@ class FeatureEstimator:
         """Predictor + per-point 2×2 Newton on (Y, z) + linear X; pushes and returns ψ_{k+1}."""
         states = self._states
         q = len(states)
-        parts = self._combiners[q](states)
         bh = self._betas[q] * h
         v_y, v_z, omega_x = screw
         bh_vy, bh_vz, bh_wx = bh * v_y, bh * v_z, bh * omega_x
@@ -574,39 +579,39 @@ class FeatureEstimator:
         out = []
         worst = 0
         try:
-            psi = self._solve_points(parts, bh, bh_vy, bh_vz, bh_wx, h)
-        except ZeroDivisionError as err:
-            raise NumericalFailure(
-                f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): singular Newton matrix or "
-                f"X equation ({err}); reduce h"
-            ) from err
-
-            # G(Y, z) = (Y - bh*Ydot - r_Y, z - bh*zdot - r_z) with
-            # Ydot = (-V_y + Y V_z)/z + (1 + Y²) Ω_x,  zdot = -V_z - z Y Ω_x.
-            for iteration in range(1, maxiter + 1):
+            for i, (r_x, r_y, r_z, y, z) in enumerate(self._combiners[q](states)):
+                # G(Y, z) = (Y - bh Ẏ - r_Y, z - bh ż - r_z), Ẏ = (Y V_z - V_y)/z + (1 + Y²) Ω_x,
+                # ż = -V_z - z Y Ω_x; A = ∂G/∂(Y, z); update d = A⁻¹ G (Cramer).
+                for iteration in range(1, maxiter + 1):
+                    if z <= 0.0:
+                        raise self._depth_failure(i, z, iteration, h)
+                    inv_z = 1.0 / z
+                    g_y = y - (y * bh_vz - bh_vy) * inv_z - (1.0 + y * y) * bh_wx - r_y
+                    g_z = z + bh_vz + z * y * bh_wx - r_z
+                    a11 = 1.0 - bh_vz * inv_z - 2.0 * y * bh_wx
+                    a12 = (y * bh_vz - bh_vy) * inv_z * inv_z
+                    a21 = z * bh_wx
+                    a22 = 1.0 + y * bh_wx
+                    det = a11 * a22 - a12 * a21
+                    d_y = (a22 * g_y - a12 * g_z) / det
+                    d_z = (a11 * g_z - a21 * g_y) / det
+                    y -= d_y
+                    z -= d_z
+                    if abs(d_y) <= tol * (1.0 + abs(y)) and abs(d_z) <= tol * (1.0 + abs(z)):
+                        break
+                else:
+                    raise self._newton_failure(i, y, z, r_y, r_z, (bh_vy, bh_vz, bh_wx), max(abs(d_y), abs(d_z)), h)
                 if z <= 0.0:
                     raise self._depth_failure(i, z, iteration, h)
-                inv_z = 1.0 / z
-                g_y = y - (y * bh_vz - bh_vy) * inv_z - (1.0 + y * y) * bh_wx - r_y
-                g_z = z + bh_vz + z * y * bh_wx - r_z
-                a11 = 1.0 - bh_vz * inv_z - 2.0 * y * bh_wx
-                a12 = (y * bh_vz - bh_vy) * inv_z * inv_z
-                a21 = z * bh_wx
-                a22 = 1.0 + y * bh_wx
-                det = a11 * a22 - a12 * a21
-                d_y = (a22 * g_y - a12 * g_z) / det
-                d_z = (a11 * g_z - a21 * g_y) / det
-                y -= d_y
-                z -= d_z
-                if abs(d_y) <= tol * (1.0 + abs(y)) and abs(d_z) <= tol * (1.0 + abs(z)):
-                    break
-            else:
-                raise self._newton_failure(i, y, z, r_y, r_z, (bh_vy, bh_vz, bh_wx), max(abs(d_y), abs(d_z)), h)
-            if z <= 0.0:
-                raise self._depth_failure(i, z, iteration, h)
-            if iteration > worst:
-                worst = iteration
-            out.append((r_x / (1.0 - bh_vz / z - y * bh_wx), y, z))
+                if iteration > worst:
+                    worst = iteration
+                # X (1 - bh (V_z/z + Y Ω_x)) = r_X: the X row of the block, linear in X.
+                out.append((r_x / (1.0 - bh_vz / z - y * bh_wx), y, z))
+        except ZeroDivisionError as err:
+            raise NumericalFailure(
+                f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): singular Newton matrix "
+                f"or X equation for point {len(out)} ({err}); reduce h"
+            ) from err
         psi = tuple(out)
         states.appendleft(psi)
         self._last_iterations = worst

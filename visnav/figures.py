@@ -17,7 +17,14 @@ from matplotlib.patches import Circle  # noqa: E402
 
 from .simulation import SimulationResult  # noqa: E402
 
-__all__ = ["trajectory_figure", "risk_figure", "reconstruction_figure", "controls_figure", "paper_figures"]
+__all__ = [
+    "trajectory_figure",
+    "risk_figure",
+    "reconstruction_figure",
+    "controls_figure",
+    "paper_figures",
+    "mode_graph_figure",
+]
 
 
 def _shade_modes(ax: plt.Axes, result: SimulationResult) -> None:
@@ -139,3 +146,52 @@ def paper_figures(result: SimulationResult) -> dict[str, Figure]:
         "fig6_reconstruction": reconstruction_figure(result),
         "fig7_controls": controls_figure(result),
     }
+
+
+def mode_graph_figure(automaton: "HybridAutomaton") -> Figure:  # noqa: F821
+    """The supervisor's product mode graph: collision phases as columns, occlusion phases as rows.
+
+    Edges of the collision component are drawn in blue, those of the occlusion
+    component in orange; each product transition is one arrow.
+    """
+    from hybrid import mode_graph
+
+    from .supervisor import COLLISION_PHASES, OCCLUSION_PHASES, split_mode
+
+    graph = mode_graph(automaton)
+    pos = {}
+    for name in graph.nodes:
+        collision, occlusion = split_mode(name)
+        pos[name] = (COLLISION_PHASES.index(collision) * 2.2, -OCCLUSION_PHASES.index(occlusion) * 1.6)
+    fig, ax = plt.subplots(figsize=(14, 6))
+    for source, target, key, data in graph.edges(keys=True, data=True):
+        (x0, y0), (x1, y1) = pos[source], pos[target]
+        collision_edge = split_mode(source)[0] != split_mode(target)[0]
+        ax.annotate(
+            "",
+            xy=(x1, y1),
+            xytext=(x0, y0),
+            arrowprops=dict(
+                arrowstyle="-|>",
+                color="tab:blue" if collision_edge else "tab:orange",
+                lw=0.9,
+                shrinkA=22,
+                shrinkB=22,
+                connectionstyle="arc3,rad=0.18",
+            ),
+        )
+    for name, (x, y) in pos.items():
+        collision, occlusion = split_mode(name)
+        initial = name == automaton.initial_mode
+        ax.text(x, y, f"{collision}\n{occlusion}", ha="center", va="center", fontsize=8,
+                bbox=dict(boxstyle="round", fc="lightyellow" if initial else "white", ec="0.3"))
+    ax.plot([], [], color="tab:blue", label="collision component (AVOID/LEAVE)")
+    ax.plot([], [], color="tab:orange", label="occlusion component (OCCLU)")
+    ax.legend(loc="lower center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
+    ax.set_xlim(-1.2, 2.2 * (len(COLLISION_PHASES) - 1) + 1.2)
+    ax.set_ylim(-1.6 * (len(OCCLUSION_PHASES) - 1) - 0.8, 0.8)
+    ax.axis("off")
+    ax.set_title(f"{automaton.name}: {len(graph.nodes)} modes, {len(graph.edges)} transitions "
+                 "(initial mode highlighted)")
+    fig.tight_layout()
+    return fig

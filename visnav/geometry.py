@@ -132,7 +132,8 @@ def project_point(
             f"world point ({wx:.6g}, {wy:.6g}, {wh:.6g}) has depth z = {z:.6g} m: "
             "expected z > 0 (the point is behind the camera)"
         )
-    return ((camera_height - wh) / z, (dy * c - dx * s) / z, z)
+    inv_z = 1.0 / z  # as in project_points: both give bit-identical results
+    return ((camera_height - wh) * inv_z, (dy * c - dx * s) * inv_z, z)
 
 
 def project_points(
@@ -495,7 +496,6 @@ def image_measurement(
         occluding = tuple(o.occludes(camera_height) for o in obstacles)
     c, s = math.cos(phi), math.sin(phi)
     x_lim, y_lim, f = camera.x_limit, camera.y_limit, camera.focal_px
-    ys = [ft[1] for ft in features]
     in_view = tuple([z > 0.0 and -x_lim <= xx <= x_lim and -y_lim <= yy <= y_lim for xx, yy, z in features])
 
     # exact occlusion test of every point by every tall obstacle
@@ -506,16 +506,18 @@ def image_measurement(
         if not occluding[k]:
             continue
         if rel is None:
-            rel = [(wx - cx, wy - cy) for wx, wy, _ in world_points]
+            rel = []
+            for wx, wy, _ in world_points:
+                sx, sy = wx - cx, wy - cy
+                rel.append((sx, sy, sx * sx + sy * sy))
         ox, oy = obs.center_m
         px, py = ox - cx, oy - cy
         r = obs.radius_m
         r2 = r * r
         pp = px * px + py * py
         hidden = []
-        for j, (sx, sy) in enumerate(rel):
+        for j, (sx, sy, ss) in enumerate(rel):
             # closest point of the segment C -> W_j to the centre (see _segment_meets_disc)
-            ss = sx * sx + sy * sy
             ps = px * sx + py * sy
             if ps <= 0.0 or ss == 0.0:
                 h = pp <= r2
@@ -535,7 +537,9 @@ def image_measurement(
 
     # the occluder: the tall obstacle in front with the smallest d_occ
     best = None  # (d_occ, k, interval, side, nearest, border, sign)
-    mean_y = sum(ys) / n
+    if tall:
+        ys = [ft[1] for ft in features]
+        mean_y = sum(ys) / n
     for k, px, py, pp, r, hidden in tall:
         interval = _interval(px * c + py * s, py * c - px * s, pp, r)
         if interval is None:
