@@ -16,12 +16,14 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
-from scipy.integrate import quad
+from scipy.integrate import quad, solve_ivp
 
 from analysis.bdf import BdfOrderError, bdf_coefficients, extrapolation_weights
 from hybrid.errors import NumericalFailure
 from visnav.estimator import (
     SCREW_MODELS,
+    STARTUP_METHODS,
+    STARTUP_RK4_SUBSTEPS,
     EstimatorInputError,
     EstimatorSettingsError,
     EstimatorUsageError,
@@ -29,6 +31,7 @@ from visnav.estimator import (
     HeldInputs,
     held_inputs,
     mean_camera_screw,
+    zoh_period_rk4,
 )
 from visnav.geometry import camera_pose, project_points, propagate_pose
 from visnav.model import camera_screw, feature_depth_rate, feature_depth_rate_jacobian
@@ -66,15 +69,21 @@ def zoh_motion(h, n_history, n_steps):
 
 
 @lru_cache(maxsize=None)
-def reconstruction_errors(model, order, h=0.05):
-    """Max over the occlusion of ``f |s - s̃|`` [px] (any coordinate) and ``|z - z̃|`` [mm], Newton iterations."""
+def reconstruction_errors(model, order, h=0.05, observed=None, startup="rk4"):
+    """Max over the occlusion of ``f |s - s̃|`` [px] (any coordinate) and ``|z - z̃|`` [mm], Newton iterations.
+
+    ``observed``: number of measured samples before the occlusion (the last ones of the 0.5 s
+    history); ``None`` observes them all (a full exact history).  With fewer than ``order`` the
+    first steps are start-up steps (``startup``).  The motion and the 15 s window are the same.
+    """
     n_history, n_steps = round(HISTORY / h), round(DURATION / h)
     poses, rates = zoh_motion(h, n_history, n_steps)
+    first = 0 if observed is None else n_history + 1 - observed
     est = FeatureEstimator(GEOMETRY, EstimatorSettings(order=order, screw_model=model))
-    est.observe(features(poses[0]))
-    for k in range(1, n_history + 1):
+    est.observe(features(poses[first]))
+    for k in range(first + 1, n_history + 1):
         est.observe(features(poses[k]), poses[k - 1][3], rates[k - 1], h)
-    est.start(require_full_history=True)
+    est.start(require_full_history=observed is None, startup=startup)
     err_px = err_mm = 0.0
     iterations = []
     for k in range(n_history, n_history + n_steps):
@@ -323,28 +332,194 @@ def test_held_inputs_record():
 # --------------------------------------------------------------------------- start-up and phases
 
 
-def test_ramp_up_start_from_a_single_measurement():
+# Joint rates at the stated actuator limits and points as close as 0.5 m: the bounding case used
+# to choose STARTUP_RK4_SUBSTEPS (estimator docstring).
+FAST_PSI = ((0.3, -0.4, 0.5), (-0.2, 0.6, 0.7), (0.1, 0.1, 1.0), (0.5, 0.5, 2.0))
+FAST_PERIOD = (0.3, (0.6, 1.0, 1.5))  # pan at the period start, (v, omega, pan_rate)
+
+
+def _dop853_period(psi, pan_start, joint_rates, h, screw=None):
+    """Independent reference: DOP853 (rtol 1e-12) of (13) over one period with T(t) = J_r(pan(t)) q̇.
+
+    ``screw`` replaces T(t) by a constant (to show how much the in-period variation matters).
+    """
+    g = GEOMETRY
+    v, omega, pan_rate = joint_rates
+
+    def rhs(t, y):
+        t_rc = screw or camera_screw(pan_start + pan_rate * t, v, omega, pan_rate, g.pan_offset_m, g.camera_forward_m, g.camera_lateral_m)
+        return np.concatenate([feature_depth_rate(*y[3 * i : 3 * i + 3], *t_rc) for i in range(y.size // 3)])
+
+    sol = solve_ivp(rhs, (0.0, h), np.array(psi, dtype=float).reshape(-1), method="DOP853", rtol=1e-12, atol=1e-14)
+    assert sol.success
+    return sol.y[:, -1].reshape(-1, 3)
+
+
+@pytest.mark.parametrize("case", ["test motion", "actuator limits"])
+def test_startup_step_matches_an_independent_high_accuracy_integration(case):
     h = 0.05
-    poses, rates = zoh_motion(h, 0, 300)
+    if case == "test motion":
+        poses, rates = zoh_motion(h, 0, 1)
+        psi, pan, q = features(poses[0]), poses[0][3], rates[0]
+    else:
+        psi, (pan, q) = FAST_PSI, FAST_PERIOD
+    est = FeatureEstimator(GEOMETRY, EstimatorSettings(order=4))
+    est.observe(psi)
+    est.start()
+    step = np.array(est.advance(pan, q, h))
+    assert est.last_step_method == "rk4" and est.last_newton_iterations == 0
+    reference = _dop853_period(psi, pan, q, h)
+    # Measured: 2.7e-15 (test motion, round-off) and 2.8e-11 (actuator limits, 16 RK4 substeps).
+    assert np.max(np.abs(step - reference)) < 1e-10
+    # The check is sharp: with the constant period-mean screw instead of T(t) the same period
+    # differs by 1.3e-7 (test motion) and 2.3e-5 (actuator limits).
+    frozen = _dop853_period(psi, pan, q, h, screw=mean_camera_screw(pan, *q, h, GEOMETRY))
+    assert np.max(np.abs(frozen - reference)) > 1e-7
+
+
+def test_startup_substeps_keep_the_error_below_1e_9():
+    """The measurement behind STARTUP_RK4_SUBSTEPS = 16 (estimator docstring)."""
+    h = 0.05
+    pan, q = FAST_PERIOD
+    reference = _dop853_period(FAST_PSI, pan, q, h)
+    record = held_inputs(pan, q, h, GEOMETRY)
+
+    def error(substeps):
+        d = np.abs(np.array(zoh_period_rk4(FAST_PSI, record, GEOMETRY, substeps)) - reference)
+        return max(d[:, :2].max(), (d[:, 2] / reference[:, 2]).max())  # |ΔX|, |ΔY|, |Δz|/z
+
+    # Measured: 8 substeps 7.5e-10 per step (up to 3.7e-9 over the 5 start-up steps of BDF6),
+    # 16 substeps 4.7e-11 (2.4e-10 over 5 steps); RK4 divides the error by ~16 per doubling.
+    assert STARTUP_RK4_SUBSTEPS == 16
+    assert 5 * error(STARTUP_RK4_SUBSTEPS) < 1e-9 < 5 * error(8)
+    assert 10 < error(8) / error(16) < 22
+
+
+def test_rk4_start_from_a_single_measurement_matches_a_full_history():
+    full_px, full_mm, _ = reconstruction_errors("histopolated", 4)
+    single_px, single_mm, iterations = reconstruction_errors("histopolated", 4, observed=1)
+    # Measured over the same 15 s: full exact history 0.00353 px / 0.0133 mm, start from one
+    # measurement with 3 RK4 start-up steps 0.00333 px / 0.0127 mm (the start-up values are exact
+    # to 1e-15 here, so they are if anything better than measured-history BDF4 steps).
+    assert abs(single_px - full_px) < 0.1 * full_px
+    assert abs(single_mm - full_mm) < 0.1 * full_mm
+    assert single_mm < 0.12  # the acceptance bound on the depth
+    assert iterations[:3] == (0, 0, 0) and max(iterations) <= 2
+
+
+@pytest.mark.parametrize("observed", [2, 3])
+def test_rk4_start_from_a_partial_history(observed):
+    full_px, full_mm, _ = reconstruction_errors("histopolated", 4)
+    px, mm, _ = reconstruction_errors("histopolated", 4, observed=observed)
+    # Measured: 2 values 0.00340 px / 0.0129 mm, 3 values 0.00346 px / 0.0131 mm.
+    assert abs(px - full_px) < 0.1 * full_px and abs(mm - full_mm) < 0.1 * full_mm
+
+
+def test_ramp_startup_option_is_much_worse():
+    # Measured on the same 15 s: 0.268 px / 0.736 mm (BDF1 with the full step has a local error
+    # h²|ψ''|/2 and the low-order steps leave it in the history for good), 80x / 58x the RK4 start.
+    ramp_px, ramp_mm, _ = reconstruction_errors("histopolated", 4, observed=1, startup="ramp")
+    rk4_px, rk4_mm, _ = reconstruction_errors("histopolated", 4, observed=1)
+    assert 0.1 < ramp_px < 0.5 and 0.5 < ramp_mm < 1.0
+    assert ramp_px > 30 * rk4_px and ramp_mm > 30 * rk4_mm
+
+
+@pytest.mark.parametrize(("order", "startup", "methods"), [
+    (4, "rk4", ("rk4", "rk4", "rk4", "bdf4", "bdf4")),
+    (2, "rk4", ("rk4", "bdf2", "bdf2")),
+    (1, "rk4", ("bdf1", "bdf1")),
+    (4, "ramp", ("bdf1", "bdf2", "bdf3", "bdf4", "bdf4")),
+])
+def test_startup_steps_then_bdf_takes_over(order, startup, methods):
+    h = 0.05
+    poses, rates = zoh_motion(h, 0, len(methods))
+    est = FeatureEstimator(GEOMETRY, EstimatorSettings(order=order))
+    est.observe(features(poses[0]))
+    est.start(startup=startup)
+    for k, method in enumerate(methods):
+        psi = est.advance(poses[k][3], rates[k], h)
+        assert est.last_step_method == method
+        assert est.history[0] == psi  # appended exactly like a BDF value
+        assert est.history_length == min(k + 2, order)
+        assert est.reconstruction_steps == k + 1
+
+
+def test_unknown_startup():
+    assert STARTUP_METHODS == ("rk4", "ramp")
+    est = FeatureEstimator(GEOMETRY)
+    est.observe(((0.1, 0.2, 3.0),))
+    with pytest.raises(EstimatorInputError, match=r"start\(startup='euler'\): expected one of 'rk4', 'ramp'"):
+        est.start(startup="euler")
+    assert not est.reconstructing
+
+
+def _reconstruct_then_observe(n_fresh, n_first=100, h=0.05):
+    """Full history, reconstruct n_first steps, stop, observe n_fresh true samples; (est, poses, rates, k)."""
+    n_history = 10
+    poses, rates = zoh_motion(h, n_history, n_first + n_fresh + 20)
     est = FeatureEstimator(GEOMETRY, EstimatorSettings(order=4))
     est.observe(features(poses[0]))
+    for k in range(1, n_history + 1):
+        est.observe(features(poses[k]), poses[k - 1][3], rates[k - 1], h)
+    est.start(require_full_history=True)
+    for k in range(n_history, n_history + n_first):
+        est.advance(poses[k][3], rates[k], h)
+    est.stop()
+    k = n_history + n_first
+    for _ in range(n_fresh):  # the features are measured again at t_{k+1}, ...
+        est.observe(features(poses[k + 1]), poses[k][3], rates[k], h)
+        k += 1
+    return est, poses, rates, k
+
+
+@pytest.mark.parametrize("n_fresh", [1, 2, 3])
+def test_restart_after_stop_uses_only_fresh_measurements(n_fresh):
+    h = 0.05
+    est, poses, rates, k = _reconstruct_then_observe(n_fresh)
+    assert est.history == tuple(features(poses[j]) for j in range(k, k - n_fresh, -1))
     est.start()
-    err = 0.0
-    for k in range(300):
-        psi = est.advance(poses[k][3], rates[k], h)
-        err = max(err, max(FOCAL_PX * abs(a - b) for p, t in zip(psi, features(poses[k + 1])) for a, b in zip(p[:2], t[:2])))
-        assert est.history_length == min(k + 2, 4)
-    # Measured 0.155 px: the first BDF1 step alone has a local error h²|ψ''|/2 ~ 1e-4 (0.05 px) and
-    # the BDF2/3 steps and the short histopolation add to it: 40x the 0.0035 px of a full history.
-    # Hence the estimator should be fed from the first visible sample (the normal case).
-    assert 0.05 < err < 0.5
-    assert err > 10 * reconstruction_errors("histopolated", 4)[0]
+    # Reference: a new estimator fed the same fresh measurements (and only their own records).
+    ref = FeatureEstimator(GEOMETRY, EstimatorSettings(order=4))
+    ref.observe(features(poses[k - n_fresh + 1]))
+    for j in range(k - n_fresh + 2, k + 1):
+        ref.observe(features(poses[j]), poses[j - 1][3], rates[j - 1], h)
+    ref.start()
+    methods = []
+    err_px = 0.0
+    for j in range(k, k + 20):
+        psi = est.advance(poses[j][3], rates[j], h)
+        methods.append(est.last_step_method)
+        # Start-up steps, then BDF4 histopolating the same period means: identical results.
+        assert psi == ref.advance(poses[j][3], rates[j], h)
+        err_px = max(err_px, max(FOCAL_PX * abs(a - b) for p, t in zip(psi, features(poses[j + 1])) for a, b in zip(p[:2], t[:2])))
+    assert methods == ["rk4"] * (4 - n_fresh) + ["bdf4"] * (16 + n_fresh)
+    assert err_px < 1e-3  # measured 2.1e-4 to 2.5e-4 px over this 1 s
+
+
+def test_start_right_after_stop_resumes_on_the_reconstruction():
+    h = 0.05
+    est, poses, rates, k = _reconstruct_then_observe(0, n_first=10)
+    history = est.history
+    est.start(require_full_history=True)  # nothing observed since stop(): the reconstructed history stays
+    assert est.history == history
+    est.advance(poses[k][3], rates[k], h)
+    assert est.last_step_method == "bdf4"
+
+
+def test_startup_depth_not_positive():
+    # a point 0.1 m ahead, camera driving forward at 5 m/s for 50 ms: z would be -0.15 m
+    est = FeatureEstimator(GEOMETRY, EstimatorSettings(order=2))
+    est.observe(((0.0, 0.0, 0.1),))
+    est.start()
+    with pytest.raises(NumericalFailure, match=r"feature estimator, start-up step 1 \(RK4 on the exact ZOH ODE\): RK4 over the ZOH period \(h = 0\.05 s, substep 7 of 16\): point 0 reached depth z = -0\.00[0-9]+ m \(the depth must stay finite and > 0\)"):
+        est.advance(0.0, (5.0, 0.0, 0.0), 0.05)
+    assert est.history_length == 1 and est.reconstruction_steps == 0
 
 
 def test_require_full_history():
     est = FeatureEstimator(GEOMETRY, EstimatorSettings(order=4))
     est.observe(((0.1, 0.2, 3.0),))
-    with pytest.raises(EstimatorUsageError, match=r"1 stored states but order = 4 needs 4; observe more samples or allow the ramp-up"):
+    with pytest.raises(EstimatorUsageError, match=r"1 stored states but order = 4 needs 4; observe more samples or allow the start-up steps"):
         est.start(require_full_history=True)
 
 
@@ -357,9 +532,11 @@ def test_phases_and_history_bookkeeping():
     est.advance(0.0, (0.2, 0.0, 0.0), h)
     assert est.reconstruction_steps == 1 and est.history_length == 4
     est.stop()
-    assert not est.reconstructing
-    est.observe(est.psi, 0.0, (0.2, 0.0, 0.0), h)  # measurements resume on the same history
-    assert est.history_length == 4
+    assert not est.reconstructing and est.history_length == 4
+    est.observe(est.psi, 0.0, (0.2, 0.0, 0.0), h)  # measured again: the reconstructed values go
+    assert est.history_length == 1 and est.period == h
+    est.observe(est.psi, 0.0, (0.2, 0.0, 0.0), h)  # and measurements accumulate again
+    assert est.history_length == 2
     est.observe(est.psi)  # no record: the history restarts here
     assert est.history_length == 1
     est.reset()
@@ -507,3 +684,11 @@ if __name__ == "__main__":
     for model in SCREW_MODELS:
         cells = [f"{px:.3g} px / {mm:.3g} mm" for m, o, px, mm in rows if m == model]
         print(f"| {model} | " + " | ".join(cells) + " |")
+    print()
+    print("Start from a single measurement (histopolated; same motion and 15 s window):")
+    for startup in STARTUP_METHODS:
+        cells = []
+        for order in range(1, 7):
+            px, mm, _ = reconstruction_errors("histopolated", order, observed=1, startup=startup)
+            cells.append(f"{px:.3g} px / {mm:.3g} mm")
+        print(f"| {startup} start-up | " + " | ".join(cells) + " |")
