@@ -17,6 +17,8 @@ class OutputError(OSError):
 def prepare_output_dir(path: str | os.PathLike[str]) -> Path:
     """Create ``path`` if needed and check that it is a writable folder."""
     folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"--out {str(folder)!r}: exists and is not a folder; choose a folder path")
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:

@@ -39,6 +39,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from visnav import geometry
+from visnav.estimator import SCREW_MODELS
 from visnav.parameters import (
     ActuatorLimits,
     CameraModel,
@@ -68,8 +70,6 @@ __all__ = [
     "point_in_camera",
 ]
 
-#: Accepted values of ``estimator.screw_model``.
-SCREW_MODELS = ("end", "start", "mean", "histopolated")
 #: Zero-stable BDF orders accepted for ``estimator.order``.
 ESTIMATOR_ORDERS = range(1, 7)
 #: Minimum number of target points (``C = (LᵀL)⁻¹Lᵀ`` needs ``2N >= 3`` independent rows; the
@@ -222,16 +222,9 @@ def target_square(
 def camera_pose(pose: Pose, robot: RobotGeometry) -> tuple[float, float, float]:
     """Optical centre ``(x, y)`` [m] and heading ``phi`` [rad] of the camera for ``pose``.
 
-    ``P = M + Dx (cos θ, sin θ)``, ``φ = θ + ϑ``,
-    ``C = P + a (cos φ, sin φ) + b (−sin φ, cos φ)``.
+    Thin wrapper of :func:`visnav.geometry.camera_pose` (the single definition).
     """
-    th = pose.theta_rad
-    px = pose.x_m + robot.pan_offset_m * math.cos(th)
-    py = pose.y_m + robot.pan_offset_m * math.sin(th)
-    phi = th + pose.pan_rad
-    c, s = math.cos(phi), math.sin(phi)
-    a, b = robot.camera_forward_m, robot.camera_lateral_m
-    return (px + a * c - b * s, py + a * s + b * c, phi)
+    return geometry.camera_pose(pose.x_m, pose.y_m, pose.theta_rad, pose.pan_rad, robot)
 
 
 def point_in_camera(
@@ -240,7 +233,8 @@ def point_in_camera(
     """Camera-frame coordinates ``(x_c, y_c, z)`` [m] of a world point ``(x, y, height)``.
 
     ``z`` is the depth along the optical axis, ``y_c`` points left and
-    ``x_c = camera_height − height`` points down.
+    ``x_c = camera_height − height`` points down (the same frame as
+    :func:`visnav.geometry.project_point`, which divides by ``z``).
     """
     cx, cy, phi = camera_pose(pose, robot)
     dx, dy = point[0] - cx, point[1] - cy
