@@ -17,7 +17,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from hybrid import NumericalFailure, Plant
+from hybrid import Plant
 
 from .controllers import (
     avoidance_control,
@@ -39,9 +39,9 @@ from .geometry import (
     wrap_angle,
 )
 from .parameters import Scenario
-from .supervisor import I_FIRST_OBSTACLE, SupervisorModel, build_supervisor, split_mode
+from .supervisor import SupervisorModel, build_supervisor, split_mode
 
-__all__ = ["ClosedLoop", "LoopState", "robot_plant", "desired_features", "RECORD_NAMES"]
+__all__ = ["ClosedLoop", "LoopState", "robot_plant", "desired_features", "record_names"]
 
 Point = tuple[float, float, float]
 
@@ -70,7 +70,8 @@ def desired_features(scenario: Scenario) -> tuple[Point, ...]:
     return project_points(*cam, scenario.robot.camera_height_m, scenario.target.points_m)
 
 
-def _record_names(n_points: int, n_obstacles: int) -> tuple[str, ...]:
+def record_names(n_points: int) -> tuple[str, ...]:
+    """Names of the values :meth:`ClosedLoop.control` records each sample for ``n_points`` points."""
     names = ["mu_coll", "mu_occ"]
     names += [f"{c}{i}" for i in range(n_points) for c in ("X", "Y")]
     names += [f"{c}{i}_est" for i in range(n_points) for c in ("X", "Y")]
@@ -79,10 +80,6 @@ def _record_names(n_points: int, n_obstacles: int) -> tuple[str, ...]:
     names += ["n_hidden", "n_occluded", "reconstructing", "clearance_m", "feature_error_px"]
     names += ["occluder_y_minus", "occluder_y_plus"]
     return tuple(names)
-
-
-RECORD_NAMES = _record_names
-"""Function giving the recorded column names for ``(n_points, n_obstacles)``."""
 
 
 @dataclass(kw_only=True, slots=True)
@@ -131,7 +128,7 @@ class ClosedLoop:
         object.__setattr__(
             self, "_occluding", tuple(o.occludes(s.robot.camera_height_m) for o in s.obstacles)
         )
-        object.__setattr__(self, "record_names", _record_names(len(s.target.points_m), len(s.obstacles)))
+        object.__setattr__(self, "record_names", record_names(len(s.target.points_m)))
 
     # ------------------------------------------------------------------ protocol
     def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
@@ -278,9 +275,3 @@ def _merge(true: tuple[Point, ...], estimated: tuple[Point, ...], visible: tuple
     """Measured features where visible, reconstructed ones elsewhere."""
     return tuple(t if vis else e for t, e, vis in zip(true, estimated, visible))
 
-
-def check_finite_features(features: tuple[Point, ...]) -> None:
-    """Raise :class:`NumericalFailure` on a non-positive or non-finite reconstructed depth."""
-    for i, (_, _, z) in enumerate(features):
-        if not z > 0.0:
-            raise NumericalFailure(f"reconstructed depth of point {i} is {z!r} m (must be > 0)")

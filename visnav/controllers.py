@@ -249,7 +249,7 @@ def occlusion_task(
             f"occlusion_avoidance: no visible or hidden feature near occluder {meas.occluder_index} "
             f"(d_occ = {meas.d_occ_px!r} px); the occlusion task is undefined"
         )
-    f, y_lim, d_plus = camera.focal_px, camera.y_limit, envelopes.D_plus_px
+    f, d_plus = camera.focal_px, envelopes.D_plus_px
     # e_O
     d_bar = min(max(meas.d_occ_px, D_OCC_FLOOR_PX), d_plus)
     arg = 0.5 * math.pi * d_bar / d_plus

@@ -15,6 +15,8 @@ import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 
+from hybrid import HybridAutomaton  # noqa: E402
+
 from .simulation import SimulationResult  # noqa: E402
 
 __all__ = [
@@ -148,7 +150,7 @@ def paper_figures(result: SimulationResult) -> dict[str, Figure]:
     }
 
 
-def mode_graph_figure(automaton: "HybridAutomaton") -> Figure:  # noqa: F821
+def mode_graph_figure(automaton: HybridAutomaton) -> Figure:
     """The supervisor's product mode graph: collision phases as columns, occlusion phases as rows.
 
     Edges of the collision component are drawn in blue, those of the occlusion
