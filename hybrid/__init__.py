@@ -13,8 +13,10 @@ from .errors import (
     ZenoError,
 )
 from .graph import mode_graph, to_dot
-from .model import HybridAutomaton, MemoryVariable, Mode, Transition, transition_fires
+from .model import Conjunction, HybridAutomaton, MemoryVariable, Mode, Transition, all_of, transition_fires
 from .sampled import Plant, SampledEvent, SampledTrace, settle, simulate_sampled
+from .region import Box
+from .system import HybridSystem
 
 __all__ = [
     "DivergenceError",
@@ -30,9 +32,13 @@ __all__ = [
     "Mode",
     "Transition",
     "transition_fires",
+    "Conjunction",
+    "all_of",
     "Plant",
     "SampledEvent",
     "SampledTrace",
     "simulate_sampled",
     "settle",
+    "HybridSystem",
+    "Box",
 ]

@@ -41,6 +41,8 @@ __all__ = [
     "MemoryVariable",
     "HybridAutomaton",
     "transition_fires",
+    "Conjunction",
+    "all_of",
 ]
 
 Guard = Callable[[Sequence[float], Mapping[str, float]], float]
@@ -337,3 +339,38 @@ def transition_fires(
     if t.direction > 0:
         return g_prev < 0.0 <= g
     return g_prev > 0.0 >= g
+
+
+@dataclass(frozen=True, slots=True)
+class Conjunction:
+    """A guard or invariant ``min(g_1, ..., g_k)``: ``>= 0`` exactly when every term is.
+
+    Built by :func:`all_of`.  Keeping the terms lets the exports recognise a
+    conjunction of affine constraints (SpaceEx writes it as ``g_1 >= 0 & ...``)
+    and lets the structural checks name the term that fails.
+    """
+
+    terms: tuple[Guard, ...]
+
+    def __call__(self, v: Sequence[float], m: Mapping[str, float]) -> float:
+        return min(term(v, m) for term in self.terms)
+
+
+def all_of(*terms: Guard) -> Conjunction:
+    """Conjunction of guards (or invariants): the minimum of their values.
+
+    Examples
+    --------
+    >>> g = all_of(lambda v, m: -v[0], lambda v, m: -v[1])   # h <= 0 and v <= 0
+    >>> g((0.0, -1.0), {}), g((0.0, 2.0), {})
+    (-0.0, -2.0)
+    """
+    if not terms:
+        raise ModelDefinitionError("all_of(): give at least one guard term")
+    for i, term in enumerate(terms):
+        if not callable(term):
+            raise ModelDefinitionError(f"all_of(): term {i} = {term!r} is not callable; pass g(v, m) -> float")
+    flat: list[Guard] = []
+    for term in terms:
+        flat.extend(term.terms if isinstance(term, Conjunction) else (term,))
+    return Conjunction(tuple(flat))
