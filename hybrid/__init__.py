@@ -4,6 +4,8 @@ It knows nothing of robots.  See :mod:`hybrid.model`, :mod:`hybrid.graph` and
 :mod:`hybrid.sampled`.
 """
 
+from .continuous import FlowSegment, HybridEvent, HybridTrajectory, simulate_continuous
+from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import (
     DivergenceError,
     ExecutionError,
@@ -19,6 +21,14 @@ from .region import Box
 from .system import HybridSystem
 
 __all__ = [
+    "FlowSegment",
+    "HybridEvent",
+    "HybridTrajectory",
+    "simulate_continuous",
+    "ChatterEpisode",
+    "ZenoReport",
+    "estimate_zeno",
+    "find_chatter",
     "DivergenceError",
     "ExecutionError",
     "HybridError",

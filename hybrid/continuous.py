@@ -1,0 +1,912 @@
+"""Continuous-time execution of a :class:`~hybrid.system.HybridSystem` with exact events.
+
+The executor integrates the flow of the current mode with one of scipy's
+ODE solvers (explicit or stiff, chosen by ``method``), one step at a time.
+After every accepted step it watches, on the step's dense output,
+
+* the guard of every outgoing transition (level-triggered: ``g >= 0``;
+  ``direction = +1``: ``g`` crosses zero upwards; ``-1``: downwards),
+* the mode's invariant (the flow leaving ``inv >= 0``),
+* the user's stop functions (``s >= 0`` ends the run),
+
+at the step's end *and* at ``sign_checks`` interior points, so a guard that
+becomes true and false again inside one step is still caught (a bounded
+``max_step`` tightens this further).  The first change is located by a
+bracketing root finder (Anderson–Björck regula falsi with bisection
+safeguards) to ``event_tol`` in time; the located time is the right end
+of the final bracket, where the guard *is* satisfied.  Transitions enabled at
+that instant fire in priority order (the others are reported as outranked;
+equal priorities are a non-determinism error), each a jump of the hybrid time
+domain ``(t, j)``; level-triggered transitions of the new mode that are
+enabled right after the jump fire at the same instant.  A crossing-triggered
+guard that sits on zero after its reset does not fire again: it must first
+go back below zero along the flow.
+
+Termination causes (``HybridTrajectory.termination``): ``"end_time"``,
+``"jump_limit"``, ``"zeno"``, ``"chatter"``, ``"invariant_violated"`` (the flow
+leaves the invariant with no transition enabled: a deadlock),
+``"solver_failure"`` and ``"stop:<name>"`` for a user stop function.
+
+Errors in user code are never swallowed: a flow, guard, reset or output that
+raises or returns NaN or the wrong shape raises an
+:class:`~hybrid.errors.ExecutionError` naming the mode or transition, the
+state and the time (chained to the original exception);
+:class:`~hybrid.errors.NumericalFailure` becomes a
+:class:`~hybrid.errors.DivergenceError`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
+
+from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
+from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
+from .model import Transition
+from .system import HybridSystem
+
+__all__ = [
+    "METHODS",
+    "StopFunction",
+    "HybridEvent",
+    "FlowSegment",
+    "ExecutionStats",
+    "HybridTrajectory",
+    "simulate_continuous",
+    "locate_crossing",
+]
+
+METHODS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
+"""scipy solvers available by name (``Radau``, ``BDF`` and ``LSODA`` handle stiff flows)."""
+
+StopFunction = Callable[[float, Sequence[float], str, Mapping[str, float]], float]
+"""``s(t, x, mode, memory)``: the run stops when it becomes ``>= 0``."""
+
+_ZENO_WINDOW = 10
+"""Intervals fitted by the accumulation test."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class HybridEvent:
+    """One jump of a continuous-time execution.
+
+    Attributes
+    ----------
+    time : float
+        Located event time [s].
+    jump : int
+        Jump counter after the jump (hybrid time ``(time, jump)``).
+    transition, source, target : str
+        What fired.
+    state_before, state_after : tuple of float
+        Continuous state before and after the jump map.
+    memory : tuple of (str, float)
+        Memory after the reset.
+    outranked : tuple of str
+        Transitions enabled at the same instant that lost on priority.
+    instantaneous : bool
+        ``True`` for a jump fired at the same instant as the previous one
+        (the new mode was entered with a level-triggered guard already true).
+    """
+
+    time: float
+    jump: int
+    transition: str
+    source: str
+    target: str
+    state_before: tuple[float, ...]
+    state_after: tuple[float, ...]
+    memory: tuple[tuple[str, float], ...] = ()
+    outranked: tuple[str, ...] = ()
+    instantaneous: bool = False
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class FlowSegment:
+    """The flow between two jumps: interval ``[t_start, t_end]`` at jump count ``jump``.
+
+    Attributes
+    ----------
+    mode : str
+    jump : int
+    t_start, t_end : float
+    times : ndarray, shape (k,)
+        Accepted step points (read-only), ``times[0] = t_start``, ``times[-1] = t_end``.
+    states : ndarray, shape (k, n)
+        States at ``times`` (read-only).
+    memory : tuple of (str, float)
+        Memory during the segment.
+    """
+
+    mode: str
+    jump: int
+    t_start: float
+    t_end: float
+    times: np.ndarray
+    states: np.ndarray
+    memory: tuple[tuple[str, float], ...]
+    dense: OdeSolution | None = field(default=None, repr=False, compare=False)
+
+    def __call__(self, t: float | np.ndarray) -> np.ndarray:
+        """Dense output: state at ``t`` in ``[t_start, t_end]``, shape ``(n,)`` or ``(n, len(t))``."""
+        if self.dense is None:
+            if self.t_start == self.t_end:
+                out = self.states[0]
+                return out if np.ndim(t) == 0 else np.repeat(out[:, None], np.size(t), axis=1)
+            raise ExecutionError(
+                f"segment in mode {self.mode!r} on [{self.t_start}, {self.t_end}] s was run with dense=False; "
+                "re-run simulate_continuous(..., dense=True) to evaluate it between steps"
+            )
+        return self.dense(t)
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ExecutionStats:
+    """Work done by one execution (deterministic for a given input)."""
+
+    steps: int
+    rhs_evaluations: int
+    guard_evaluations: int
+    root_iterations: int
+    events: int
+
+    def as_dict(self) -> dict[str, int]:
+        """JSON-ready view."""
+        return {
+            "steps": self.steps,
+            "rhs_evaluations": self.rhs_evaluations,
+            "guard_evaluations": self.guard_evaluations,
+            "root_iterations": self.root_iterations,
+            "events": self.events,
+        }
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class HybridTrajectory:
+    """Result of :func:`simulate_continuous` on the hybrid time domain.
+
+    Attributes
+    ----------
+    system : str
+    mode_names, state_names : tuple of str
+    segments : tuple of FlowSegment
+        One per flow interval, in order; ``segments[i].jump == i`` unless
+        instantaneous jumps skipped a (zero-length) flow.
+    events : tuple of HybridEvent
+    termination : str
+        Why the run ended (see the module docstring).
+    detail : str
+        The reason in words (time, mode, state, values).
+    zeno : ZenoReport or None
+    chatter : tuple of ChatterEpisode
+    final_time : float
+    final_state : tuple of float
+    final_mode : str
+    final_memory : Mapping[str, float]
+    stats : ExecutionStats
+    """
+
+    system: str
+    mode_names: tuple[str, ...]
+    state_names: tuple[str, ...]
+    segments: tuple[FlowSegment, ...]
+    events: tuple[HybridEvent, ...]
+    termination: str
+    detail: str
+    zeno: ZenoReport | None
+    chatter: tuple[ChatterEpisode, ...]
+    final_time: float
+    final_state: tuple[float, ...]
+    final_mode: str
+    final_memory: Mapping[str, float]
+    stats: ExecutionStats
+
+    @property
+    def event_times(self) -> np.ndarray:
+        """Times of the jumps, shape ``(len(events),)``."""
+        return np.array([e.time for e in self.events], dtype=float)
+
+    @property
+    def times(self) -> np.ndarray:
+        """All step points, jump instants repeated (before and after), shape ``(N,)``."""
+        return np.concatenate([s.times for s in self.segments]) if self.segments else np.empty(0)
+
+    @property
+    def states(self) -> np.ndarray:
+        """States at :attr:`times`, shape ``(N, n)``."""
+        if not self.segments:
+            return np.empty((0, len(self.state_names)))
+        return np.concatenate([s.states for s in self.segments])
+
+    @property
+    def jumps(self) -> np.ndarray:
+        """Jump counter of every row of :attr:`times`."""
+        if not self.segments:
+            return np.empty(0, dtype=int)
+        return np.concatenate([np.full(s.times.size, s.jump, dtype=int) for s in self.segments])
+
+    @property
+    def modes(self) -> tuple[str, ...]:
+        """Mode of every row of :attr:`times`."""
+        return tuple(s.mode for s in self.segments for _ in range(s.times.size))
+
+    def sample(self, times: Sequence[float]) -> tuple[np.ndarray, tuple[str, ...]]:
+        """States and modes at ``times`` (after the jumps of an instant).
+
+        Parameters
+        ----------
+        times : sequence of float
+            Non-decreasing times within ``[t0, final_time]`` [s].
+
+        Returns
+        -------
+        states : ndarray, shape (len(times), n)
+        modes : tuple of str
+        """
+        t = np.asarray(times, dtype=float)
+        if t.size and (t[0] < self.segments[0].t_start - 1e-12 or t[-1] > self.final_time + 1e-12):
+            raise ExecutionError(
+                f"sample: times span [{t[0]}, {t[-1]}] s, trajectory spans "
+                f"[{self.segments[0].t_start}, {self.final_time}] s"
+            )
+        out = np.empty((t.size, len(self.state_names)))
+        modes: list[str] = [""] * t.size
+        starts = np.array([s.t_start for s in self.segments])
+        index = np.searchsorted(starts, t, side="right") - 1
+        index = np.clip(index, 0, len(self.segments) - 1)
+        for k in np.unique(index):
+            seg = self.segments[int(k)]
+            rows = np.nonzero(index == k)[0]
+            tt = np.clip(t[rows], seg.t_start, seg.t_end)
+            out[rows] = np.asarray(seg(tt)).T.reshape(rows.size, -1)
+            for r in rows:
+                modes[int(r)] = seg.mode
+        return out, tuple(modes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (events, termination, diagnostics, work)."""
+        return {
+            "system": self.system,
+            "termination": self.termination,
+            "detail": self.detail,
+            "final_time": self.final_time,
+            "final_mode": self.final_mode,
+            "final_state": list(self.final_state),
+            "events": [
+                {
+                    "time": e.time,
+                    "jump": e.jump,
+                    "transition": e.transition,
+                    "source": e.source,
+                    "target": e.target,
+                    "outranked": list(e.outranked),
+                }
+                for e in self.events
+            ],
+            "zeno": None if self.zeno is None else self.zeno.as_dict(),
+            "chatter": [c.as_dict() for c in self.chatter],
+            "stats": self.stats.as_dict(),
+        }
+
+
+# ---------------------------------------------------------------------- root finding
+def locate_crossing(
+    phi: Callable[[float], float],
+    lo: float,
+    hi: float,
+    phi_lo: float,
+    phi_hi: float,
+    *,
+    strict: bool = False,
+    tol: float = 1e-12,
+    max_iterations: int = 200,
+    holds: Callable[[float], bool] | None = None,
+) -> tuple[float, float, float, float, int]:
+    """Shrink a bracket ``[lo, hi]`` around the first time the condition becomes true.
+
+    The condition is ``phi >= 0`` (``phi > 0`` when ``strict``); it is false at
+    ``lo`` and true at ``hi``; ``holds(t)``, when given, decides it instead
+    (several watched functions searched at once: ``phi`` is then their
+    maximum, used only for the secant steps).  Anderson–Björck regula falsi steps are tried first;
+    bisection takes over when a step is not finite (``phi`` may be ``±inf``,
+    e.g. a distance to an obstacle that is not in view) or the bracket shrinks
+    too slowly (the bracket must halve every four evaluations); trial points
+    keep ``tol / 2`` away from the ends, so a secant point on the root pins it.
+
+    Returns
+    -------
+    lo, hi, phi_lo, phi_hi, iterations
+        ``hi - lo <= tol`` (or ``lo`` and ``hi`` adjacent doubles), condition
+        false at ``lo`` and true at ``hi``.
+    """
+    tol = max(tol, 4.0 * math.ulp(max(abs(lo), abs(hi))))
+    iterations = 0
+    side = 0
+    f_lo, f_hi = phi_lo, phi_hi  # Anderson-Bjorck-weighted copies
+    widths = [hi - lo]
+    while hi - lo > tol and iterations < max_iterations:
+        width = hi - lo
+        t = math.nan
+        slow = len(widths) >= 4 and width > 0.5 * widths[-4]
+        if not slow and math.isfinite(f_lo) and math.isfinite(f_hi) and f_hi != f_lo:
+            t = hi - f_hi * width / (f_hi - f_lo)
+        if not (lo < t < hi):
+            t = lo + 0.5 * width
+        # never closer than tol/2 to an end: a secant point on the root then pins it
+        t = min(max(t, lo + 0.5 * tol), hi - 0.5 * tol)
+        value = phi(t)
+        iterations += 1
+        if value != value:
+            raise ExecutionError(f"event function is NaN at t = {t:.17g} s during event location")
+        if holds(t) if holds is not None else ((value > 0.0) if strict else (value >= 0.0)):
+            if side == 1 and math.isfinite(f_hi) and f_hi != 0.0:
+                m = 1.0 - value / f_hi
+                f_lo *= m if m > 0.0 else 0.5
+            hi, phi_hi, f_hi = t, value, value
+            side = 1
+        else:
+            if side == -1 and math.isfinite(f_lo) and f_lo != 0.0:
+                m = 1.0 - value / f_lo
+                f_hi *= m if m > 0.0 else 0.5
+            lo, phi_lo, f_lo = t, value, value
+            side = -1
+        widths.append(hi - lo)
+    return lo, hi, phi_lo, phi_hi, iterations
+
+
+# ---------------------------------------------------------------------- the executor
+@dataclass(slots=True)
+class _Watch:
+    """One watched function of the current mode: a guard, the invariant, or a stop."""
+
+    kind: str  # "guard" | "invariant" | "stop"
+    name: str
+    strict: bool
+    transition: Transition | None = None
+
+
+def _fmt(x: Sequence[float]) -> str:
+    return "(" + ", ".join(f"{float(c):.10g}" for c in x) + ")"
+
+
+def _real(value: Any, what: str, mode: str, t: float, x: Sequence[float]) -> float:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ExecutionError(
+            f"{what} returned {value!r} in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}; expected one real number"
+        ) from None
+    if out != out:
+        raise ExecutionError(f"{what} is NaN in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}")
+    return out
+
+
+class _Run:
+    """Mutable state of one execution (private; the result is immutable)."""
+
+    def __init__(self, system: HybridSystem, stops: Mapping[str, StopFunction], invariant_tol: float) -> None:
+        self.system = system
+        self.automaton = system.automaton
+        self.stops = dict(stops)
+        self.invariant_tol = invariant_tol
+        self.outgoing = {name: self.automaton.outgoing(name) for name in self.automaton.mode_names}
+        self.guard_evaluations = 0
+
+    # -- user functions, wrapped so that nothing is swallowed -----------------------------
+    def call(self, fn: Callable[..., Any], what: str, mode: str, t: float, x: Sequence[float], *args: Any) -> Any:
+        try:
+            return fn(*args)
+        except NumericalFailure as err:
+            raise DivergenceError(t, mode, err.cause) from err
+        except HybridError:
+            raise
+        except Exception as err:
+            raise ExecutionError(
+                f"{what} raised {type(err).__name__}: {err} in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}"
+            ) from err
+
+    def signals(self, mode: str, t: float, x: Sequence[float]) -> tuple[float, ...]:
+        return self.call(self.system.signals, "output", mode, t, x, t, x)
+
+    def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
+        self.guard_evaluations += 1
+        what = f"guard of transition {tr.name!r}"
+        return _real(self.call(tr.guard, what, tr.source, t, x, v, memory), what, tr.source, t, x)
+
+    def invariant(self, mode: str, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
+        inv = self.automaton.mode(mode).invariant
+        if inv is None:
+            return math.inf
+        what = f"invariant of mode {mode!r}"
+        return _real(self.call(inv, what, mode, t, x, v, memory), what, mode, t, x)
+
+    def watches(self, mode: str) -> list[_Watch]:
+        out = [_Watch(kind="guard", name=tr.name, strict=False, transition=tr) for tr in self.outgoing[mode]]
+        if self.automaton.mode(mode).invariant is not None:
+            out.append(_Watch(kind="invariant", name=mode, strict=True))
+        out += [_Watch(kind="stop", name=name, strict=False) for name in self.stops]
+        return out
+
+    def values(
+        self, watches: list[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
+    ) -> list[float]:
+        """``phi`` of every watch (condition: ``phi >= 0``, ``> 0`` when strict)."""
+        v = self.signals(mode, t, x)
+        out = []
+        for w in watches:
+            if w.kind == "guard":
+                tr = w.transition
+                assert tr is not None
+                g = self.guard(tr, v, memory, t, x)
+                out.append(-g if tr.direction < 0 else g)
+            elif w.kind == "invariant":
+                out.append(-self.invariant(mode, v, memory, t, x))
+            else:
+                what = f"stop function {w.name!r}"
+                s = self.call(self.stops[w.name], what, mode, t, x, t, x, mode, memory)
+                out.append(_real(s, what, mode, t, x))
+        return out
+
+    def fire(
+        self, tr: Transition, mode: str, t: float, x: tuple[float, ...], memory: dict[str, float]
+    ) -> tuple[tuple[float, ...], dict[str, float]]:
+        """Apply the jump map and the memory reset of ``tr`` (both read pre-jump values)."""
+        v = self.signals(mode, t, x)
+        new_x = self.call(self.system.jump, f"jump map of transition {tr.name!r}", mode, t, x, tr.name, t, x, memory)
+        new_memory = dict(memory)
+        if tr.reset is not None:
+            update = self.call(tr.reset, f"reset of transition {tr.name!r}", mode, t, x, v, memory)
+            if not isinstance(update, Mapping) or set(update) != set(tr.writes):
+                got = sorted(update) if isinstance(update, Mapping) else repr(update)
+                raise ExecutionError(
+                    f"reset of transition {tr.name!r} at t = {t:.17g} s, x = {_fmt(x)} returned {got}; "
+                    f"expected a mapping with exactly the declared writes {sorted(tr.writes)}"
+                )
+            for name, value in update.items():
+                new_memory[name] = _real(value, f"reset of transition {tr.name!r} ({name})", mode, t, x)
+        return new_x, new_memory
+
+
+def _winner(candidates: list[Transition], mode: str, t: float, x: Sequence[float]) -> Transition:
+    winner = candidates[0]
+    ties = [tr.name for tr in candidates[1:] if tr.priority == winner.priority]
+    if ties:
+        raise ExecutionError(
+            f"non-determinism in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}: transitions "
+            f"{[winner.name, *ties]} are enabled together with the same priority {winner.priority}; "
+            "give them distinct priorities or exclusive guards"
+        )
+    return winner
+
+
+def simulate_continuous(
+    system: HybridSystem,
+    x0: Sequence[float],
+    *,
+    duration: float,
+    t0: float = 0.0,
+    initial_mode: str | None = None,
+    initial_memory: Mapping[str, float] | None = None,
+    method: str = "RK45",
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    max_step: float = math.inf,
+    event_tol: float = 1e-12,
+    sign_checks: int = 3,
+    max_jumps: int = 100_000,
+    max_jumps_per_instant: int = 16,
+    max_steps: int = 10_000_000,
+    zeno: str = "stop",
+    zeno_interval: float | None = None,
+    chatter_window: float | None = None,
+    chatter_switches: int = 6,
+    stop_on_chatter: bool = False,
+    stops: Mapping[str, StopFunction] | None = None,
+    invariant_tol: float = 1e-9,
+    dense: bool = True,
+) -> HybridTrajectory:
+    """Execute ``system`` from ``(x0, initial_mode)`` for ``duration`` seconds.
+
+    Parameters
+    ----------
+    system : HybridSystem
+    x0 : sequence of float, shape (n,)
+        Initial continuous state.
+    duration : float
+        Length of the time horizon ``> 0`` [s].
+    t0 : float
+        Initial time [s].
+    initial_mode, initial_memory
+        Default: the automaton's initial mode and memory.
+    method : str
+        A key of :data:`METHODS`.
+    rtol, atol, max_step : float
+        Passed to the scipy solver.
+    event_tol : float
+        Width of the final event bracket [s] (at least 4 ulp of the time).
+    sign_checks : int
+        Interior points of every step where the watched functions are also
+        evaluated (catches a guard entered and left inside one step).
+    max_jumps : int
+        Total jumps before termination ``"jump_limit"``.
+    max_jumps_per_instant : int
+        Jumps at one instant before instantaneous Zeno.
+    max_steps : int
+        Solver steps before termination ``"solver_failure"`` (never hang).
+    zeno : {"stop", "continue", "raise"}
+        What to do when jumps accumulate: end the run with termination
+        ``"zeno"``, keep going (the report is still filled), or raise
+        :class:`~hybrid.errors.ZenoError`.
+    zeno_interval : float or None
+        Accumulation is declared when the geometric fit of the last
+        inter-jump intervals converges and the last interval is shorter than
+        this [s]; default ``1e-6 * duration``.
+    chatter_window : float or None
+        Dwell [s] under which back-and-forth switching counts as chatter;
+        ``None`` disables the chatter report.
+    chatter_switches : int
+        Back-and-forth jumps that make a chatter episode.
+    stop_on_chatter : bool
+        End the run (termination ``"chatter"``) at the first episode.
+    stops : Mapping[str, StopFunction] or None
+        Named stop functions; the run ends with termination ``"stop:<name>"``
+        at the located time where one becomes ``>= 0``.
+    invariant_tol : float
+        How far below zero an invariant may be at a jump's landing point
+        (rounding of the located event) before the reset is an error.
+    dense : bool
+        Keep the dense output of every step (for :meth:`HybridTrajectory.sample`).
+
+    Returns
+    -------
+    HybridTrajectory
+
+    Raises
+    ------
+    ExecutionError
+        Bad arguments; user functions that raise, return NaN or the wrong shape;
+        non-determinism (equal priorities enabled together); a jump landing
+        outside the target mode's invariant with nothing enabled there.
+    ZenoError
+        With ``zeno="raise"``.
+    DivergenceError
+        A :class:`~hybrid.errors.NumericalFailure` raised by user code.
+    """
+    if not isinstance(system, HybridSystem):
+        raise ExecutionError(f"simulate_continuous: system = {system!r}; expected a HybridSystem")
+    if method not in METHODS:
+        raise ExecutionError(f"simulate_continuous: method = {method!r}; expected one of {sorted(METHODS)}")
+    for name, value, positive in (
+        ("duration", duration, True), ("rtol", rtol, True), ("atol", atol, True),
+        ("event_tol", event_tol, True), ("max_step", max_step, True), ("invariant_tol", invariant_tol, False),
+    ):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value
+        ok = ok and (value > 0 if positive else value >= 0) and (name == "max_step" or math.isfinite(value))
+        if not ok:
+            raise ExecutionError(f"simulate_continuous: {name} = {value!r}; expected a {'positive' if positive else 'non-negative'} finite number")
+    if zeno not in ("stop", "continue", "raise"):
+        raise ExecutionError(f"simulate_continuous: zeno = {zeno!r}; expected 'stop', 'continue' or 'raise'")
+    for name, value, least in (("sign_checks", sign_checks, 0), ("max_jumps", max_jumps, 1),
+                               ("max_jumps_per_instant", max_jumps_per_instant, 1), ("max_steps", max_steps, 1),
+                               ("chatter_switches", chatter_switches, 2)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ExecutionError(f"simulate_continuous: {name} = {value!r}; expected an int >= {least}")
+    if chatter_window is not None and not (chatter_window > 0):
+        raise ExecutionError(f"simulate_continuous: chatter_window = {chatter_window!r}; expected a positive time [s] or None")
+    automaton = system.automaton
+    mode = initial_mode or automaton.initial_mode
+    automaton.mode(mode)
+    memory = automaton.initial_memory()
+    if initial_memory:
+        unknown = sorted(set(initial_memory) - set(memory))
+        if unknown:
+            raise ExecutionError(f"simulate_continuous: initial_memory names unknown variable(s) {unknown}")
+        memory.update({k: float(v) for k, v in initial_memory.items()})
+    try:
+        x = tuple(float(c) for c in x0)
+    except (TypeError, ValueError):
+        raise ExecutionError(f"simulate_continuous: x0 = {x0!r}; expected {system.dimension} real numbers") from None
+    if len(x) != system.dimension or any(c != c for c in x):
+        raise ExecutionError(
+            f"simulate_continuous: x0 = {x0!r}; expected {system.dimension} finite values "
+            f"({', '.join(system.state_names)})"
+        )
+    stops = dict(stops or {})
+    t_end = float(t0) + float(duration)
+    zeno_dt = zeno_interval if zeno_interval is not None else 1e-6 * float(duration)
+    run = _Run(system, stops, invariant_tol)
+    solver_class = METHODS[method]
+
+    segments: list[FlowSegment] = []
+    events: list[HybridEvent] = []
+    jump_times: list[float] = []
+    j = 0
+    t = float(t0)
+    steps = rhs = roots = 0
+    termination, detail = "end_time", ""
+    zeno_report: ZenoReport | None = None
+    chatter: tuple[ChatterEpisode, ...] = ()
+
+    def record_jump(tr: Transition, mode_from: str, t_jump: float, x_before: tuple[float, ...],
+                    x_after: tuple[float, ...], memory_after: dict[str, float], outranked: tuple[str, ...],
+                    instantaneous: bool) -> None:
+        nonlocal j
+        j += 1
+        events.append(HybridEvent(
+            time=t_jump, jump=j, transition=tr.name, source=mode_from, target=tr.target,
+            state_before=x_before, state_after=x_after, memory=tuple(sorted(memory_after.items())),
+            outranked=outranked, instantaneous=instantaneous,
+        ))
+        jump_times.append(t_jump)
+
+    def settle_instant(mode: str, t_now: float, x_now: tuple[float, ...], memory: dict[str, float],
+                       fired_here: int) -> tuple[str, tuple[float, ...], dict[str, float], str | None]:
+        """Fire level-triggered transitions enabled at this instant; returns a termination or None."""
+        while True:
+            v = run.signals(mode, t_now, x_now)
+            candidates = [tr for tr in run.outgoing[mode]
+                          if tr.direction == 0 and run.guard(tr, v, memory, t_now, x_now) >= 0.0]
+            if not candidates:
+                return mode, x_now, memory, None
+            if fired_here >= max_jumps_per_instant:
+                cycle = [e.transition for e in events[-fired_here:]]
+                return mode, x_now, memory, (
+                    f"instantaneous Zeno at t = {t_now:.17g} s: {fired_here} jumps at one instant "
+                    f"({' -> '.join(cycle)}), limit max_jumps_per_instant = {max_jumps_per_instant}"
+                )
+            winner = _winner(candidates, mode, t_now, x_now)
+            new_x, new_memory = run.fire(winner, mode, t_now, x_now, memory)
+            record_jump(winner, mode, t_now, x_now, new_x, new_memory,
+                        tuple(tr.name for tr in candidates[1:]), instantaneous=fired_here > 0)
+            mode, x_now, memory = winner.target, new_x, new_memory
+            fired_here += 1
+
+    def check_landing(mode: str, t_now: float, x_now: tuple[float, ...], memory: Mapping[str, float]) -> None:
+        v = run.signals(mode, t_now, x_now)
+        inv = run.invariant(mode, v, memory, t_now, x_now)
+        if inv < -invariant_tol:
+            how = f"after transition {events[-1].transition!r}" if events else "initially"
+            raise ExecutionError(
+                f"{how}, the state x = {_fmt(x_now)} at t = {t_now:.17g} s lies outside the invariant of mode "
+                f"{mode!r} ({automaton.mode(mode).invariant_text or 'inv'} = {inv:.6g} < 0) and no transition "
+                "is enabled there; fix the reset (jump map) or the invariant"
+            )
+
+    def zeno_check(last_transition_count: int) -> ZenoReport | None:
+        if len(jump_times) < _ZENO_WINDOW + 1:
+            return None
+        d1 = jump_times[-1] - jump_times[-2]
+        d2 = jump_times[-2] - jump_times[-3]
+        if not (0.0 < d1 < d2) or d1 > zeno_dt:
+            return None
+        est = estimate_zeno(jump_times, window=_ZENO_WINDOW)
+        if est is None or not est.accumulating:
+            return None
+        tail = events[-(_ZENO_WINDOW + 1):]
+        modes = tuple(dict.fromkeys(m for e in tail for m in (e.source, e.target)))
+        names = tuple(dict.fromkeys(e.transition for e in tail))
+        return ZenoReport(
+            kind="accumulation", zeno_time=est.zeno_time, ratio=est.ratio, jumps=len(events), modes=modes,
+            transitions=names, last_times=tuple(jump_times[-12:]),
+            message=(
+                f"jumps accumulate: intervals shrink by r = {est.ratio:.6g} (fit scatter {est.scatter:.2g}), "
+                f"last interval {est.last_interval:.3g} s after {len(events)} jumps; estimated Zeno time "
+                f"t_Z = {est.zeno_time:.15g} s in mode(s) {list(modes)} via {list(names)}"
+            ),
+        )
+
+    # --- initial instant ----------------------------------------------------------------------
+    mode, x, memory, instant_zeno = settle_instant(mode, t, x, memory, 0)
+    if instant_zeno is None:
+        check_landing(mode, t, x, memory)
+
+    while instant_zeno is None:
+        # --- one flow segment in `mode` -------------------------------------------------------
+        seg_times = [t]
+        seg_states = [x]
+        interpolants: list[Any] = []
+        seg_memory = dict(memory)
+        watches = run.watches(mode)
+        flow_mode = mode
+
+        def fun(tt: float, y: np.ndarray, _mode: str = flow_mode, _memory: dict[str, float] = seg_memory) -> np.ndarray:
+            state = tuple(y.tolist())
+            return np.array(run.call(system.flow, f"flow of mode {_mode!r}", _mode, tt, state, _mode, tt, state, _memory))
+
+        event: tuple[float, tuple[float, ...], list[int]] | None = None
+        if t < t_end:
+            solver = solver_class(fun, t, np.array(x), t_end, rtol=rtol, atol=atol, max_step=max_step)
+            phi_old = run.values(watches, mode, seg_memory, t, x)
+            while solver.status == "running":
+                if steps >= max_steps:
+                    termination = "solver_failure"
+                    detail = f"more than max_steps = {max_steps} solver steps (at t = {solver.t:.17g} s in mode {mode!r})"
+                    break
+                message = solver.step()
+                steps += 1
+                if solver.status == "failed":
+                    termination = "solver_failure"
+                    detail = (f"{method} failed at t = {solver.t:.17g} s in mode {mode!r}, "
+                              f"x = {_fmt(solver.y)}: {message}")
+                    break
+                t_old, t_new = solver.t_old, solver.t
+                interp = solver.dense_output()
+                grid = [t_old + (t_new - t_old) * (i + 1) / (sign_checks + 1) for i in range(sign_checks)] + [t_new]
+                states = np.asarray(interp(np.array(grid[:-1]))).T.tolist() if sign_checks else []
+                states.append(solver.y.tolist())
+                phis = [phi_old] + [run.values(watches, mode, seg_memory, tt, s) for tt, s in zip(grid, states)]
+                grid = [t_old] + grid
+                # first interval of the grid where some watch switches on
+                first_interval = None
+                for i in range(len(grid) - 1):
+                    for k, w in enumerate(watches):
+                        before, after = phis[i][k], phis[i + 1][k]
+                        on_before = before > 0.0 if w.strict else before >= 0.0
+                        on_after = after > 0.0 if w.strict else after >= 0.0
+                        if on_after and not on_before:
+                            first_interval = i
+                            break
+                    if first_interval is not None:
+                        break
+                if first_interval is None:
+                    seg_times.append(t_new)
+                    seg_states.append(tuple(states[-1]))
+                    interpolants.append(interp)
+                    phi_old = phis[-1]
+                    continue
+                i = first_interval
+                lo_t, hi_t = grid[i], grid[i + 1]
+                candidates = []
+                for k, w in enumerate(watches):
+                    before, after = phis[i][k], phis[i + 1][k]
+                    on_before = before > 0.0 if w.strict else before >= 0.0
+                    on_after = after > 0.0 if w.strict else after >= 0.0
+                    if on_after and not on_before:
+                        candidates.append(k)
+                cache: dict[float, list[float]] = {}
+
+                def values_at(tt: float) -> list[float]:
+                    if tt not in cache:
+                        cache[tt] = run.values(watches, mode, seg_memory, tt, tuple(interp(tt).tolist()))
+                    return cache[tt]
+
+                def any_on(tt: float) -> bool:
+                    vals = values_at(tt)
+                    return any((vals[k] > 0.0) if watches[k].strict else (vals[k] >= 0.0) for k in candidates)
+
+                # one search for the first of the candidates to switch on (max of their values)
+                _, t_star, _, _, iters = locate_crossing(
+                    lambda tt: max(values_at(tt)[k] for k in candidates),
+                    lo_t, hi_t, max(phis[i][k] for k in candidates), max(phis[i + 1][k] for k in candidates),
+                    tol=event_tol, holds=any_on,
+                )
+                roots += iters
+                x_star = tuple(interp(t_star).tolist())
+                phi_star = values_at(t_star)
+                active = []
+                for k, w in enumerate(watches):
+                    on = phi_star[k] > 0.0 if w.strict else phi_star[k] >= 0.0
+                    if on and (k in candidates or (w.kind == "guard" and w.transition is not None
+                                                   and w.transition.direction == 0)):
+                        active.append(k)
+                seg_times.append(t_star)
+                seg_states.append(x_star)
+                interpolants.append(interp)
+                event = (t_star, x_star, active)
+                break
+            rhs += int(getattr(solver, "nfev", 0))
+        if interpolants and dense:
+            dense_out: OdeSolution | None = OdeSolution(np.array(seg_times), interpolants)
+        else:
+            dense_out = None
+        t_seg_end = seg_times[-1]
+        segments.append(FlowSegment(
+            mode=mode, jump=j, t_start=seg_times[0], t_end=t_seg_end,
+            times=_readonly(np.array(seg_times)), states=_readonly(np.array(seg_states).reshape(len(seg_states), -1)),
+            memory=tuple(sorted(seg_memory.items())), dense=dense_out,
+        ))
+        t, x = t_seg_end, seg_states[-1]
+        if termination != "end_time" or event is None:
+            break
+        # --- the event instant ------------------------------------------------------------------
+        t_star, x_star, active = event
+        stop_hits = [watches[k].name for k in active if watches[k].kind == "stop"]
+        if stop_hits:
+            termination = f"stop:{stop_hits[0]}"
+            detail = f"stop function {stop_hits[0]!r} reached zero at t = {t_star:.17g} s in mode {mode!r}"
+            break
+        enabled = [watches[k].transition for k in active if watches[k].kind == "guard"]
+        enabled = sorted((tr for tr in enabled if tr is not None), key=lambda tr: tr.priority)
+        if not enabled:
+            w = watches[active[0]]
+            termination = "invariant_violated"
+            detail = (
+                f"the flow leaves the invariant of mode {mode!r} ({automaton.mode(mode).invariant_text or w.name}) "
+                f"at t = {t_star:.17g} s, x = {_fmt(x_star)}, and no transition is enabled there (deadlock)"
+            )
+            break
+        winner = _winner(enabled, mode, t_star, x_star)
+        new_x, new_memory = run.fire(winner, mode, t_star, x_star, memory)
+        record_jump(winner, mode, t_star, x_star, new_x, new_memory,
+                    tuple(tr.name for tr in enabled[1:]), instantaneous=False)
+        mode, x, memory = winner.target, new_x, new_memory
+        mode, x, memory, instant_zeno = settle_instant(mode, t_star, x, memory, 1)
+        if instant_zeno is not None:
+            break
+        check_landing(mode, t_star, x, memory)
+        t = t_star
+        if len(events) >= max_jumps:
+            termination = "jump_limit"
+            detail = f"{len(events)} jumps (max_jumps = {max_jumps}) by t = {t:.17g} s"
+            break
+        report = zeno_check(len(events))
+        if report is not None and zeno_report is None:
+            zeno_report = report
+            if zeno == "raise":
+                raise ZenoError(report.message)
+            if zeno == "stop":
+                termination, detail = "zeno", report.message
+                break
+        if chatter_window is not None and stop_on_chatter:
+            recent = find_chatter(events[-chatter_switches:], window=chatter_window, min_switches=chatter_switches)
+            if recent:
+                termination = "chatter"
+                c = recent[0]
+                detail = (f"chatter between modes {list(c.modes)} via {list(c.transitions)}: {c.switches} switches "
+                          f"from t = {c.start:.9g} s to {c.end:.9g} s (shortest dwell {c.shortest_dwell:.3g} s)")
+                break
+
+    if instant_zeno is not None:
+        tail = events[-max_jumps_per_instant:]
+        zeno_report = ZenoReport(
+            kind="instantaneous", zeno_time=t, ratio=math.nan, jumps=len(events),
+            modes=tuple(dict.fromkeys(m for e in tail for m in (e.source, e.target))),
+            transitions=tuple(dict.fromkeys(e.transition for e in tail)),
+            last_times=tuple(jump_times[-12:]), message=instant_zeno,
+        )
+        if zeno == "raise":
+            raise ZenoError(instant_zeno)
+        termination, detail = "zeno", instant_zeno
+        if not segments or segments[-1].t_end != t or segments[-1].mode != mode:
+            segments.append(FlowSegment(
+                mode=mode, jump=j, t_start=t, t_end=t, times=_readonly(np.array([t])),
+                states=_readonly(np.array([x])), memory=tuple(sorted(memory.items())),
+            ))
+    if termination == "end_time":
+        detail = f"reached t = {t:.17g} s"
+        if segments[-1].jump != j:  # jumps at the very end: a zero-length segment carries the final state
+            segments.append(FlowSegment(
+                mode=mode, jump=j, t_start=t, t_end=t, times=_readonly(np.array([t])),
+                states=_readonly(np.array([x])), memory=tuple(sorted(memory.items())),
+            ))
+    if chatter_window is not None:
+        chatter = find_chatter(events, window=chatter_window, min_switches=chatter_switches)
+    return HybridTrajectory(
+        system=system.name,
+        mode_names=automaton.mode_names,
+        state_names=system.state_names,
+        segments=tuple(segments),
+        events=tuple(events),
+        termination=termination,
+        detail=detail,
+        zeno=zeno_report,
+        chatter=chatter,
+        final_time=t,
+        final_state=x,
+        final_mode=mode,
+        final_memory=dict(memory),
+        stats=ExecutionStats(
+            steps=steps, rhs_evaluations=rhs, guard_evaluations=run.guard_evaluations,
+            root_iterations=roots, events=len(events),
+        ),
+    )
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
