@@ -14,10 +14,10 @@ time): everything here works on Python floats and tuples.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from hybrid import Plant
+from hybrid import HybridSystem, Plant
 
 from .controllers import (
     avoidance_control,
@@ -41,7 +41,7 @@ from .geometry import (
 from .parameters import Scenario
 from .supervisor import SupervisorModel, build_supervisor, split_mode
 
-__all__ = ["ClosedLoop", "LoopState", "robot_plant", "desired_features", "record_names"]
+__all__ = ["ClosedLoop", "LoopState", "Observation", "robot_plant", "desired_features", "record_names"]
 
 Point = tuple[float, float, float]
 
@@ -80,6 +80,31 @@ def record_names(n_points: int) -> tuple[str, ...]:
     names += ["n_hidden", "n_occluded", "reconstructing", "clearance_m", "feature_error_px"]
     names += ["occluder_y_minus", "occluder_y_plus"]
     return tuple(names)
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Observation:
+    """What the sensors give at one state.
+
+    Attributes
+    ----------
+    features : tuple of (X, Y, z)
+        True image features of the target points.
+    image : ImageMeasurement
+        Visibility, occluder, d_occ, d_bord.
+    clearance : float
+        Distance to the nearest obstacle surface [m].
+    feature_error_px : float
+        ‖s − s*‖ in pixels.
+    signals : tuple of float
+        The supervisor's signals (:data:`visnav.supervisor.SIGNALS` + one distance per obstacle).
+    """
+
+    features: tuple[Point, ...]
+    image: ImageMeasurement
+    clearance: float
+    feature_error_px: float
+    signals: tuple[float, ...]
 
 
 @dataclass(kw_only=True, slots=True)
@@ -139,21 +164,12 @@ class ClosedLoop:
             last_pan=float(x[3]),
         )
 
-    def measure(self, t: float, x: Sequence[float], c: LoopState) -> tuple[tuple[float, ...], LoopState]:
-        """Image and proximity measurements at a sample; advances the estimator."""
+    def observe(self, x: Sequence[float]) -> Observation:
+        """Camera image and proximity measurements at the state ``x`` (pure)."""
         s = self.scenario
         px, py, theta, pan = x
         cam = camera_pose(px, py, theta, pan, s.robot)
         true = project_points(*cam, s.robot.camera_height_m, s.target.points_m)
-        if c.reconstructing:
-            estimated = c.estimator.advance(c.last_pan, c.last_input, s.sampling_period_s)
-        else:
-            if c.samples:
-                c.estimator.observe(true, c.last_pan, c.last_input, s.sampling_period_s)
-            else:
-                c.estimator.observe(true)
-            estimated = true
-        c.samples += 1
         image = image_measurement(
             cam, s.robot.camera_height_m, true, s.target.points_m, s.obstacles, s.camera, self._occluding,
         )
@@ -166,15 +182,11 @@ class ClosedLoop:
             if d < d_nearest:
                 nearest, d_nearest = i, d
         side = choose_bypass_side(px, py, theta, s.obstacles[nearest]) if nearest >= 0 else 0
-        c.true_features = true
-        c.estimated = estimated
-        c.image = image
-        c.clearance = d_nearest
         f = s.camera.focal_px
-        c.feature_error_px = f * math.sqrt(
+        feature_error = f * math.sqrt(
             sum((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 for a, b in zip(true, self.desired))
         )
-        v = (
+        signals = (
             d_nearest,
             float(max(nearest, 0)),
             float(side),
@@ -183,7 +195,30 @@ class ClosedLoop:
             wrap_angle(pan),
             *distances,
         )
-        return v, c
+        return Observation(
+            features=true, image=image, clearance=d_nearest, feature_error_px=feature_error, signals=signals
+        )
+
+    def measure(self, t: float, x: Sequence[float], c: LoopState) -> tuple[tuple[float, ...], LoopState]:
+        """Image and proximity measurements at a sample; advances the estimator."""
+        s = self.scenario
+        obs = self.observe(x)
+        true = obs.features
+        if c.reconstructing:
+            estimated = c.estimator.advance(c.last_pan, c.last_input, s.sampling_period_s)
+        else:
+            if c.samples:
+                c.estimator.observe(true, c.last_pan, c.last_input, s.sampling_period_s)
+            else:
+                c.estimator.observe(true)
+            estimated = true
+        c.samples += 1
+        c.true_features = true
+        c.estimated = estimated
+        c.image = obs.image
+        c.clearance = obs.clearance
+        c.feature_error_px = obs.feature_error_px
+        return obs.signals, c
 
     def control(
         self,
@@ -195,8 +230,6 @@ class ClosedLoop:
         memory: Mapping[str, float],
     ) -> tuple[tuple[float, float, float], LoopState, tuple[float, ...]]:
         """Global control (19) in ``mode``; starts/stops the reconstruction with µ_occ."""
-        s = self.scenario
-        g = s.gains
         px, py, theta, pan = x
         collision, occlusion = split_mode(mode)
         mu_coll = self.supervisor.mu_coll(collision, v, memory)
@@ -212,7 +245,54 @@ class ClosedLoop:
             c.estimated = c.true_features
         image = c.image
         assert image is not None
-        features = _merge(c.true_features, c.estimated, image.visible)
+        u = self.command(x, v, image, _merge(c.true_features, c.estimated, image.visible), c.estimated, mode, memory)
+        c.last_input = u
+        c.last_pan = pan
+        n_hidden = sum(1 for vis in image.visible if not vis)
+        n_occluded = sum(1 for occ in image.occluded if occ)
+        row = [mu_coll, mu_occ]
+        for p in c.true_features:
+            row += (p[0], p[1])
+        for p in c.estimated:
+            row += (p[0], p[1])
+        row += [p[2] for p in c.true_features]
+        row += [p[2] for p in c.estimated]
+        row += [float(n_hidden), float(n_occluded), float(c.reconstructing), c.clearance, c.feature_error_px]
+        row += [image.y_o_minus, image.y_o_plus]
+        return u, c, tuple(row)
+
+    def command(
+        self,
+        x: Sequence[float],
+        v: Sequence[float],
+        image: ImageMeasurement,
+        features: tuple[Point, ...],
+        estimated: tuple[Point, ...],
+        mode: str,
+        memory: Mapping[str, float],
+    ) -> tuple[float, float, float]:
+        """The global control (19) ``(v, ω, ϖ)`` in ``mode`` (pure).
+
+        Parameters
+        ----------
+        x : (x, y, θ, ϑ)
+            Robot pose and pan angle [m, m, rad, rad].
+        v : sequence of float
+            Supervisor signals at ``x``.
+        image : ImageMeasurement
+            Visibility and occluder of the current image.
+        features : tuple of (X, Y, z)
+            Features used by the image-based tasks: measured where visible,
+            reconstructed elsewhere.
+        estimated : tuple of (X, Y, z)
+            Reconstructed features (pan tracking on the reconstructed target).
+        """
+        s = self.scenario
+        g = s.gains
+        px, py, theta, pan = x
+        collision, occlusion = split_mode(mode)
+        mu_coll = self.supervisor.mu_coll(collision, v, memory)
+        mu_occ = self.supervisor.mu_occ(occlusion, v, memory)
         w_vs = (1.0 - mu_occ) * (1.0 - mu_coll)
         w_occ = (1.0 - mu_coll) * mu_occ
         q_vs = (
@@ -239,26 +319,55 @@ class ClosedLoop:
                 else None
             )
             pan_rec = (
-                pan_tracking(c.estimated, pan, v_coll, omega_coll, s.robot, g.lambda_gc, self._y_gc_desired)
+                pan_tracking(estimated, pan, v_coll, omega_coll, s.robot, g.lambda_gc, self._y_gc_desired)
                 if mu_occ > 0.0
                 else None
             )
             q_coll = avoidance_control(v_coll, omega_coll, pan_real, pan_rec, mu_occ)
-        u = blend(mu_coll, mu_occ, q_vs, q_occ, q_coll)
-        c.last_input = u
-        c.last_pan = pan
-        n_hidden = sum(1 for vis in image.visible if not vis)
-        n_occluded = sum(1 for occ in image.occluded if occ)
-        row = [mu_coll, mu_occ]
-        for p in c.true_features:
-            row += (p[0], p[1])
-        for p in c.estimated:
-            row += (p[0], p[1])
-        row += [p[2] for p in c.true_features]
-        row += [p[2] for p in c.estimated]
-        row += [float(n_hidden), float(n_occluded), float(c.reconstructing), c.clearance, c.feature_error_px]
-        row += [image.y_o_minus, image.y_o_plus]
-        return u, c, tuple(row)
+        return blend(mu_coll, mu_occ, q_vs, q_occ, q_coll)
+
+    def continuous_system(self) -> HybridSystem:
+        """The loop with the controller evaluated continuously (no sampling, no hold).
+
+        State ``(x, y, θ, ϑ)``; the output is the supervisor's signals of
+        :meth:`observe`; every mode's flow is the cart kinematics under the
+        control (19) of that mode.  The feature/depth estimator is ideal: in
+        continuous time, integrating (13) exactly from the last measured image
+        gives the true features, so the reconstructed features *are* the true
+        ones (the T → 0 limit of the sampled estimator, whose error is
+        measured in ``docs/estimator.md``).  No jump maps: the supervisor only
+        resets its memory.
+        """
+
+        def flow_of(mode: str) -> Callable[[float, Sequence[float], Mapping[str, float]], tuple[float, ...]]:
+            def flow(t: float, x: Sequence[float], memory: Mapping[str, float]) -> tuple[float, ...]:
+                obs = self.observe(x)
+                u = self.command(x, obs.signals, obs.image, obs.features, obs.features, mode, memory)
+                return (u[0] * math.cos(x[2]), u[0] * math.sin(x[2]), u[1], u[2])
+
+            return flow
+
+        automaton = self.supervisor.automaton
+        return HybridSystem(
+            automaton=automaton,
+            state_names=robot_plant().state_names,
+            flows={mode: flow_of(mode) for mode in automaton.mode_names},
+            output=lambda t, x: self.observe(x).signals,
+        )
+
+    def continuous_stops(self) -> dict[str, Callable[[float, Sequence[float], str, Mapping[str, float]], float]]:
+        """Stop functions of :meth:`continuous_system`: ``collision`` and ``success`` (as :meth:`stop`)."""
+        tolerance = self.scenario.success_tolerance_px
+
+        def collision(t: float, x: Sequence[float], mode: str, memory: Mapping[str, float]) -> float:
+            return -self.observe(x).clearance
+
+        def success(t: float, x: Sequence[float], mode: str, memory: Mapping[str, float]) -> float:
+            if mode != "FAR|CLEAR":
+                return -math.inf
+            return tolerance - self.observe(x).feature_error_px
+
+        return {"collision": collision, "success": success}
 
     def stop(
         self, t: float, x: Sequence[float], c: LoopState, v: Sequence[float], mode: str, memory: Mapping[str, float]
