@@ -45,6 +45,12 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
 
+try:  # the explicit Runge-Kutta interpolants, for a fast scalar evaluation (see _point_evaluator)
+    from scipy.integrate._ivp.rk import Dop853DenseOutput as _Dop853DenseOutput
+    from scipy.integrate._ivp.rk import RkDenseOutput as _RkDenseOutput
+except ImportError:  # pragma: no cover - private names moved: fall back to interp(t)
+    _Dop853DenseOutput = _RkDenseOutput = type("_Unavailable", (), {})
+
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
 from .model import Transition
@@ -335,7 +341,7 @@ def locate_crossing(
         slow = len(widths) >= 4 and width > 0.5 * widths[-4]
         if not slow and math.isfinite(f_lo) and math.isfinite(f_hi) and f_hi != f_lo:
             t = hi - f_hi * width / (f_hi - f_lo)
-        if not (lo < t < hi):
+        if not math.isfinite(t):
             t = lo + 0.5 * width
         # never closer than tol/2 to an end: a secant point on the root then pins it
         t = min(max(t, lo + 0.5 * tol), hi - 0.5 * tol)
@@ -395,6 +401,9 @@ class _Run:
         self.stops = dict(stops)
         self.invariant_tol = invariant_tol
         self.outgoing = {name: self.automaton.outgoing(name) for name in self.automaton.mode_names}
+        self.invariants = {m.name: m.invariant for m in self.automaton.modes}
+        self.n_signals = len(self.automaton.variables)
+        self.shape = (system.dimension,)
         self.guard_evaluations = 0
 
     # -- user functions, wrapped so that nothing is swallowed -----------------------------
@@ -435,7 +444,41 @@ class _Run:
     def values(
         self, watches: list[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
     ) -> list[float]:
-        """``phi`` of every watch (condition: ``phi >= 0``, ``> 0`` when strict)."""
+        """``phi`` of every watch (condition: ``phi >= 0``, ``> 0`` when strict).
+
+        A fast pass calls the user functions directly; if anything raises or
+        is not a real number, a careful pass re-evaluates them one by one and
+        raises the error that names the culprit (the functions are pure).
+        """
+        try:
+            v = x if self.system.output is None else self.system.output(t, x)
+            if len(v) != self.n_signals:
+                raise ValueError
+            out = []
+            for w in watches:
+                if w.kind == "guard":
+                    tr = w.transition
+                    g = float(tr.guard(v, memory))  # type: ignore[union-attr]
+                    out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
+                elif w.kind == "invariant":
+                    out.append(-float(self.invariants[mode](v, memory)))
+                else:
+                    out.append(float(self.stops[w.name](t, x, mode, memory)))
+            self.guard_evaluations += len(watches)
+            for value in out:
+                if value != value:
+                    raise ValueError
+            for value in v:
+                if value != value:
+                    raise ValueError
+            return out
+        except Exception:
+            return self.values_checked(watches, mode, memory, t, x)
+
+    def values_checked(
+        self, watches: list[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
+    ) -> list[float]:
+        """:meth:`values` with every call wrapped: raises the precise error."""
         v = self.signals(mode, t, x)
         out = []
         for w in watches:
@@ -712,10 +755,22 @@ def simulate_continuous(
         interpolants: list[Any] = []
         seg_memory = dict(memory)
         watches = run.watches(mode)
+        stricts = [w.strict for w in watches]
         flow_mode = mode
+
+        user_flow = system.flows[mode]
 
         def fun(tt: float, y: np.ndarray, _mode: str = flow_mode, _memory: dict[str, float] = seg_memory) -> np.ndarray:
             state = tuple(y.tolist())
+            try:  # fast path; on any doubt the checked path raises the precise error
+                result = user_flow(tt, state, _memory)
+                total = sum(result)  # NaN (or inf - inf) makes it NaN
+                if total == total:
+                    out = np.array(result, dtype=float)
+                    if out.shape == run.shape:
+                        return out
+            except Exception:
+                pass
             return np.array(run.call(system.flow, f"flow of mode {_mode!r}", _mode, tt, state, _mode, tt, state, _memory))
 
         event: tuple[float, tuple[float, ...], list[int]] | None = None
@@ -735,44 +790,39 @@ def simulate_continuous(
                               f"x = {_fmt(solver.y)}: {message}")
                     break
                 t_old, t_new = solver.t_old, solver.t
-                interp = solver.dense_output()
-                grid = [t_old + (t_new - t_old) * (i + 1) / (sign_checks + 1) for i in range(sign_checks)] + [t_new]
-                states = np.asarray(interp(np.array(grid[:-1]))).T.tolist() if sign_checks else []
-                states.append(solver.y.tolist())
-                phis = [phi_old] + [run.values(watches, mode, seg_memory, tt, s) for tt, s in zip(grid, states)]
-                grid = [t_old] + grid
-                # first interval of the grid where some watch switches on
-                first_interval = None
-                for i in range(len(grid) - 1):
-                    for k, w in enumerate(watches):
-                        before, after = phis[i][k], phis[i + 1][k]
-                        on_before = before > 0.0 if w.strict else before >= 0.0
-                        on_after = after > 0.0 if w.strict else after >= 0.0
-                        if on_after and not on_before:
-                            first_interval = i
-                            break
-                    if first_interval is not None:
+                y_new = tuple(solver.y.tolist())
+                interp = solver.dense_output() if (dense or (sign_checks and watches)) else None
+                point = _point_evaluator(interp) if sign_checks and watches else None
+                # watched values along the step (interior points, then its end) until one switches on
+                lo_t, phi_lo = t_old, phi_old
+                candidates: list[int] = []
+                for i in range(1, sign_checks + 2) if watches else ():
+                    if i <= sign_checks:
+                        hi_t = t_old + (t_new - t_old) * i / (sign_checks + 1)
+                        phi_hi = run.values(watches, mode, seg_memory, hi_t, point(hi_t))  # type: ignore[misc]
+                    else:
+                        hi_t = t_new
+                        phi_hi = run.values(watches, mode, seg_memory, t_new, y_new)
+                    candidates = _switching_on(phi_lo, phi_hi, stricts)
+                    if candidates:
                         break
-                if first_interval is None:
+                    lo_t, phi_lo = hi_t, phi_hi
+                if not candidates:
                     seg_times.append(t_new)
-                    seg_states.append(tuple(states[-1]))
-                    interpolants.append(interp)
-                    phi_old = phis[-1]
+                    seg_states.append(y_new)
+                    if interp is not None:
+                        interpolants.append(interp)
+                    phi_old = phi_lo
                     continue
-                i = first_interval
-                lo_t, hi_t = grid[i], grid[i + 1]
-                candidates = []
-                for k, w in enumerate(watches):
-                    before, after = phis[i][k], phis[i + 1][k]
-                    on_before = before > 0.0 if w.strict else before >= 0.0
-                    on_after = after > 0.0 if w.strict else after >= 0.0
-                    if on_after and not on_before:
-                        candidates.append(k)
+                if interp is None:
+                    interp = solver.dense_output()
+                if point is None:
+                    point = _point_evaluator(interp)
                 cache: dict[float, list[float]] = {}
 
                 def values_at(tt: float) -> list[float]:
                     if tt not in cache:
-                        cache[tt] = run.values(watches, mode, seg_memory, tt, tuple(interp(tt).tolist()))
+                        cache[tt] = run.values(watches, mode, seg_memory, tt, point(tt))
                     return cache[tt]
 
                 def any_on(tt: float) -> bool:
@@ -782,11 +832,11 @@ def simulate_continuous(
                 # one search for the first of the candidates to switch on (max of their values)
                 _, t_star, _, _, iters = locate_crossing(
                     lambda tt: max(values_at(tt)[k] for k in candidates),
-                    lo_t, hi_t, max(phis[i][k] for k in candidates), max(phis[i + 1][k] for k in candidates),
+                    lo_t, hi_t, max(phi_lo[k] for k in candidates), max(phi_hi[k] for k in candidates),
                     tol=event_tol, holds=any_on,
                 )
                 roots += iters
-                x_star = tuple(interp(t_star).tolist())
+                x_star = point(t_star)
                 phi_star = values_at(t_star)
                 active = []
                 for k, w in enumerate(watches):
@@ -905,6 +955,56 @@ def simulate_continuous(
             root_iterations=roots, events=len(events),
         ),
     )
+
+
+def _switching_on(before: list[float], after: list[float], stricts: list[bool]) -> list[int]:
+    """Indices of the watches whose condition is false in ``before`` and true in ``after``."""
+    return [
+        k
+        for k, (b, a, strict) in enumerate(zip(before, after, stricts))
+        if ((a > 0.0) if strict else (a >= 0.0)) and not ((b > 0.0) if strict else (b >= 0.0))
+    ]
+
+
+def _point_evaluator(interp: Any) -> Callable[[float], tuple[float, ...]]:
+    """Fast scalar evaluation of a step's dense output (same formula as scipy's).
+
+    scipy's ``DenseOutput.__call__`` costs ~15 µs for one time (array
+    plumbing); event location calls it a dozen times per event, so the two
+    explicit Runge–Kutta interpolants are evaluated here in plain floats
+    (Horner's scheme).  Other solvers fall back to ``interp(t)``.
+    """
+    if isinstance(interp, _RkDenseOutput):
+        t_old, h = float(interp.t_old), float(interp.h)
+        rows = interp.Q.tolist()
+        y_old = interp.y_old.tolist()
+
+        def rk(t: float) -> tuple[float, ...]:
+            x = (t - t_old) / h
+            out = []
+            for y0, q in zip(y_old, rows):
+                acc = 0.0
+                for c in reversed(q):
+                    acc = acc * x + c
+                out.append(y0 + h * x * acc)
+            return tuple(out)
+
+        return rk
+    if isinstance(interp, _Dop853DenseOutput):
+        t_old, h = float(interp.t_old), float(interp.h)
+        layers = [f.tolist() for f in reversed(interp.F)]
+        y_old = interp.y_old.tolist()
+
+        def dop(t: float) -> tuple[float, ...]:
+            x = (t - t_old) / h
+            y = [0.0] * len(y_old)
+            for i, f in enumerate(layers):
+                factor = x if i % 2 == 0 else 1.0 - x
+                y = [(a + b) * factor for a, b in zip(y, f)]
+            return tuple(a + b for a, b in zip(y, y_old))
+
+        return dop
+    return lambda t: tuple(interp(t).tolist())
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
