@@ -1,7 +1,7 @@
 """A small hybrid-automaton library: models, mode graph, executors, traces.
 
-It knows nothing of robots.  See :mod:`hybrid.model`, :mod:`hybrid.graph` and
-:mod:`hybrid.sampled`.
+It knows nothing of robots.  See :mod:`hybrid.model`, :mod:`hybrid.graph`,
+:mod:`hybrid.export` and :mod:`hybrid.sampled`.
 """
 
 from .continuous import FlowSegment, HybridEvent, HybridTrajectory, simulate_continuous
@@ -14,7 +14,17 @@ from .errors import (
     NumericalFailure,
     ZenoError,
 )
-from .graph import mode_graph, to_dot
+from .export import (
+    AffineForm,
+    NotAffine,
+    NotAffineError,
+    affine_form,
+    spacex_config,
+    to_dot,
+    to_json,
+    to_spacex,
+)
+from .graph import mode_graph
 from .model import Conjunction, HybridAutomaton, MemoryVariable, Mode, Transition, all_of, transition_fires
 from .sampled import Plant, SampledEvent, SampledTrace, settle, simulate_sampled
 from .region import Box
@@ -37,6 +47,13 @@ __all__ = [
     "ZenoError",
     "mode_graph",
     "to_dot",
+    "to_json",
+    "to_spacex",
+    "spacex_config",
+    "affine_form",
+    "AffineForm",
+    "NotAffine",
+    "NotAffineError",
     "HybridAutomaton",
     "MemoryVariable",
     "Mode",

@@ -220,21 +220,21 @@ class HybridTrajectory:
     @property
     def times(self) -> np.ndarray:
         """All step points, jump instants repeated (before and after), shape ``(N,)``."""
-        return np.concatenate([s.times for s in self.segments]) if self.segments else np.empty(0)
+        return _readonly(np.concatenate([s.times for s in self.segments]) if self.segments else np.empty(0))
 
     @property
     def states(self) -> np.ndarray:
         """States at :attr:`times`, shape ``(N, n)``."""
         if not self.segments:
-            return np.empty((0, len(self.state_names)))
-        return np.concatenate([s.states for s in self.segments])
+            return _readonly(np.empty((0, len(self.state_names))))
+        return _readonly(np.concatenate([s.states for s in self.segments]))
 
     @property
     def jumps(self) -> np.ndarray:
         """Jump counter of every row of :attr:`times`."""
         if not self.segments:
-            return np.empty(0, dtype=int)
-        return np.concatenate([np.full(s.times.size, s.jump, dtype=int) for s in self.segments])
+            return _readonly(np.empty(0, dtype=int))
+        return _readonly(np.concatenate([np.full(s.times.size, s.jump, dtype=int) for s in self.segments]))
 
     @property
     def modes(self) -> tuple[str, ...]:
@@ -789,7 +789,7 @@ def simulate_continuous(
                     detail = (f"{method} failed at t = {solver.t:.17g} s in mode {mode!r}, "
                               f"x = {_fmt(solver.y)}: {message}")
                     break
-                t_old, t_new = solver.t_old, solver.t
+                t_old, t_new = float(solver.t_old), float(solver.t)
                 y_new = tuple(solver.y.tolist())
                 interp = solver.dense_output() if (dense or (sign_checks and watches)) else None
                 point = _point_evaluator(interp) if sign_checks and watches else None
@@ -847,7 +847,7 @@ def simulate_continuous(
                 seg_times.append(t_star)
                 seg_states.append(x_star)
                 interpolants.append(interp)
-                event = (t_star, x_star, active)
+                event = (float(t_star), x_star, active)
                 break
             rhs += int(getattr(solver, "nfev", 0))
         if interpolants and dense:

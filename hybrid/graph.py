@@ -1,4 +1,7 @@
-"""The mode graph: a derived, frozen ``networkx.MultiDiGraph`` view of an automaton."""
+"""The mode graph: a derived, frozen ``networkx.MultiDiGraph`` view of an automaton.
+
+Its Graphviz rendering is :func:`hybrid.export.to_dot`.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +9,7 @@ import networkx as nx
 
 from .model import HybridAutomaton
 
-__all__ = ["mode_graph", "to_dot"]
+__all__ = ["mode_graph"]
 
 
 def mode_graph(automaton: HybridAutomaton) -> nx.MultiDiGraph:
@@ -47,23 +50,3 @@ def mode_graph(automaton: HybridAutomaton) -> nx.MultiDiGraph:
         )
     return nx.freeze(graph)
 
-
-def _quote(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
-
-
-def to_dot(automaton: HybridAutomaton) -> str:
-    """Graphviz DOT text of the mode graph, guards and resets as edge labels."""
-    graph = mode_graph(automaton)
-    lines = [f"digraph {_quote(automaton.name)} {{", "  rankdir=LR;", "  node [shape=box, style=rounded];"]
-    lines.append(f"  __start [shape=point]; __start -> {_quote(automaton.initial_mode)};")
-    for name, data in graph.nodes(data=True):
-        label = name if not data["invariant"] else f"{name}\\ninv: {data['invariant']}"
-        lines.append(f"  {_quote(name)} [label={_quote(label)}];")
-    for source, target, key, data in graph.edges(keys=True, data=True):
-        label = f"[{data['priority']}] {data['guard'] or key}"
-        if data["reset"]:
-            label += f" / {data['reset']}"
-        lines.append(f"  {_quote(source)} -> {_quote(target)} [label={_quote(label)}];")
-    lines.append("}")
-    return "\n".join(lines) + "\n"

@@ -1,0 +1,1487 @@
+"""Structural checks of a hybrid automaton or system, each finding with a witness.
+
+:func:`check` answers two families of questions.
+
+**Graph questions** (on :func:`hybrid.graph.mode_graph`, no numerics):
+
+* ``unreachable_mode`` / ``unreachable_transition`` (warning): a mode that no
+  path of transitions leads to from the initial mode, and the transitions
+  leaving such a mode;
+* ``sink_mode`` (warning): a mode without outgoing transition;
+* ``zeno_candidate`` (info): a simple cycle of the mode graph; a cycle is
+  where jumps can pile up at one instant (Zeno) or chatter.
+
+**State-space questions**, asked over a :class:`~hybrid.region.Box` per mode
+(of the continuous state ``x`` of a :class:`~hybrid.system.HybridSystem`,
+whose signals are ``v = system.signals(0, x)``, or of the signals of a bare
+:class:`~hybrid.model.HybridAutomaton`):
+
+* ``nondeterminism`` (error): two transitions of one mode with the same
+  priority enabled at one state of the box where the invariant holds
+  (``priority_overlap``, info, when the priorities differ and resolve it);
+* ``deadlock`` (error): a point of the invariant's boundary where the flow
+  leaves the invariant and no outgoing transition is enabled;
+* ``reset_outside_invariant`` (error): a guard state whose jump (continuous
+  jump map and memory reset) lands where the target's invariant is violated;
+* ``reset_retriggers`` (error): a level-triggered transition whose jump leads,
+  at the same instant, through a chain of level-triggered jumps back to the
+  same transition (a guard that fires again right after its own reset).
+  When that happens only on a part of the guard set of measure zero (its
+  neighbours in the guard set do not re-trigger: a bouncing ball at rest,
+  the corner of the water tanks), it is a Zeno point of the dynamics, not a
+  modelling defect, and is reported as ``zeno_point`` (info).
+
+Each state-space question is a search: ``samples`` uniform points per mode
+drawn from ``numpy.random.default_rng(seed)``, plus the box corners and
+``FACE_FRACTION * samples`` points on the box's faces (jump sets such as
+``h = 0`` are often faces, which interior samples never hit), then,
+when no sample shows the problem, a bounded Nelder-Mead search
+(:func:`scipy.optimize.minimize`) of a merit function from the ``starts``
+most promising samples.  Discrete coordinates (``Box.choices``) are sampled
+and enumerated by the corners, never optimised.  A search that finds nothing
+is evidence, not proof; :class:`SearchSummary` says how hard it looked.
+
+Crossing-triggered transitions (``direction != 0``) only fire on a zero
+crossing of their guard, which is an instant, not a region.  The searches
+treat them as enabled on the side the crossing ends on (``g >= 0`` for
+``direction = +1``, ``g <= 0`` for ``direction = -1``, as
+:func:`hybrid.model.transition_fires`), and every message involving one says
+so.  After its own jump, a crossing-triggered guard that sits on zero does not
+fire again (there was no crossing), so it is never a ``reset_retriggers``, and
+the jump chains simulated for that check follow level-triggered transitions
+only (smallest priority first, as :func:`hybrid.sampled.settle`).
+
+Examples
+--------
+>>> from hybrid import HybridAutomaton, Mode, Transition, Box
+>>> heat = Transition(name="heat", source="off", target="on", guard=lambda v, m: 19.0 - v[0])
+>>> cool = Transition(name="cool", source="on", target="off", guard=lambda v, m: v[0] - 21.0)
+>>> thermostat = HybridAutomaton(name="thermostat", modes=(Mode(name="off"), Mode(name="on")),
+...                              transitions=(heat, cool), variables=("T",))
+>>> report = check(thermostat, Box(bounds={"T": (10.0, 30.0)}), samples=200)
+>>> report.clean, sorted(report.kinds())
+(True, ['zeno_candidate'])
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import networkx as nx
+import numpy as np
+from scipy.optimize import Bounds, minimize
+
+from .errors import ExecutionError, ModelDefinitionError
+from .graph import mode_graph
+from .model import HybridAutomaton, Transition
+from .region import Box
+from .system import HybridSystem
+
+__all__ = [
+    "KIND_SEVERITY",
+    "GRAPH_CHECKS",
+    "STATE_CHECKS",
+    "Witness",
+    "Finding",
+    "ModeSearch",
+    "SearchSummary",
+    "CheckReport",
+    "check",
+]
+
+KIND_SEVERITY: Mapping[str, str] = MappingProxyType(
+    {
+        "nondeterminism": "error",
+        "deadlock": "error",
+        "reset_outside_invariant": "error",
+        "reset_retriggers": "error",
+        "unreachable_mode": "warning",
+        "unreachable_transition": "warning",
+        "sink_mode": "warning",
+        "zeno_candidate": "info",
+        "zeno_point": "info",
+        "priority_overlap": "info",
+    }
+)
+"""Severity of every finding kind."""
+
+GRAPH_CHECKS = ("unreachable", "sink_mode", "zeno_candidate")
+"""Checks run on the mode graph alone (``unreachable`` reports modes and transitions)."""
+
+STATE_CHECKS = ("nondeterminism", "deadlock", "reset_outside_invariant", "reset_retriggers")
+"""Checks that search a Box (``nondeterminism`` also reports ``priority_overlap``)."""
+
+SEVERITIES = ("error", "warning", "info")
+
+BOUNDARY_PROBES = 200
+"""Most segments (inside sample, outside sample) bisected per mode to reach the invariant's boundary."""
+BOUNDARY_MAXITER = 200
+"""Most iterations of one boundary search (alternating bisection and false position)."""
+BOUNDARY_XTOL = 1e-13
+"""Relative segment length (to the box width) at which a boundary search stops even if ``inv > tol``."""
+FD_DISPLACEMENT = 1e-7
+"""Step of the centred difference of ``inv`` along the flow, as a fraction of the box's largest width."""
+NM_MAXFEV_BASE = 60
+NM_MAXFEV_PER_DIM = 40
+"""Nelder-Mead budget per start: ``NM_MAXFEV_BASE + NM_MAXFEV_PER_DIM * dimension`` merit evaluations."""
+NM_SIMPLEX_STEP = 0.1
+"""Initial simplex edge as a fraction of each coordinate's width."""
+SNAP_DECIMALS = (12, 9, 6, 3)
+"""Roundings tried on an optimiser's answer that misses a predicate by rounding error (e.g. ``x = 1e-11`` for 0)."""
+CORNER_LIMIT = 256
+"""Most box corners added to the samples."""
+FACE_FRACTION = 0.5
+"""Extra samples on the box's faces, as a fraction of ``samples`` (split evenly over the ``2 d`` faces).
+
+Jump sets are often faces of the box (``h = 0``, ``T = low``): uniform samples of the interior never hit them.
+"""
+RETRIGGER_PROBE = 1e-3
+"""Step (fraction of each coordinate's width) of the neighbours probed around a re-triggering guard state."""
+SIGNIFICANT_DIGITS = 12
+"""Digits kept by :meth:`CheckReport.as_dict`."""
+
+_INFEASIBLE = 2.0  # merits are squashed into (-1, 1); an infeasible point scores 2 + violation
+
+
+# ====================================================================== results
+def _frozen(values: Mapping[str, float] | None) -> Mapping[str, float]:
+    return MappingProxyType({str(k): float(v) for k, v in dict(values or {}).items()})
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Witness:
+    """A point that proves a finding.
+
+    Attributes
+    ----------
+    state : Mapping[str, float]
+        The continuous state ``x`` (system) or the signals (bare automaton).
+    memory : Mapping[str, float]
+        Memory variables at the point (before any reset).
+    signals : Mapping[str, float]
+        Signals ``v`` the guards and invariants read there.
+    values : Mapping[str, float]
+        The guard, invariant and derivative values that prove the finding,
+        keyed like ``"guard heat"``, ``"invariant on"``,
+        ``"invariant off after cool"``, ``"d/dt invariant on"``,
+        ``"post T"`` (state after the jump).
+    """
+
+    state: Mapping[str, float]
+    memory: Mapping[str, float]
+    signals: Mapping[str, float]
+    values: Mapping[str, float]
+
+    def __post_init__(self) -> None:
+        for name in ("state", "memory", "signals", "values"):
+            object.__setattr__(self, name, _frozen(getattr(self, name)))
+
+    def as_dict(self) -> dict[str, dict[str, float | str]]:
+        """JSON-ready copy, numbers rounded to :data:`SIGNIFICANT_DIGITS`."""
+        return {
+            name: {k: _num(v) for k, v in getattr(self, name).items()}
+            for name in ("state", "memory", "signals", "values")
+        }
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Finding:
+    """One problem (or remark) about the model.
+
+    Attributes
+    ----------
+    kind : str
+        A key of :data:`KIND_SEVERITY`.
+    severity : str
+        ``"error"``, ``"warning"`` or ``"info"``.
+    message : str
+        Names the modes and transitions and gives the witness values.
+    modes, transitions : tuple of str
+        What the finding is about (a cycle or a jump chain in order).
+    witness : Witness or None
+        The point that proves a state-space finding; ``None`` for graph findings.
+    """
+
+    kind: str
+    severity: str
+    message: str
+    modes: tuple[str, ...] = ()
+    transitions: tuple[str, ...] = ()
+    witness: Witness | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KIND_SEVERITY:
+            raise ValueError(f"Finding.kind = {self.kind!r}; expected one of {sorted(KIND_SEVERITY)}")
+        if self.severity not in SEVERITIES:
+            raise ValueError(f"Finding.severity = {self.severity!r}; expected one of {list(SEVERITIES)}")
+        object.__setattr__(self, "modes", tuple(self.modes))
+        object.__setattr__(self, "transitions", tuple(self.transitions))
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {
+            "kind": self.kind,
+            "severity": self.severity,
+            "message": self.message,
+            "modes": list(self.modes),
+            "transitions": list(self.transitions),
+            "witness": None if self.witness is None else self.witness.as_dict(),
+        }
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ModeSearch:
+    """How hard the state space of one mode was searched.
+
+    Attributes
+    ----------
+    mode : str
+    box : str or None
+        ``Box.describe()`` of the searched box; ``None`` when not searched.
+    samples : int
+        Uniform samples drawn.
+    corners : int
+        Box corners added to the samples.
+    face_samples : int
+        Samples drawn on the faces of the box (one continuous coordinate at a bound).
+    boundary_points : int
+        Points of the invariant's boundary located for the deadlock check.
+    starts : int
+        Local optimisations run.
+    merit_evaluations : int
+        Merit-function evaluations spent by the optimiser.
+    function_calls : int
+        Calls into the model (guards, invariants, resets, flows, jump maps, output).
+    notes : tuple of str
+        Why a check did not run, or ran partially, in this mode.
+    """
+
+    mode: str
+    box: str | None
+    samples: int = 0
+    corners: int = 0
+    face_samples: int = 0
+    boundary_points: int = 0
+    starts: int = 0
+    merit_evaluations: int = 0
+    function_calls: int = 0
+    notes: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {
+            "mode": self.mode,
+            "box": self.box,
+            "samples": self.samples,
+            "corners": self.corners,
+            "face_samples": self.face_samples,
+            "boundary_points": self.boundary_points,
+            "starts": self.starts,
+            "merit_evaluations": self.merit_evaluations,
+            "function_calls": self.function_calls,
+            "notes": list(self.notes),
+        }
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SearchSummary:
+    """What :func:`check` searched and how.
+
+    Attributes
+    ----------
+    seed, samples, starts, max_cycles : int
+        The arguments of the run.
+    tol : float
+        Tolerance of the run.
+    checks : Mapping[str, str]
+        For each of :data:`GRAPH_CHECKS` and :data:`STATE_CHECKS`, ``"ran"``,
+        ``"ran: ..."`` with a remark, or ``"skipped: <why>"``.
+    modes : tuple of ModeSearch
+        One entry per mode, in declaration order.
+    cycles_found : int
+        Simple cycles enumerated.
+    cycles_capped : bool
+        Whether the enumeration stopped at ``max_cycles``.
+    """
+
+    seed: int
+    samples: int
+    starts: int
+    max_cycles: int
+    tol: float
+    checks: Mapping[str, str]
+    modes: tuple[ModeSearch, ...]
+    cycles_found: int = 0
+    cycles_capped: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "checks", MappingProxyType(dict(self.checks)))
+        object.__setattr__(self, "modes", tuple(self.modes))
+
+    def mode(self, name: str) -> ModeSearch:
+        """The search summary of mode ``name``."""
+        for entry in self.modes:
+            if entry.mode == name:
+                return entry
+        raise KeyError(f"no mode {name!r} in the search summary; modes: {[m.mode for m in self.modes]}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {
+            "seed": self.seed,
+            "samples": self.samples,
+            "starts": self.starts,
+            "max_cycles": self.max_cycles,
+            "tol": _num(self.tol),
+            "checks": dict(self.checks),
+            "modes": [m.as_dict() for m in self.modes],
+            "cycles_found": self.cycles_found,
+            "cycles_capped": self.cycles_capped,
+        }
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class CheckReport:
+    """Result of :func:`check`.
+
+    Attributes
+    ----------
+    automaton : str
+        Name of the automaton.
+    model : str
+        ``"system"`` (a HybridSystem, searched over its state) or
+        ``"automaton"`` (searched over its signals).
+    findings : tuple of Finding
+        Graph findings first, then state-space findings mode by mode.
+    searched : SearchSummary
+    """
+
+    automaton: str
+    model: str
+    findings: tuple[Finding, ...]
+    searched: SearchSummary
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "findings", tuple(self.findings))
+
+    @property
+    def errors(self) -> tuple[Finding, ...]:
+        """Findings of severity ``"error"``."""
+        return tuple(f for f in self.findings if f.severity == "error")
+
+    @property
+    def warnings(self) -> tuple[Finding, ...]:
+        """Findings of severity ``"warning"``."""
+        return tuple(f for f in self.findings if f.severity == "warning")
+
+    @property
+    def infos(self) -> tuple[Finding, ...]:
+        """Findings of severity ``"info"``."""
+        return tuple(f for f in self.findings if f.severity == "info")
+
+    @property
+    def clean(self) -> bool:
+        """No error and no warning (infos allowed)."""
+        return not any(f.severity in ("error", "warning") for f in self.findings)
+
+    def kinds(self, *severities: str) -> frozenset[str]:
+        """Kinds of the findings, optionally only those of the given severities.
+
+        Examples
+        --------
+        ``report.kinds("error", "warning")`` is what makes a report unclean.
+        """
+        unknown = [s for s in severities if s not in SEVERITIES]
+        if unknown:
+            raise ValueError(f"kinds(): unknown severity {unknown}; expected some of {list(SEVERITIES)}")
+        return frozenset(f.kind for f in self.findings if not severities or f.severity in severities)
+
+    def of_kind(self, kind: str) -> tuple[Finding, ...]:
+        """Findings of one kind."""
+        return tuple(f for f in self.findings if f.kind == kind)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready, deterministic (same model, box and seed give an equal dict)."""
+        return {
+            "automaton": self.automaton,
+            "model": self.model,
+            "clean": self.clean,
+            "counts": {s: sum(f.severity == s for f in self.findings) for s in SEVERITIES},
+            "findings": [f.as_dict() for f in self.findings],
+            "searched": self.searched.as_dict(),
+        }
+
+
+def _num(x: float) -> float | str:
+    x = float(x)
+    if not math.isfinite(x):
+        return str(x)
+    return float(f"{x + 0.0:.{SIGNIFICANT_DIGITS}g}")
+
+
+def _g(x: float) -> str:
+    return f"{x + 0.0:.10g}"  # + 0.0 turns -0.0 into 0.0
+
+
+def _squash(x: float) -> float:
+    """Order-preserving map of the reals into (-1, 1) (Nelder-Mead only compares values)."""
+    if math.isinf(x):
+        return math.copysign(1.0, x)
+    return x / (1.0 + abs(x))
+
+
+# ====================================================================== model access
+class _Oracle:
+    """Every call into the model: counted, checked for NaN, errors re-raised with context."""
+
+    def __init__(self, model: HybridSystem | HybridAutomaton) -> None:
+        if isinstance(model, HybridSystem):
+            self.system: HybridSystem | None = model
+            self.automaton = model.automaton
+            self.coords = tuple(model.state_names)
+        elif isinstance(model, HybridAutomaton):
+            self.system = None
+            self.automaton = model
+            self.coords = tuple(model.variables)
+        else:
+            raise ModelDefinitionError(
+                f"check(): model = {model!r}; expected a HybridSystem or a HybridAutomaton"
+            )
+        a = self.automaton
+        self.what = f"{'system' if self.system is not None else 'automaton'} {a.name!r}"
+        self.outgoing = {q: a.outgoing(q) for q in a.mode_names}
+        self.invariants = {mode.name: mode.invariant for mode in a.modes}
+        self.calls = 0
+
+    # ---------------------------------------------------------------- messages
+    def where(self, x: Sequence[float], m: Mapping[str, float]) -> str:
+        state = ", ".join(f"{n}={_g(c)}" for n, c in zip(self.coords, x))
+        text = f"{'x' if self.system is not None else 'v'} = ({state})"
+        if m:
+            text += ", memory {" + ", ".join(f"{k}={_g(c)}" for k, c in m.items()) + "}"
+        return text
+
+    def _raised(self, what: str, x: Sequence[float], m: Mapping[str, float], err: Exception) -> ExecutionError:
+        return ExecutionError(
+            f"check of {self.what}: {what} raised {type(err).__name__}: {err} at {self.where(x, m)}; "
+            "the structural checks evaluate it all over the declared Box: make it total there or shrink the Box"
+        )
+
+    def _real(self, value: Any, what: str, x: Sequence[float], m: Mapping[str, float]) -> float:
+        try:
+            r = float(value)
+        except (TypeError, ValueError) as err:
+            raise ExecutionError(
+                f"check of {self.what}: {what} returned {value!r} at {self.where(x, m)}; expected a real number"
+            ) from err
+        if r != r:
+            raise ExecutionError(
+                f"check of {self.what}: {what} returned NaN at {self.where(x, m)}; "
+                "guards and invariants must be real-valued all over the declared Box"
+            )
+        return r
+
+    # ---------------------------------------------------------------- evaluations
+    def signals(self, x: tuple[float, ...], m: Mapping[str, float]) -> tuple[float, ...]:
+        if self.system is None:
+            return x
+        self.calls += 1
+        try:
+            return tuple(float(c) for c in self.system.signals(0.0, x))
+        except Exception as err:
+            raise self._raised("output h(t, x)", x, m, err) from err
+
+    def invariant(self, q: str, x: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]) -> float:
+        f = self.invariants[q]
+        if f is None:
+            return math.inf
+        self.calls += 1
+        what = f"invariant of mode {q!r}"
+        try:
+            value = f(v, m)
+        except Exception as err:
+            raise self._raised(what, x, m, err) from err
+        return self._real(value, what, x, m)
+
+    def guard(self, t: Transition, x: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]) -> float:
+        self.calls += 1
+        what = f"guard of transition {t.name!r}"
+        try:
+            value = t.guard(v, m)
+        except Exception as err:
+            raise self._raised(what, x, m, err) from err
+        return self._real(value, what, x, m)
+
+    def flow(self, q: str, x: tuple[float, ...], m: Mapping[str, float]) -> tuple[float, ...]:
+        assert self.system is not None
+        self.calls += 1
+        try:
+            return self.system.flow(q, 0.0, x, m)
+        except Exception as err:
+            raise self._raised(f"flow of mode {q!r}", x, m, err) from err
+
+    def jump(
+        self, t: Transition, x: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]
+    ) -> tuple[tuple[float, ...], dict[str, float]]:
+        """State and memory after ``t`` (both maps read the pre-jump values)."""
+        if self.system is not None:
+            self.calls += 1
+            try:
+                post = self.system.jump(t.name, 0.0, x, m)
+            except Exception as err:
+                raise self._raised(f"jump map of transition {t.name!r}", x, m, err) from err
+        else:
+            post = x
+        memory = dict(m)
+        if t.reset is not None:
+            self.calls += 1
+            what = f"reset of transition {t.name!r}"
+            try:
+                update = t.reset(v, m)
+            except Exception as err:
+                raise self._raised(what, x, m, err) from err
+            if set(update) != set(t.writes):
+                raise ExecutionError(
+                    f"check of {self.what}: {what} returned {sorted(update)} at {self.where(x, m)}, "
+                    f"declared writes {sorted(t.writes)}; return exactly the declared memory variables"
+                )
+            for k, c in update.items():
+                memory[k] = self._real(c, f"{what} (memory {k!r})", x, m)
+        return post, memory
+
+
+def _crossing_note(transitions: Sequence[Transition]) -> str:
+    crossing = [t.name for t in transitions if t.direction != 0]
+    if not crossing:
+        return ""
+    return (
+        f" (crossing-triggered {crossing} taken as enabled on the side their crossing ends on, "
+        "g >= 0 for direction +1, g <= 0 for direction -1)"
+    )
+
+
+# ====================================================================== the search space of one mode
+@dataclass(kw_only=True)
+class _Space:
+    """Point layout of one mode's box: box coordinates, then the memory the box declares."""
+
+    mode: str
+    box: Box
+    names: tuple[str, ...]
+    order: tuple[int, ...]  # position in the point of each model coordinate
+    memory_names: tuple[str, ...]
+    base_memory: dict[str, float]
+    free: np.ndarray  # indices the optimiser moves
+    lower: np.ndarray
+    upper: np.ndarray
+    scale: float
+    notes: list[str] = field(default_factory=list)
+
+    @classmethod
+    def build(cls, mode: str, box: Box, coords: tuple[str, ...], base_memory: dict[str, float]) -> _Space:
+        names = box.names + tuple(box.memory)
+        index = {n: i for i, n in enumerate(names)}
+        n_cont = len(box.bounds)
+        lower = np.full(len(names), np.nan)
+        upper = np.full(len(names), np.nan)
+        lower[:n_cont], upper[:n_cont] = box.lower, box.upper
+        offset = len(box.names)
+        for k, (lo, hi) in enumerate(box.memory.values()):
+            lower[offset + k], upper[offset + k] = lo, hi
+        continuous = list(range(n_cont)) + list(range(offset, len(names)))
+        free = np.array([i for i in continuous if upper[i] > lower[i]], dtype=int)
+        widths = upper[free] - lower[free] if len(free) else np.zeros(0)
+        return cls(
+            mode=mode,
+            box=box,
+            names=names,
+            order=tuple(index[n] for n in coords),
+            memory_names=tuple(box.memory),
+            base_memory=dict(base_memory),
+            free=free,
+            lower=lower,
+            upper=upper,
+            scale=float(widths.max()) if len(widths) else 1.0,
+        )
+
+    def split(self, p: np.ndarray) -> tuple[tuple[float, ...], dict[str, float]]:
+        """State (model coordinate order) and memory of a point."""
+        values = p.tolist()
+        x = tuple(values[i] for i in self.order)
+        m = dict(self.base_memory)
+        if self.memory_names:
+            m.update(zip(self.memory_names, values[len(values) - len(self.memory_names):]))
+        return x, m
+
+    def sample(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        points = self.box.sample(rng, count)
+        if self.memory_names:
+            lows = self.lower[len(self.box.names):]
+            highs = self.upper[len(self.box.names):]
+            points = np.hstack([points, rng.uniform(lows, highs, size=(count, len(lows)))])
+        return points
+
+    def faces(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """Samples with one continuous box coordinate pinned at a bound (``count`` in all, over the ``2 d`` faces)."""
+        n_cont = len(self.box.bounds)
+        sides = [(k, end) for k in range(n_cont) if self.upper[k] > self.lower[k] for end in (0, 1)]
+        if n_cont < 2 or not sides:
+            return np.empty((0, len(self.names)))  # in one dimension the faces are the corners
+        per_face = max(1, count // len(sides))
+        points = self.sample(rng, per_face * len(sides))
+        for n, (k, end) in enumerate(sides):
+            points[n * per_face:(n + 1) * per_face, k] = self.upper[k] if end else self.lower[k]
+        return points
+
+    def corners(self) -> np.ndarray:
+        corners = self.box.corners(CORNER_LIMIT)
+        if not self.memory_names:
+            return corners
+        lows = self.lower[len(self.box.names):]
+        highs = self.upper[len(self.box.names):]
+        ends = [np.hstack([corners, np.tile(lows, (len(corners), 1))])]
+        if np.any(highs > lows):
+            ends.append(np.hstack([corners, np.tile(highs, (len(corners), 1))]))
+        return np.vstack(ends)
+
+    def snapped(self, p: np.ndarray) -> list[np.ndarray]:
+        """``p`` and copies with the free coordinates rounded (clipped back into the box)."""
+        out = [p]
+        for d in SNAP_DECIMALS:
+            q = p.copy()
+            q[self.free] = np.clip(np.round(p[self.free], d), self.lower[self.free], self.upper[self.free])
+            if not any(np.array_equal(q, r) for r in out):
+                out.append(q)
+        return out
+
+
+@dataclass(kw_only=True)
+class _Point:
+    """A point of a mode's space with everything evaluated there once."""
+
+    p: np.ndarray
+    x: tuple[float, ...]
+    m: dict[str, float]
+    v: tuple[float, ...]
+    inv: float
+    raw: tuple[float, ...]  # guards of the outgoing transitions, priority order
+    enab: tuple[float, ...]  # the same, negated for direction = -1: >= 0 where the transition fires
+
+
+# ====================================================================== the checker
+class _Checker:
+    """The state-space searches of one model; one instance per :func:`check` call."""
+
+    def __init__(self, oracle: _Oracle, *, samples: int, starts: int, tol: float) -> None:
+        self.o = oracle
+        self.a = oracle.automaton
+        self.samples = samples
+        self.starts = starts
+        self.tol = tol
+        # per-mode statistics, reset by search_mode
+        self.n_starts = 0
+        self.n_merit = 0
+        self.n_boundary = 0
+
+    # ---------------------------------------------------------------- evaluation helpers
+    def point(self, space: _Space, p: np.ndarray) -> _Point:
+        x, m = space.split(p)
+        v = self.o.signals(x, m)
+        q = space.mode
+        inv = self.o.invariant(q, x, v, m)
+        outgoing = self.o.outgoing[q]
+        raw = tuple([self.o.guard(t, x, v, m) for t in outgoing])
+        # enabling value: the guard signed so that >= 0 is the side on which the transition fires
+        enab = tuple([-g if t.direction < 0 else g for t, g in zip(outgoing, raw)])
+        return _Point(p=p, x=x, m=m, v=v, inv=inv, raw=raw, enab=enab)
+
+    def witness(self, pt: _Point, values: Mapping[str, float]) -> Witness:
+        return Witness(
+            state=dict(zip(self.o.coords, pt.x)),
+            memory=pt.m,
+            signals=dict(zip(self.a.variables, pt.v)),
+            values=values,
+        )
+
+    def minimise(
+        self, space: _Space, merit: Callable[[np.ndarray], float], starts: Sequence[np.ndarray]
+    ) -> list[np.ndarray]:
+        """Bounded Nelder-Mead of ``merit`` (over the free coordinates) from each start."""
+        free = space.free
+        if not len(free):
+            note = "no continuous coordinate with lower < upper: sampling only, no local optimisation"
+            if note not in space.notes:
+                space.notes.append(note)
+            return []
+        lo, hi = space.lower[free], space.upper[free]
+        bounds = Bounds(lo, hi)
+        maxfev = NM_MAXFEV_BASE + NM_MAXFEV_PER_DIM * len(free)
+        out = []
+        for p0 in starts:
+            y0 = np.clip(p0[free], lo, hi)
+            simplex = [y0]
+            for k in range(len(free)):
+                step = NM_SIMPLEX_STEP * (hi[k] - lo[k])
+                y = y0.copy()
+                y[k] = y0[k] + step if y0[k] + step <= hi[k] else y0[k] - step
+                simplex.append(y)
+
+            def fun(y: np.ndarray, p0: np.ndarray = p0) -> float:
+                p = p0.copy()
+                p[free] = np.clip(y, lo, hi)
+                return merit(p)
+
+            res = minimize(
+                fun,
+                y0,
+                method="Nelder-Mead",
+                bounds=bounds,
+                options={
+                    "maxfev": maxfev,
+                    "initial_simplex": np.array(simplex),
+                    "xatol": 1e-12 * space.scale,
+                    "fatol": 1e-15,
+                },
+            )
+            self.n_starts += 1
+            self.n_merit += int(res.nfev)
+            p = p0.copy()
+            p[free] = np.clip(res.x, lo, hi)
+            out.append(p)
+        return out
+
+    # ---------------------------------------------------------------- one mode
+    def search_mode(self, space: _Space, rng: np.random.Generator) -> tuple[list[Finding], ModeSearch]:
+        self.n_starts = self.n_merit = self.n_boundary = 0
+        calls0 = self.o.calls
+        sampled = space.sample(rng, self.samples)
+        faces = space.faces(rng, int(FACE_FRACTION * self.samples))
+        corners = space.corners()
+        points = [self.point(space, p) for p in np.vstack([sampled, faces, corners])]
+        findings: list[Finding] = []
+        findings += self.nondeterminism(space, points)
+        findings += self.deadlock(space, points, rng)
+        for t in self.o.outgoing[space.mode]:
+            findings += self.reset_outside_invariant(space, points, t)
+        for t in self.o.outgoing[space.mode]:
+            findings += self.reset_retriggers(space, points, t)
+        summary = ModeSearch(
+            mode=space.mode,
+            box=space.box.describe(),
+            samples=len(sampled),
+            corners=len(corners),
+            face_samples=len(faces),
+            boundary_points=self.n_boundary,
+            starts=self.n_starts,
+            merit_evaluations=self.n_merit,
+            function_calls=self.o.calls - calls0,
+            notes=tuple(space.notes),
+        )
+        return findings, summary
+
+    # ---------------------------------------------------------------- nondeterminism
+    def nondeterminism(self, space: _Space, points: list[_Point]) -> list[Finding]:
+        q = space.mode
+        outgoing = self.o.outgoing[q]
+        if len(outgoing) < 2:
+            return []
+        inv = np.array([pt.inv for pt in points])
+        enab = np.array([pt.enab for pt in points])
+        findings = []
+        for i, j in itertools.combinations(range(len(outgoing)), 2):
+            t1, t2 = outgoing[i], outgoing[j]
+            overlap = np.minimum(np.minimum(enab[:, i], enab[:, j]), inv)
+            best = int(np.argmax(overlap))
+            found: _Point | None = points[best] if overlap[best] >= 0.0 else None
+            if found is None:
+
+                def merit(p: np.ndarray, i: int = i, j: int = j) -> float:
+                    pt = self.point(space, p)
+                    return -_squash(min(pt.enab[i], pt.enab[j], pt.inv))
+
+                order = np.argsort(-overlap, kind="stable")[: self.starts]
+                found = self._confirm(
+                    space,
+                    self.minimise(space, merit, [points[k].p for k in order]),
+                    lambda pt, i=i, j=j: min(pt.enab[i], pt.enab[j], pt.inv),
+                    threshold=-self.tol,
+                )
+            if found is None:
+                continue
+            margin = min(found.enab[i], found.enab[j], found.inv)
+            values = {f"guard {t1.name}": found.raw[i], f"guard {t2.name}": found.raw[j]}
+            if self.o.invariants[q] is not None:
+                values[f"invariant {q}"] = found.inv
+            within = "" if margin >= 0.0 else f" (within tol = {self.tol:g})"
+            detail = (
+                f"at {self.o.where(found.x, found.m)}: guard {t1.name} = {_g(found.raw[i])}, "
+                f"guard {t2.name} = {_g(found.raw[j])}"
+                + (f", invariant = {_g(found.inv)}" if self.o.invariants[q] is not None else "")
+                + within
+                + _crossing_note((t1, t2))
+            )
+            if t1.priority == t2.priority:
+                findings.append(
+                    Finding(
+                        kind="nondeterminism",
+                        severity=KIND_SEVERITY["nondeterminism"],
+                        message=(
+                            f"mode {q!r}: transitions {t1.name!r} and {t2.name!r} have the same priority "
+                            f"{t1.priority} and are both enabled {detail}; give them distinct priorities "
+                            "or exclusive guards"
+                        ),
+                        modes=(q,),
+                        transitions=(t1.name, t2.name),
+                        witness=self.witness(found, values),
+                    )
+                )
+            else:
+                findings.append(
+                    Finding(
+                        kind="priority_overlap",
+                        severity=KIND_SEVERITY["priority_overlap"],
+                        message=(
+                            f"mode {q!r}: transitions {t1.name!r} (priority {t1.priority}) and {t2.name!r} "
+                            f"(priority {t2.priority}) are both enabled {detail}; the priority resolves it "
+                            f"in favour of {t1.name!r}"
+                        ),
+                        modes=(q,),
+                        transitions=(t1.name, t2.name),
+                        witness=self.witness(found, values),
+                    )
+                )
+        return findings
+
+    def _confirm(
+        self,
+        space: _Space,
+        candidates: Sequence[np.ndarray],
+        score: Callable[[_Point], float],
+        threshold: float,
+    ) -> _Point | None:
+        """Best candidate (or a rounding of it) whose ``score >= threshold``; exact ``>= 0`` preferred."""
+        best: _Point | None = None
+        best_score = -math.inf
+        for p in candidates:
+            for r in space.snapped(p):
+                pt = self.point(space, r)
+                s = score(pt)
+                if s >= 0.0 and best_score < 0.0:
+                    best, best_score = pt, s
+                    break
+                if s > best_score:
+                    best, best_score = pt, s
+        if best is None or best_score < threshold:
+            return None
+        return best
+
+    # ---------------------------------------------------------------- deadlock
+    def _leaving_rate(self, space: _Space, pt: _Point) -> float:
+        """Centred finite difference of ``inv`` along the flow at ``pt`` (``d/dt inv``)."""
+        f = self.o.flow(space.mode, pt.x, pt.m)
+        speed = max(abs(c) for c in f)
+        if speed == 0.0:
+            return 0.0
+        h = FD_DISPLACEMENT * space.scale / speed
+        plus = tuple(a + h * b for a, b in zip(pt.x, f))
+        minus = tuple(a - h * b for a, b in zip(pt.x, f))
+        i_plus = self.o.invariant(space.mode, plus, self.o.signals(plus, pt.m), pt.m)
+        i_minus = self.o.invariant(space.mode, minus, self.o.signals(minus, pt.m), pt.m)
+        return (i_plus - i_minus) / (2.0 * h)
+
+    def _deadlock_merit(self, space: _Space, pt: _Point) -> tuple[float, float]:
+        """``(merit, d/dt inv)``; ``merit < 0`` exactly when ``pt`` is a deadlock (given it is on the boundary)."""
+        terms = [e + self.tol for e in pt.enab]
+        rate = math.nan
+        if self.o.system is not None:
+            rate = self._leaving_rate(space, pt)
+            terms.append(rate + self.tol)
+        return (max(terms) if terms else -1.0), rate
+
+    def _boundary(self, space: _Space, a: _Point, c: np.ndarray, fc: float) -> _Point:
+        """Point of the invariant's boundary on segment ``[a, c]`` (``inv(a) >= 0 > inv(c)``), inside end."""
+        q = space.mode
+        pa, fa = a.p, a.inv
+        free = space.free
+        widths = np.where(space.upper[free] > space.lower[free], space.upper[free] - space.lower[free], 1.0)
+        for it in range(BOUNDARY_MAXITER):
+            if fa <= self.tol or np.max(np.abs(pa[free] - c[free]) / widths, initial=0.0) <= BOUNDARY_XTOL:
+                break
+            s = 0.5
+            if it % 2 and math.isfinite(fa) and math.isfinite(fc):
+                s = min(max(fa / (fa - fc), 0.01), 0.99)  # false position, kept off the ends
+            pm = pa + s * (c - pa)
+            x, m = space.split(pm)
+            fm = self.o.invariant(q, x, self.o.signals(x, m), m)
+            if fm >= 0.0:
+                pa, fa = pm, fm
+            else:
+                c, fc = pm, fm
+        return self.point(space, pa) if pa is not a.p else a
+
+    def deadlock(self, space: _Space, points: list[_Point], rng: np.random.Generator) -> list[Finding]:
+        q = space.mode
+        if self.o.invariants[q] is None:
+            space.notes.append("deadlock: mode has no invariant, so no boundary to leave through")
+            return []
+        inside = [pt for pt in points if pt.inv >= 0.0]
+        outside = [pt for pt in points if pt.inv < 0.0]
+        candidates: list[tuple[float, float, _Point, _Point | None, np.ndarray | None]] = []
+        for pt in points:
+            if 0.0 <= pt.inv <= self.tol:
+                self.n_boundary += 1
+                merit, rate = self._deadlock_merit(space, pt)
+                candidates.append((merit, rate, pt, None, None))
+        n_discrete = len(space.box.names) - len(space.box.bounds)
+        n_cont = len(space.box.bounds)
+        jumps = 0  # boundary searches that ended on a jump of the invariant (inv > tol next to inv < 0)
+        if inside and outside:
+            probes = min(BOUNDARY_PROBES, len(inside) * len(outside))
+            ia = rng.integers(len(inside), size=probes)
+            ic = rng.integers(len(outside), size=probes)
+            for k_a, k_c in zip(ia, ic):
+                a = inside[int(k_a)]
+                c = outside[int(k_c)].p.copy()
+                fc = outside[int(k_c)].inv
+                if n_discrete:
+                    c[n_cont:len(space.box.names)] = a.p[n_cont:len(space.box.names)]
+                    x, m = space.split(c)
+                    fc = self.o.invariant(q, x, self.o.signals(x, m), m)
+                    if fc >= 0.0:
+                        continue
+                b = self._boundary(space, a, c, fc)
+                if b.inv > self.tol:
+                    jumps += 1
+                    continue
+                self.n_boundary += 1
+                merit, rate = self._deadlock_merit(space, b)
+                candidates.append((merit, rate, b, a, c))
+        if jumps:
+            space.notes.append(
+                f"deadlock: {jumps} boundary searches ended where the invariant jumps (inv > tol right next to "
+                "inv < 0); those points were not examined (a discontinuous invariant is only checked where it "
+                "is continuous)"
+            )
+        if not candidates:
+            space.notes.append(
+                "deadlock: no point of the invariant's boundary in the box (the invariant holds "
+                + ("everywhere" if inside else "nowhere")
+                + " on the samples); widen the box across the boundary to search it"
+            )
+            return []
+        best = min(range(len(candidates)), key=lambda k: candidates[k][0])
+        merit, rate, found, _, _ = candidates[best]
+        if merit >= 0.0:
+            # refine: move the outside end of the most promising segments, re-locating the boundary each time
+            anchored = sorted(
+                (k for k in range(len(candidates)) if candidates[k][3] is not None), key=lambda k: candidates[k][0]
+            )[: self.starts]
+            for k in anchored:
+                anchor = candidates[k][3]
+                assert anchor is not None
+
+                def merit_fn(p: np.ndarray, anchor: _Point = anchor) -> float:
+                    x, m = space.split(p)
+                    fy = self.o.invariant(q, x, self.o.signals(x, m), m)
+                    if fy >= 0.0:
+                        return _INFEASIBLE + _squash(fy)
+                    b = self._boundary(space, anchor, p, fy)
+                    return 1.0 if b.inv > self.tol else _squash(self._deadlock_merit(space, b)[0])
+
+                end = candidates[k][4]
+                assert end is not None
+                for p in self.minimise(space, merit_fn, [end]):
+                    x, m = space.split(p)
+                    fy = self.o.invariant(q, x, self.o.signals(x, m), m)
+                    if fy >= 0.0:
+                        continue
+                    b = self._boundary(space, anchor, p, fy)
+                    if b.inv > self.tol:
+                        continue
+                    m_b, r_b = self._deadlock_merit(space, b)
+                    if m_b < merit:
+                        merit, rate, found = m_b, r_b, b
+        if merit >= 0.0:
+            return []
+        outgoing = self.o.outgoing[q]
+        values = {f"invariant {q}": found.inv}
+        if self.o.system is not None:
+            values[f"d/dt invariant {q}"] = rate
+        values.update({f"guard {t.name}": g for t, g in zip(outgoing, found.raw)})
+        guards = ", ".join(f"guard {t.name} = {_g(g)}" for t, g in zip(outgoing, found.raw))
+        leaving = (
+            f"the flow leaves it (d/dt inv = {_g(rate)} < -tol)"
+            if self.o.system is not None
+            else "(no flow: every boundary point counts)"
+        )
+        enabled = (
+            f"no outgoing transition is enabled ({guards}, all below -tol = {-self.tol:g}{_crossing_note(outgoing)})"
+            if outgoing
+            else "the mode has no outgoing transition"
+        )
+        return [
+            Finding(
+                kind="deadlock",
+                severity=KIND_SEVERITY["deadlock"],
+                message=(
+                    f"mode {q!r}: deadlock at {self.o.where(found.x, found.m)} on the boundary of the invariant "
+                    f"(inv = {_g(found.inv)}): {leaving} and {enabled}; add a transition enabled there or "
+                    "widen the invariant"
+                ),
+                modes=(q,),
+                transitions=tuple(t.name for t in outgoing),
+                witness=self.witness(found, values),
+            )
+        ]
+
+    # ---------------------------------------------------------------- resets
+    def _violation(self, pt: _Point, k: int) -> float:
+        """How far ``pt`` is from the guard set of outgoing transition ``k`` intersected with the invariant."""
+        return max(0.0, -pt.enab[k]) + max(0.0, -pt.inv)
+
+    def _post(self, t: Transition, pt: _Point) -> tuple[tuple[float, ...], dict[str, float], tuple[float, ...]]:
+        x, m = self.o.jump(t, pt.x, pt.v, pt.m)
+        return x, m, self.o.signals(x, m)
+
+    def reset_outside_invariant(self, space: _Space, points: list[_Point], t: Transition) -> list[Finding]:
+        q, target = space.mode, t.target
+        if self.o.invariants[target] is None:
+            return []
+        k = self.o.outgoing[q].index(t)
+
+        def after(pt: _Point) -> float:
+            x, m, v = self._post(t, pt)
+            return self.o.invariant(target, x, v, m)
+
+        feasible = [pt for pt in points if self._violation(pt, k) == 0.0]
+        scored = [(after(pt), n) for n, pt in enumerate(feasible)]
+        found: _Point | None = None
+        if scored:
+            value, n = min(scored)
+            if value < -self.tol:
+                found = feasible[n]
+        if found is None:
+
+            def merit(p: np.ndarray) -> float:
+                pt = self.point(space, p)
+                violation = self._violation(pt, k)
+                if violation > 0.0:
+                    return _INFEASIBLE + _squash(violation)
+                return _squash(after(pt))
+
+            if scored:
+                starts = [feasible[n].p for _, n in sorted(scored)[: self.starts]]
+            else:
+                order = sorted(range(len(points)), key=lambda n: self._violation(points[n], k))
+                starts = [points[n].p for n in order[: self.starts]]
+            found = self._confirm(
+                space,
+                self.minimise(space, merit, starts),
+                lambda pt: -after(pt) - self.tol if self._violation(pt, k) == 0.0 else -math.inf,
+                threshold=0.0,
+            )
+            if found is not None and after(found) >= -self.tol:
+                found = None
+        if found is None:
+            return []
+        x, m, v = self._post(t, found)
+        inv_after = self.o.invariant(target, x, v, m)
+        values = {f"guard {t.name}": found.raw[k]}
+        if self.o.invariants[q] is not None:
+            values[f"invariant {q}"] = found.inv
+        values[f"invariant {target} after {t.name}"] = inv_after
+        values.update({f"post {n}": c for n, c in zip(self.o.coords, x)})
+        values.update({f"post memory {n}": c for n, c in m.items() if found.m.get(n) != c})
+        post = self.o.where(x, m)
+        return [
+            Finding(
+                kind="reset_outside_invariant",
+                severity=KIND_SEVERITY["reset_outside_invariant"],
+                message=(
+                    f"transition {t.name!r} ({q} -> {target}): from {self.o.where(found.x, found.m)} "
+                    f"(guard = {_g(found.raw[k])}"
+                    + (f", invariant of {q!r} = {_g(found.inv)}" if self.o.invariants[q] is not None else "")
+                    + f"{_crossing_note((t,))}) the jump lands at {post} where the invariant of {target!r} is "
+                    f"{_g(inv_after)} < -tol = {-self.tol:g}; fix the reset or the target invariant"
+                ),
+                modes=(q, target),
+                transitions=(t.name,),
+                witness=self.witness(found, values),
+            )
+        ]
+
+    def _chain(
+        self, t: Transition, pt: _Point, limit: int
+    ) -> tuple[list[Transition], float | None, float, dict[str, float]]:
+        """Fire ``t`` at ``pt``, then level-triggered jumps at the same instant.
+
+        Returns the chain fired after ``t``, the guard of ``t`` when it fires
+        again (``None`` if it does not), a closeness (``<= 0`` when the chain
+        re-fires ``t``) and the post-jump values for the witness.
+        """
+        x, m, v = self._post(t, pt)
+        q = t.target
+        chain: list[Transition] = []
+        post_values = {f"post {n}": c for n, c in zip(self.o.coords, x)}
+        for _ in range(limit):
+            level = [u for u in self.o.outgoing[q] if u.direction == 0]
+            guards = {u.name: self.o.guard(u, x, v, m) for u in level}
+            winner = next((u for u in level if guards[u.name] >= 0.0), None)
+            if winner is None:
+                if q == t.source:
+                    closeness = -guards[t.name]
+                else:
+                    back = [-guards[u.name] for u in level if u.target == t.source]
+                    rest = [-guards[u.name] for u in level]
+                    closeness = min(back) if back else (1.0 + min(rest) if rest else 2.0)
+                return chain, None, closeness, post_values
+            if winner is t:
+                return chain, guards[t.name], -guards[t.name], post_values
+            chain.append(winner)
+            x, m = self.o.jump(winner, x, v, m)
+            v = self.o.signals(x, m)
+            q = winner.target
+        return chain, None, 3.0, post_values
+
+    def _retriggers(self, space: _Space, t: Transition, k: int, pt: _Point, limit: int) -> bool:
+        return self._violation(pt, k) == 0.0 and self._chain(t, pt, limit)[1] is not None
+
+    def _isolated_exception(self, space: _Space, t: Transition, k: int, pt: _Point, limit: int) -> _Point | None:
+        """A guard state next to ``pt`` (one coordinate moved by ``RETRIGGER_PROBE`` of its width) that
+        does *not* re-trigger, or ``None`` if every such neighbour in the guard set re-triggers too."""
+        for i in space.free:
+            step = RETRIGGER_PROBE * (space.upper[i] - space.lower[i])
+            for sign in (-1.0, 1.0):
+                p = pt.p.copy()
+                p[i] = min(max(p[i] + sign * step, space.lower[i]), space.upper[i])
+                if p[i] == pt.p[i]:
+                    continue
+                near = self.point(space, p)
+                if self._violation(near, k) == 0.0 and self._chain(t, near, limit)[1] is None:
+                    return near
+        return None
+
+    def reset_retriggers(self, space: _Space, points: list[_Point], t: Transition) -> list[Finding]:
+        if t.direction != 0:
+            return []
+        q = space.mode
+        k = self.o.outgoing[q].index(t)
+        limit = 2 * len(self.a.transitions) + 2
+        feasible = [pt for pt in points if self._violation(pt, k) == 0.0]
+        runs = [self._chain(t, pt, limit) for pt in feasible]
+        again = {n: r[1] for n, r in enumerate(runs) if r[1] is not None}
+        hits = sorted(again, key=lambda n: (-again[n], n))  # deepest re-fire first
+        candidates = [feasible[n] for n in hits[: max(self.starts, 1)]]
+        if not candidates:
+
+            def merit(p: np.ndarray) -> float:
+                pt = self.point(space, p)
+                violation = self._violation(pt, k)
+                if violation > 0.0:
+                    return _INFEASIBLE + _squash(violation)
+                return _squash(self._chain(t, pt, limit)[2])
+
+            if feasible:
+                order = sorted(range(len(feasible)), key=lambda n: runs[n][2])[: self.starts]
+                starts = [feasible[n].p for n in order]
+            else:
+                order = sorted(range(len(points)), key=lambda n: self._violation(points[n], k))[: self.starts]
+                starts = [points[n].p for n in order]
+            for p in self.minimise(space, merit, starts):
+                for r in space.snapped(p):
+                    pt = self.point(space, r)
+                    if self._retriggers(space, t, k, pt, limit):
+                        candidates.append(pt)
+                        break
+        if not candidates:
+            return []
+        # A re-triggering state whose neighbours in the guard set do not re-trigger is a point of measure
+        # zero in the guard set (the rest state of a bouncing ball, the corner of the water tanks): a Zeno
+        # point of the physics, reported as info.  Otherwise the reset re-triggers on a whole region.
+        exception: _Point | None = None
+        found = candidates[0]
+        for pt in candidates:
+            exception = self._isolated_exception(space, t, k, pt, limit)
+            if exception is None:
+                found = pt
+                break
+        chain, again, _, post_values = self._chain(t, found, limit)
+        assert again is not None
+        path = [t.name] + [u.name for u in chain] + [t.name]
+        values = {f"guard {t.name}": found.raw[k]}
+        if self.o.invariants[q] is not None:
+            values[f"invariant {q}"] = found.inv
+        values.update(post_values)
+        values[f"guard {t.name} after {' -> '.join(path[:-1])}"] = again
+        modes = [q] + [u.target for u in [t, *chain]]
+        fires = (
+            f"transition {t.name!r} ({q} -> {t.target}) fires again at the same instant: from "
+            f"{self.o.where(found.x, found.m)} (guard = {_g(found.raw[k])}) the jumps "
+            f"{' -> '.join(path)} are all enabled, the last with guard {t.name} = {_g(again)} >= 0"
+        )
+        if exception is None:
+            kind = "reset_retriggers"
+            message = (
+                f"{fires}; make the reset leave the guard set, add hysteresis or a dwell time, or make the "
+                "guard crossing-triggered (direction=+1/-1)"
+            )
+        else:
+            kind = "zeno_point"
+            message = (
+                f"{fires}, but only on a part of its guard set of measure zero: the neighbouring guard state "
+                f"{self.o.where(exception.x, exception.m)} does not re-trigger.  A Zeno point of the dynamics "
+                "(e.g. a bouncing ball at rest), not a modelling defect; executions that reach it need Zeno "
+                "handling"
+            )
+        return [
+            Finding(
+                kind=kind,
+                severity=KIND_SEVERITY[kind],
+                message=message,
+                modes=tuple(modes),
+                transitions=tuple(path),
+                witness=self.witness(found, values),
+            )
+        ]
+
+
+# ====================================================================== graph checks
+def _graph_findings(a: HybridAutomaton, max_cycles: int) -> tuple[list[Finding], int, bool]:
+    graph = mode_graph(a)
+    initial = a.initial_mode
+    reachable = nx.descendants(graph, initial) | {initial}
+    findings = []
+    for q in a.mode_names:
+        if q not in reachable:
+            findings.append(
+                Finding(
+                    kind="unreachable_mode",
+                    severity=KIND_SEVERITY["unreachable_mode"],
+                    message=(
+                        f"mode {q!r} is unreachable: no path of transitions leads to it from the initial mode "
+                        f"{initial!r}; add a transition into it or remove it"
+                    ),
+                    modes=(q,),
+                )
+            )
+    for t in a.transitions:
+        if t.source not in reachable:
+            findings.append(
+                Finding(
+                    kind="unreachable_transition",
+                    severity=KIND_SEVERITY["unreachable_transition"],
+                    message=(
+                        f"transition {t.name!r} ({t.source} -> {t.target}) can never fire: its source mode "
+                        f"{t.source!r} is unreachable from {initial!r}"
+                    ),
+                    modes=(t.source, t.target),
+                    transitions=(t.name,),
+                )
+            )
+    for q in a.mode_names:
+        if graph.out_degree(q) == 0:
+            findings.append(
+                Finding(
+                    kind="sink_mode",
+                    severity=KIND_SEVERITY["sink_mode"],
+                    message=(
+                        f"mode {q!r} has no outgoing transition: once entered it is never left; "
+                        "fine for a terminal mode (goal, fault), otherwise add a transition"
+                    ),
+                    modes=(q,),
+                )
+            )
+    index = {q: i for i, q in enumerate(a.mode_names)}
+    order = {t.name: i for i, t in enumerate(a.transitions)}
+    cycles = list(itertools.islice(nx.simple_cycles(graph), max_cycles + 1))
+    capped = len(cycles) > max_cycles
+    cycles = cycles[:max_cycles]
+    normalised = []
+    for cycle in cycles:
+        start = min(range(len(cycle)), key=lambda i: index[cycle[i]])
+        normalised.append(tuple(cycle[start:] + cycle[:start]))
+    for cycle in sorted(set(normalised), key=lambda c: (len(c), [index[q] for q in c])):
+        names: list[str] = []
+        for i, q in enumerate(cycle):
+            nxt = cycle[(i + 1) % len(cycle)]
+            names += sorted(graph[q][nxt], key=order.__getitem__)
+        loop = " -> ".join((*cycle, cycle[0]))
+        findings.append(
+            Finding(
+                kind="zeno_candidate",
+                severity=KIND_SEVERITY["zeno_candidate"],
+                message=(
+                    f"cycle {loop} of the mode graph (transitions {names}): if its jumps can follow one another "
+                    "without time passing, executions are Zeno or chatter; a reset that leaves every guard of "
+                    "the cycle, hysteresis or a dwell time rules it out"
+                ),
+                modes=cycle,
+                transitions=tuple(names),
+            )
+        )
+    return findings, len(cycles), capped
+
+
+# ====================================================================== entry point
+def _boxes(o: _Oracle, box: Box | Mapping[str, Box] | None) -> dict[str, Box] | None:
+    a = o.automaton
+    if box is None:
+        return None
+    if isinstance(box, Box):
+        boxes = {q: box for q in a.mode_names}
+    elif isinstance(box, Mapping):
+        unknown = [q for q in box if q not in a.mode_names]
+        if unknown:
+            raise ModelDefinitionError(
+                f"check of {o.what}: box given for unknown mode(s) {unknown}; modes are {list(a.mode_names)}"
+            )
+        boxes = {q: box[q] for q in a.mode_names if q in box}
+    else:
+        raise ModelDefinitionError(
+            f"check of {o.what}: box = {box!r}; expected a Box, a mapping mode name -> Box, or None"
+        )
+    coords_kind = "state names" if o.system is not None else "variables"
+    memory_names = [mv.name for mv in a.memory]
+    for q, b in boxes.items():
+        if not isinstance(b, Box):
+            raise ModelDefinitionError(f"check of {o.what}: box of mode {q!r} = {b!r}; expected a Box")
+        b.require(o.coords, f"mode {q!r} of {o.what} (its {coords_kind})")
+        unknown = [n for n in b.memory if n not in memory_names]
+        if unknown:
+            raise ModelDefinitionError(
+                f"Box for mode {q!r} of {o.what}: memory {unknown} is not declared by the automaton; "
+                f"its memory variables are {memory_names}"
+            )
+    return boxes
+
+
+def check(
+    model: HybridSystem | HybridAutomaton,
+    box: Box | Mapping[str, Box] | None = None,
+    *,
+    samples: int = 2000,
+    starts: int = 8,
+    seed: int = 0,
+    max_cycles: int = 200,
+    tol: float = 1e-9,
+) -> CheckReport:
+    """Structural checks of a hybrid system or automaton, each finding with a witness.
+
+    Parameters
+    ----------
+    model : HybridSystem or HybridAutomaton
+        A system is searched over its continuous state ``x`` (signals
+        ``system.signals(0, x)``, flows and jump maps used); a bare automaton
+        over its signals (no flow: every invariant-boundary point counts for
+        the deadlock check; no continuous jump map).
+    box : Box or Mapping[str, Box] or None
+        Region searched, for every mode or per mode name (a mode absent from
+        the mapping is not searched; the summary says so).  It must declare
+        exactly the state names (system) or variables (automaton); memory it
+        does not declare keeps the automaton's initial value.  ``None`` runs
+        the graph checks only.
+    samples : int
+        Uniform samples per mode (the box corners are added).
+    starts : int
+        Local optimisations per question when no sample answers it.
+    seed : int
+        Seed of ``numpy.random.default_rng``; a fixed seed gives an identical report.
+    max_cycles : int
+        Most simple cycles enumerated as Zeno candidates.
+    tol : float
+        Tolerance: a boundary point has ``0 <= inv <= tol``; a deadlock needs
+        every guard ``< -tol`` and ``d/dt inv < -tol``; a reset lands outside
+        when the target invariant is ``< -tol``; an overlap of guards within
+        ``tol`` of both being enabled is reported (and says so).
+
+    Returns
+    -------
+    CheckReport
+
+    Raises
+    ------
+    ModelDefinitionError
+        A model of the wrong type, or a box that does not declare exactly the
+        model's coordinates (or declares unknown memory).
+    ExecutionError
+        Invalid arguments, or a guard, invariant, reset, flow, jump map or
+        output that raises or returns NaN in the box (the message names the
+        function and the state; the original error is chained).
+
+    Examples
+    --------
+    >>> from hybrid import HybridAutomaton, Mode, Transition, Box
+    >>> a = HybridAutomaton(name="twins", modes=(Mode(name="idle"), Mode(name="a"), Mode(name="b")),
+    ...     transitions=(Transition(name="to_a", source="idle", target="a", guard=lambda v, m: v[0]),
+    ...                  Transition(name="to_b", source="idle", target="b", guard=lambda v, m: v[0] - 1)),
+    ...     variables=("x",))
+    >>> report = check(a, Box(bounds={"x": (-2.0, 2.0)}), samples=100)
+    >>> sorted(report.kinds("error"))
+    ['nondeterminism']
+    >>> w = report.errors[0].witness
+    >>> w.values["guard to_a"] >= 0 and w.values["guard to_b"] >= 0
+    True
+    """
+    for name, value, low in (("samples", samples, 1), ("starts", starts, 0), ("max_cycles", max_cycles, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ExecutionError(f"check(): {name} = {value!r}; expected an int >= {low}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ExecutionError(f"check(): seed = {seed!r}; expected an int")
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol >= 0.0):
+        raise ExecutionError(f"check(): tol = {tol!r}; expected a finite number >= 0")
+    oracle = _Oracle(model)
+    a = oracle.automaton
+    boxes = _boxes(oracle, box)
+
+    findings, n_cycles, capped = _graph_findings(a, int(max_cycles))
+    checks: dict[str, str] = {
+        "unreachable": "ran",
+        "sink_mode": "ran",
+        "zeno_candidate": f"ran: capped at max_cycles = {max_cycles} cycles" if capped else "ran",
+    }
+    mode_summaries: list[ModeSearch] = []
+    if boxes is None:
+        reason = "skipped: no box given; pass a Box (or a mapping mode -> Box) to search the state space"
+        checks.update({c: reason for c in STATE_CHECKS})
+        mode_summaries = [ModeSearch(mode=q, box=None, notes=("not searched: no box given",)) for q in a.mode_names]
+    else:
+        checker = _Checker(oracle, samples=int(samples), starts=int(starts), tol=float(tol))
+        rngs = np.random.default_rng(int(seed)).spawn(len(a.mode_names))
+        initial = a.initial_memory()
+        for q, rng in zip(a.mode_names, rngs):
+            if q not in boxes:
+                mode_summaries.append(
+                    ModeSearch(mode=q, box=None, notes=("not searched: the box mapping has no entry for this mode",))
+                )
+                continue
+            space = _Space.build(q, boxes[q], oracle.coords, initial)
+            found, summary = checker.search_mode(space, rng)
+            findings += found
+            mode_summaries.append(summary)
+        missing = [q for q in a.mode_names if q not in boxes]
+        remark = f"ran: modes {missing} not searched (no box)" if missing else "ran"
+        checks.update({c: remark for c in STATE_CHECKS})
+        if not any(t.direction == 0 for t in a.transitions):
+            checks["reset_retriggers"] = "ran: no level-triggered transition (crossing guards do not re-fire)"
+    summary = SearchSummary(
+        seed=int(seed),
+        samples=int(samples),
+        starts=int(starts),
+        max_cycles=int(max_cycles),
+        tol=float(tol),
+        checks=checks,
+        modes=tuple(mode_summaries),
+        cycles_found=n_cycles,
+        cycles_capped=capped,
+    )
+    return CheckReport(
+        automaton=a.name,
+        model="system" if oracle.system is not None else "automaton",
+        findings=tuple(findings),
+        searched=summary,
+    )
