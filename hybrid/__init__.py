@@ -4,6 +4,7 @@ It knows nothing of robots.  See :mod:`hybrid.model`, :mod:`hybrid.graph`,
 :mod:`hybrid.export` and :mod:`hybrid.sampled`.
 """
 
+from .check import CheckReport, Finding, Witness, check
 from .continuous import FlowSegment, HybridEvent, HybridTrajectory, simulate_continuous
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import (
@@ -31,6 +32,10 @@ from .region import Box
 from .system import HybridSystem
 
 __all__ = [
+    "check",
+    "CheckReport",
+    "Finding",
+    "Witness",
     "FlowSegment",
     "HybridEvent",
     "HybridTrajectory",

@@ -37,10 +37,30 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", action="store_true", help="print one JSON object instead of the human summary")
     sim.add_argument("--no-figures", action="store_true", help="skip the figures (data and summary only)")
     sim.set_defaults(func=_cmd_simulate)
-    graph = sub.add_parser("mode-graph", help="print the supervisor's mode graph as Graphviz DOT")
+    graph = sub.add_parser("mode-graph", help="print the supervisor's mode graph (Graphviz DOT or JSON)")
     graph.add_argument("--scenario", default="paper")
+    graph.add_argument("--format", choices=("dot", "json"), default="dot",
+                       help="dot: Graphviz with guards and resets as labels; json: the automaton's description")
     graph.set_defaults(func=_cmd_mode_graph)
+    chk = sub.add_parser("check-model", help="structural checks of the supervisor automaton (hybrid.check)")
+    chk.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
+    chk.add_argument("--samples", type=_positive_int, default=300,
+                     help="uniform samples per mode for the state-space checks (default: 300)")
+    chk.add_argument("--starts", type=_positive_int, default=8, help="optimiser starts per question (default: 8)")
+    chk.add_argument("--seed", type=int, default=0, help="seed of the sampling (default: 0)")
+    chk.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    chk.set_defaults(func=_cmd_check_model)
     return parser
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a positive whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is not positive; give a whole number >= 1")
+    return value
 
 
 def _summary(result: Any, digest: str) -> dict[str, Any]:
@@ -125,15 +145,71 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_mode_graph(args: argparse.Namespace) -> int:
-    from hybrid import to_dot
+    from hybrid import to_dot, to_json
 
     from .scenario import load_scenario
     from .supervisor import build_supervisor
 
     scenario = load_scenario(args.scenario)
     model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
-    print(to_dot(model.automaton), end="")
+    if args.format == "json":
+        print(json.dumps(to_json(model.automaton), sort_keys=True, indent=2))
+    else:
+        print(to_dot(model.automaton), end="")
     return EXIT_OK
+
+
+def _check_human(report: Any, scenario: str, elapsed: float) -> str:
+    counts = {sev: sum(1 for f in report.findings if f.severity == sev) for sev in ("error", "warning", "info")}
+    automaton_modes = len(report.searched.modes)
+    lines = [
+        f"check-model {report.automaton} (scenario {scenario}): "
+        + ("CLEAN" if report.clean else f"{counts['error']} error(s), {counts['warning']} warning(s)"),
+        f"  searched {automaton_modes} modes over the declared measurement box; seed {report.searched.seed}, "
+        f"{report.searched.samples} samples + corners + face samples per mode, {report.searched.starts} optimiser "
+        f"starts per question, {elapsed:.1f} s",
+    ]
+    if report.searched.modes:
+        lines.append(f"  box: {report.searched.modes[0].box}")
+    for name, status in report.searched.checks.items():
+        lines.append(f"  {name:<24} {status}")
+    lines.append("  memory held at its initial value except what resets write along a chain of jumps")
+    for finding in report.findings:
+        if finding.severity == "info":
+            continue
+        lines.append(f"  [{finding.severity}] {finding.kind}: {finding.message}")
+    by_kind: dict[str, int] = {}
+    for finding in report.findings:
+        if finding.severity == "info":
+            by_kind[finding.kind] = by_kind.get(finding.kind, 0) + 1
+    for kind, count in sorted(by_kind.items()):
+        lines.append(f"  [info] {kind}: {count}")
+    return "\n".join(lines)
+
+
+def _cmd_check_model(args: argparse.Namespace) -> int:
+    import time
+
+    from hybrid import check
+
+    from .scenario import load_scenario, scenario_digest
+    from .supervisor import build_supervisor, measurement_box, measurement_system
+
+    scenario = load_scenario(args.scenario)
+    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+    start = time.perf_counter()
+    report = check(
+        measurement_system(model), measurement_box(model, scenario.camera.half_width_px),
+        samples=args.samples, starts=args.starts, seed=args.seed,
+    )
+    elapsed = time.perf_counter() - start
+    if args.json:
+        out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario), "clean": report.clean}
+        out.update(report.as_dict())
+        print(json.dumps(out, sort_keys=True))
+    else:
+        print(_check_human(report, scenario.name, elapsed))
+    return EXIT_OK if report.clean else EXIT_TASK_FAILED
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -32,7 +32,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from hybrid import HybridAutomaton, MemoryVariable, Mode, Transition
+from hybrid import Box, HybridAutomaton, HybridSystem, MemoryVariable, Mode, Transition
 
 from .parameters import Envelopes, SupervisorSettings
 
@@ -44,6 +44,8 @@ __all__ = [
     "build_supervisor",
     "mode_name",
     "split_mode",
+    "measurement_system",
+    "measurement_box",
 ]
 
 COLLISION_PHASES = ("FAR", "APPROACH", "AVOID", "ARMED", "PASSED", "LEAVE")
@@ -301,3 +303,59 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
         description="AVOID/LEAVE/OCCLU logic of Folio & Cadenat as a product automaton",
     )
     return SupervisorModel(automaton=automaton, envelopes=envelopes, settings=settings, n_obstacles=n_obstacles)
+
+
+def measurement_system(model: SupervisorModel) -> HybridSystem:
+    """The supervisor over a *consistent* measurement state, for :func:`hybrid.check`.
+
+    The supervisor's signals are not independent: ``d_nearest`` is the
+    smallest ``d_coll_i`` and ``nearest_obstacle`` its index.  Searching a box
+    over the signals themselves would visit impossible combinations and
+    report defects that no robot can produce, so the checks search over the
+    raw measurements ``(d_coll_0, ..., d_coll_{n-1}, bypass_side, d_occ,
+    d_bord, pan)`` and the output map derives the signals from them.
+
+    The flow is zero in every mode (the measurements are exogenous to the
+    supervisor); it plays no part in the checks because no mode of the
+    supervisor has an invariant (it is evaluated at every sample, and the
+    deadlock question is void).
+    """
+    names = tuple(f"d_coll_{i}_m" for i in range(model.n_obstacles)) + (
+        "bypass_side", "d_occ_px", "d_bord_px", "pan_rad",
+    )
+    n = model.n_obstacles
+
+    def output(t: float, x: Sequence[float]) -> tuple[float, ...]:
+        distances = tuple(x[:n])
+        nearest = min(range(n), key=distances.__getitem__) if n else 0
+        d_nearest = distances[nearest] if n else math.inf
+        side, d_occ, d_bord, pan = x[n:]
+        wrapped = math.atan2(math.sin(pan), math.cos(pan))
+        return (d_nearest, float(nearest), side, d_occ, d_bord, wrapped, *distances)
+
+    zero = tuple(0.0 for _ in names)
+    return HybridSystem(
+        automaton=model.automaton,
+        state_names=names,
+        flows={mode: (lambda t, x, m: zero) for mode in model.automaton.mode_names},
+        output=output,
+    )
+
+
+def measurement_box(model: SupervisorModel, camera_half_width_px: float) -> Box:
+    """The declared region of the measurements that :func:`measurement_system` is checked on.
+
+    Distances from 0 to ``d+ + 1 m`` (beyond ``d+`` nothing changes),
+    ``d_occ`` from 0 to ``2 D+`` and ``d_bord`` from 0 to the image half-width
+    [px], any pan angle, and both bypass sides.  ``d_occ = ∞`` (no occluder in
+    view) behaves as any ``d_occ >= D+`` in every guard, so the finite range
+    covers it.
+    """
+    env = model.envelopes
+    bounds = {f"d_coll_{i}_m": (0.0, env.d_plus_m + 1.0) for i in range(model.n_obstacles)}
+    bounds.update({
+        "d_occ_px": (0.0, 2.0 * env.D_plus_px),
+        "d_bord_px": (0.0, float(camera_half_width_px)),
+        "pan_rad": (-math.pi, math.pi),
+    })
+    return Box(bounds=bounds, choices={"bypass_side": (-1.0, 1.0)})

@@ -69,3 +69,30 @@ def test_mode_graph_dot(capsys):
     assert main(["mode-graph"]) == 0
     dot = capsys.readouterr().out
     assert dot.startswith("digraph") and '"FAR|CLEAR" -> "APPROACH|CLEAR"' in dot
+
+
+def test_check_model_on_the_paper_supervisor_is_clean_and_deterministic(capsys):
+    assert main(["check-model", "--samples", "60", "--starts", "2", "--json"]) == 0
+    first = capsys.readouterr().out
+    report = json.loads(first)
+    assert report["clean"] is True and report["scenario"] == "paper"
+    assert {f["kind"] for f in report["findings"]} <= {"priority_overlap", "zeno_candidate"}
+    assert report["searched"]["samples"] == 60 and len(report["searched"]["modes"]) == 18
+    assert main(["check-model", "--samples", "60", "--starts", "2", "--json"]) == 0
+    assert capsys.readouterr().out == first
+
+
+def test_check_model_human_summary_and_bad_options(capsys):
+    assert main(["check-model", "--samples", "30", "--starts", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "CLEAN" in out and "nondeterminism" in out and "box: d_coll_0_m" in out
+    with pytest.raises(SystemExit) as info:
+        main(["check-model", "--samples", "0"])
+    assert info.value.code == 2
+    assert "0 is not positive" in capsys.readouterr().err
+
+
+def test_mode_graph_as_json(capsys):
+    assert main(["mode-graph", "--format", "json"]) == 0
+    graph = json.loads(capsys.readouterr().out)
+    assert len(graph["modes"]) == 18 and len(graph["transitions"]) == 47

@@ -242,3 +242,32 @@ def test_q7_occluder_leaving_the_image_releases():
     occ = [split_mode(s[0])[1] for s in states]
     i = occ.index("RELEASE")
     assert states[i][3][4] == 0.0 and states[i][1]["DL"] == 55.0
+
+
+def test_structural_check_finds_a_planted_equal_priority_in_the_supervisor():
+    """hybrid.check over the consistent measurement model: clean as built, and not vacuous."""
+    import dataclasses
+
+    from hybrid import HybridAutomaton, check
+    from visnav.supervisor import measurement_box, measurement_system
+
+    model = build_supervisor(Envelopes(), SupervisorSettings(), 2)
+    box = measurement_box(model, 320.0)
+    assert check(measurement_system(model), box, samples=40, starts=2).clean
+    a = model.automaton
+    mutated = tuple(
+        dataclasses.replace(t, priority=10) if t.name.startswith("ARMED->PASSED") else t for t in a.transitions
+    )
+    mutant = dataclasses.replace(
+        model,
+        automaton=HybridAutomaton(name=a.name, modes=a.modes, transitions=mutated, variables=a.variables,
+                                  memory=a.memory, initial_mode=a.initial_mode),
+    )
+    report = check(measurement_system(mutant), box, samples=40, starts=2)
+    found = [f for f in report.findings if f.kind == "nondeterminism"]
+    assert found and all(f.severity == "error" for f in found)
+    assert {f.modes[0] for f in found} == {"ARMED|CLEAR"}  # elsewhere ARMED->LEAVE does not exist
+    witness = found[0].witness
+    transitions = {t.name: t for t in mutated}
+    v = tuple(witness.signals[name] for name in a.variables)
+    assert all(transitions[name].guard(v, dict(witness.memory)) >= 0.0 for name in found[0].transitions)
