@@ -24,6 +24,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/bench_paper_scenario.py
 	$(PY) benchmarks/bench_bdf_step.py
+	$(PY) benchmarks/bench_events.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis
