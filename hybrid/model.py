@@ -329,8 +329,19 @@ class HybridAutomaton:
 def transition_fires(
     t: Transition, v: Sequence[float], memory: Mapping[str, float], previous: Sequence[float] | None
 ) -> bool:
-    """Whether ``t`` is enabled at ``v`` given the previous signals (crossing semantics)."""
+    """Whether ``t`` is enabled at ``v`` given the previous signals (crossing semantics).
+
+    Raises
+    ------
+    ExecutionError
+        The guard returned NaN (a NaN compares false and would silently disable it).
+    """
     g = t.guard(v, memory)
+    if g != g:
+        raise ExecutionError(
+            f"guard of transition {t.name!r} (from mode {t.source!r}) is NaN at signals {tuple(v)!r}; "
+            "a guard must return a real number (>= 0 when enabled)"
+        )
     if t.direction == 0:
         return g >= 0.0
     if previous is None:

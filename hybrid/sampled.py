@@ -272,7 +272,10 @@ def settle(
     memory = dict(memory)
     events: list[SampledEvent] = []
     while True:
-        candidates = [tr for tr in table[mode] if transition_fires(tr, v, memory, previous)]
+        try:
+            candidates = [tr for tr in table[mode] if transition_fires(tr, v, memory, previous)]
+        except ExecutionError as err:
+            raise ExecutionError(f"at t = {time:.6g} s in mode {mode!r}: {err}") from err
         if not candidates:
             return mode, memory, events
         winner = candidates[0]

@@ -331,3 +331,16 @@ def test_bad_initial_state():
 def test_conjunction_guard_on_the_ball_fires_only_when_falling():
     guard = all_of(lambda v, m: -v[0], lambda v, m: -v[1])
     assert guard((0.0, -1.0), {}) >= 0.0 and guard((0.0, 1.0), {}) < 0.0
+
+
+def test_jump_map_with_the_wrong_shape_names_the_transition_state_and_time():
+    automaton = HybridAutomaton(
+        name="jumpy", modes=(Mode(name="wait"), Mode(name="done")),
+        transitions=(Transition(name="hit", source="wait", target="done", guard=lambda v, m: v[0] - 0.5),),
+        variables=("x",),
+    )
+    system = HybridSystem(automaton=automaton, state_names=("x",),
+                          flows={"wait": lambda t, x, m: (1.0,), "done": lambda t, x, m: (1.0,)},
+                          jumps={"hit": lambda x, m: (x[0], 0.0)})
+    with pytest.raises(ExecutionError, match=r"jump map of transition 'hit' returned 2 values at t = 0.5.*x = \(0.5"):
+        simulate_continuous(system, (0.0,), duration=1.0)

@@ -160,3 +160,13 @@ def test_stop_condition_ends_the_run():
         stop=lambda t, x, c, v, mode, m: "halfway" if x[0] >= 0.5 else None,
     )
     assert trace.termination == "halfway" and trace.times[-1] == 0.5
+
+
+def test_nan_guard_is_an_error_not_a_disabled_transition():
+    broken = HybridAutomaton(
+        name="broken", modes=(Mode(name="up"), Mode(name="down")),
+        transitions=(Transition(name="top", source="up", target="down", guard=lambda v, m: math.nan),),
+        variables=("x",),
+    )
+    with pytest.raises(ExecutionError, match=r"at t = 0 s in mode 'up': guard of transition 'top'.*is NaN at signals \(0.0,\)"):
+        simulate_sampled(broken, integrator_plant(), Follow(), (0.0,), period=PERIOD, duration=1.0)
