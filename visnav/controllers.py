@@ -162,9 +162,7 @@ def path_following(prox: Proximity, d_zero: float, v_coll: float, k: float) -> t
     -------
     (v, omega) : tuple of float
     """
-    delta = prox.d_coll - d_zero
-    alpha = prox.alpha
-    omega = prox.side * v_coll * (k * delta + alpha + 2.0 * k * math.sin(alpha) + math.cos(alpha) / prox.rho)
+    omega = model.path_following_omega(prox.d_coll - d_zero, prox.alpha, prox.rho, prox.side, v_coll, k)
     return (v_coll, omega)
 
 

@@ -37,6 +37,8 @@ __all__ = [
     "feature_depth_rate",
     "feature_depth_rate_jacobian",
     "pan_column",
+    "path_error_rates",
+    "path_following_omega",
 ]
 
 Scalar = Any  # float, or casadi.SX/MX when ops=casadi
@@ -188,3 +190,27 @@ def feature_depth_rate_jacobian(
         (0.0, v_z * inv_z + 2.0 * y_img * omega_x, (v_y - y_img * v_z) * inv_z2),
         (0.0, -depth * omega_x, -y_img * omega_x),
     )
+
+
+def path_error_rates(
+    v: Scalar, omega: Scalar, alpha: Scalar, rho: Scalar, side: float, ops: ModuleType = math
+) -> tuple[Scalar, Scalar]:
+    """Rates ``(δ̇, α̇)`` of the path-frame errors, equation (10) in our conventions.
+
+    ``δ = d_coll − d0``, ``α`` the heading relative to the travel tangent of
+    the circle of radius ``ρ = |M − c|`` through M (see
+    :func:`visnav.geometry.proximity`): ``δ̇ = v sin α`` and
+    ``α̇ = −side ω + v cos α / ρ`` (the paper's ``χ`` is ``−1/ρ``).
+    """
+    return (v * ops.sin(alpha), -side * omega + v * ops.cos(alpha) / rho)
+
+
+def path_following_omega(
+    delta: Scalar, alpha: Scalar, rho: Scalar, side: float, v: Scalar, k: Scalar, ops: ModuleType = math
+) -> Scalar:
+    """Angular velocity (11) of the path-following law with the exact curvature term.
+
+    ``ω = side v (k δ + α + 2k sin α + cos α / ρ)``; with :func:`path_error_rates`
+    it gives the closed loop ``δ̇ = v sin α``, ``α̇ = −v (k δ + α + 2k sin α)``.
+    """
+    return side * v * (k * delta + alpha + 2.0 * k * ops.sin(alpha) + ops.cos(alpha) / rho)
