@@ -162,7 +162,7 @@ def path_following(prox: Proximity, d_zero: float, v_coll: float, k: float) -> t
     -------
     (v, omega) : tuple of float
     """
-    omega = model.path_following_omega(prox.d_coll - d_zero, prox.alpha, prox.rho, prox.side, v_coll, k)
+    omega = model.path_following_omega(prox.d_coll - d_zero, prox.alpha, 1.0 / prox.rho, prox.side, v_coll, k)
     return (v_coll, omega)
 
 

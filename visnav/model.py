@@ -193,24 +193,27 @@ def feature_depth_rate_jacobian(
 
 
 def path_error_rates(
-    v: Scalar, omega: Scalar, alpha: Scalar, rho: Scalar, side: float, ops: ModuleType = math
+    v: Scalar, omega: Scalar, alpha: Scalar, curvature: Scalar, side: float, ops: ModuleType = math
 ) -> tuple[Scalar, Scalar]:
     """Rates ``(δ̇, α̇)`` of the path-frame errors, equation (10) in our conventions.
 
     ``δ = d_coll − d0``, ``α`` the heading relative to the travel tangent of
     the circle of radius ``ρ = |M − c|`` through M (see
-    :func:`visnav.geometry.proximity`): ``δ̇ = v sin α`` and
-    ``α̇ = −side ω + v cos α / ρ`` (the paper's ``χ`` is ``−1/ρ``).
+    :func:`visnav.geometry.proximity`), ``curvature = 1/ρ``:
+    ``δ̇ = v sin α`` and ``α̇ = −side ω + v cos α · curvature`` (the paper's
+    ``χ`` is ``−1/ρ``).  The curvature is an argument (not ``ρ``) so that a
+    symbolic analysis can keep it as an independent symbol.
     """
-    return (v * ops.sin(alpha), -side * omega + v * ops.cos(alpha) / rho)
+    return (v * ops.sin(alpha), -side * omega + v * ops.cos(alpha) * curvature)
 
 
 def path_following_omega(
-    delta: Scalar, alpha: Scalar, rho: Scalar, side: float, v: Scalar, k: Scalar, ops: ModuleType = math
+    delta: Scalar, alpha: Scalar, curvature: Scalar, side: float, v: Scalar, k: Scalar, ops: ModuleType = math
 ) -> Scalar:
     """Angular velocity (11) of the path-following law with the exact curvature term.
 
-    ``ω = side v (k δ + α + 2k sin α + cos α / ρ)``; with :func:`path_error_rates`
-    it gives the closed loop ``δ̇ = v sin α``, ``α̇ = −v (k δ + α + 2k sin α)``.
+    ``ω = side v (k δ + α + 2k sin α + cos α · curvature)``, ``curvature = 1/ρ``; with
+    :func:`path_error_rates` it gives the closed loop ``δ̇ = v sin α``,
+    ``α̇ = −v (k δ + α + 2k sin α)`` whatever the curvature.
     """
-    return side * v * (k * delta + alpha + 2.0 * k * ops.sin(alpha) + ops.cos(alpha) / rho)
+    return side * v * (k * delta + alpha + 2.0 * k * ops.sin(alpha) + ops.cos(alpha) * curvature)

@@ -68,8 +68,11 @@ class PathFollowingModel:
         The commanded ω [rad/s].
     lyapunov : casadi.SX
         ``V = k δ²/2 + 1 − cos α``.
+    kappa : casadi.SX
+        Free symbol standing for the curvature ``1/ρ`` in :attr:`lyapunov_rate`.
     lyapunov_rate : casadi.SX
-        ``V̇ = ∇V · (δ̇, α̇)`` by automatic differentiation.
+        ``V̇ = ∇V · (δ̇, α̇)`` by automatic differentiation, with the curvature
+        left as the free symbol ``κ`` (it cancels; the certificate proves it).
     function : casadi.Function
         ``F([δ, α]) -> (δ̇, α̇)``.
     """
@@ -81,6 +84,7 @@ class PathFollowingModel:
     side: float
     delta: Any
     alpha: Any
+    kappa: Any
     rates: Any
     omega: Any
     lyapunov: Any
@@ -100,8 +104,8 @@ class PathFollowingModel:
         """
         x = ca.vertcat(self.delta, self.alpha)
         w = ca.SX.sym("omega")
-        rho = self.radius + self.d_zero + self.delta
-        open_rates = ca.vertcat(*model.path_error_rates(self.v, w, self.alpha, rho, self.side, ops=ca))
+        curvature = 1 / (self.radius + self.d_zero + self.delta)
+        open_rates = ca.vertcat(*model.path_error_rates(self.v, w, self.alpha, curvature, self.side, ops=ca))
         omega_star = float(ca.DM(ca.substitute(self.omega, x, ca.DM.zeros(2))))
         at = {"x": ca.DM.zeros(2), "w": omega_star}
         f = ca.Function("loop_at_omega", [x, w], [ca.jacobian(open_rates, x), ca.jacobian(open_rates, w),
@@ -126,16 +130,20 @@ def path_following_model(*, k: float, v: float, d_zero: float, radius: float, si
             raise ValueError(f"path_following_model: {name} = {value!r}; expected a finite number {expected}")
     if side not in (-1, 1):
         raise ValueError(f"path_following_model: side = {side!r}; expected +1 (obstacle on the left) or -1")
-    delta, alpha = ca.SX.sym("delta"), ca.SX.sym("alpha")
-    rho = radius + d_zero + delta
-    omega = model.path_following_omega(delta, alpha, rho, side, v, k, ops=ca)
-    rates = ca.vertcat(*model.path_error_rates(v, omega, alpha, rho, side, ops=ca))
+    delta, alpha, kappa = ca.SX.sym("delta"), ca.SX.sym("alpha"), ca.SX.sym("kappa")
+    curvature = 1 / (radius + d_zero + delta)
+    omega = model.path_following_omega(delta, alpha, curvature, side, v, k, ops=ca)
+    rates = ca.vertcat(*model.path_error_rates(v, omega, alpha, curvature, side, ops=ca))
     x = ca.vertcat(delta, alpha)
     lyapunov = k * delta**2 / 2 + (1 - ca.cos(alpha))
-    lyapunov_rate = ca.jtimes(lyapunov, x, rates)
+    # V̇ for the certificate: the curvature kept as a free symbol κ, so that the normal form is a
+    # polynomial in (δ, α, sin α, cos α, κ); a bound valid for every κ holds at κ = 1/ρ(δ).
+    omega_k = model.path_following_omega(delta, alpha, kappa, side, v, k, ops=ca)
+    rates_k = ca.vertcat(*model.path_error_rates(v, omega_k, alpha, kappa, side, ops=ca))
+    lyapunov_rate = ca.jtimes(lyapunov, x, rates_k)
     return PathFollowingModel(
         k=float(k), v=float(v), d_zero=float(d_zero), radius=float(radius), side=float(side),
-        delta=delta, alpha=alpha, rates=rates, omega=omega, lyapunov=lyapunov, lyapunov_rate=lyapunov_rate,
+        delta=delta, alpha=alpha, kappa=kappa, rates=rates, omega=omega, lyapunov=lyapunov, lyapunov_rate=lyapunov_rate,
         function=ca.Function("path_following_closed_loop", [x], [rates]),
     )
 

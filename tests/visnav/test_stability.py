@@ -39,7 +39,7 @@ def test_symbolic_model_agrees_with_the_simulation_code(pf):
         prox = proximity(x, y, theta, obstacle, 1)
         assert prox.d_coll - D0 == pytest.approx(delta, abs=1e-12) and prox.alpha == pytest.approx(alpha, abs=1e-12)
         v, omega = controllers.path_following(prox, D0, V, K)
-        numeric = model.path_error_rates(v, omega, prox.alpha, prox.rho, 1)
+        numeric = model.path_error_rates(v, omega, prox.alpha, 1.0 / prox.rho, 1)
         symbolic = np.array(pf.function([delta, alpha]).full()).ravel()
         np.testing.assert_allclose(symbolic, numeric, rtol=1e-12, atol=1e-14)
         # the closed form the docstring states
@@ -58,10 +58,11 @@ def test_eigenvalues_agree_with_the_closed_form(k, v):
 
 
 def test_lyapunov_rate_is_the_stated_expression(pf):
-    f = ca.Function("vdot", [pf.delta, pf.alpha], [pf.lyapunov_rate])
+    f = ca.Function("vdot", [pf.delta, pf.alpha, pf.kappa], [pf.lyapunov_rate])
     for delta, alpha in ((0.3, 0.7), (-0.2, -2.9), (0.1, 0.0)):
         expected = -V * (alpha * math.sin(alpha) + 2 * K * math.sin(alpha) ** 2)
-        assert float(f(delta, alpha)) == pytest.approx(expected, abs=1e-15)
+        for kappa in (0.0, 1 / (R + D0 + delta), 7.0):
+            assert float(f(delta, alpha, kappa)) == pytest.approx(expected, abs=1e-15)
 
 
 def test_loop_broken_at_omega_closes_to_the_linearisation(pf):
