@@ -25,6 +25,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/bench_paper_scenario.py
 	$(PY) benchmarks/bench_bdf_step.py
 	$(PY) benchmarks/bench_events.py
+	$(PY) benchmarks/bench_analyse.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -42,6 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
     graph.add_argument("--format", choices=("dot", "json"), default="dot",
                        help="dot: Graphviz with guards and resets as labels; json: the automaton's description")
     graph.set_defaults(func=_cmd_mode_graph)
+    ana = sub.add_parser("analyse", help="linearisation, Lyapunov certificate, admissible gains, stability margins")
+    ana.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
+    ana.add_argument("--clearance", type=float, default=None,
+                     help="clearance [m] the admissible gains must guarantee (default: 0.1)")
+    ana.add_argument("--json", action="store_true", help="print the analysis as one JSON object")
+    ana.set_defaults(func=_cmd_analyse)
     chk = sub.add_parser("check-model", help="structural checks of the supervisor automaton (hybrid.check)")
     chk.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
     chk.add_argument("--samples", type=_positive_int, default=300,
@@ -185,6 +191,65 @@ def _check_human(report: Any, scenario: str, elapsed: float) -> str:
     for kind, count in sorted(by_kind.items()):
         lines.append(f"  [info] {kind}: {count}")
     return "\n".join(lines)
+
+
+def _analyse_human(d: dict[str, Any]) -> str:
+    pf = d["path_following"]
+    lyap = pf["lyapunov"]
+    par = pf["parameters"]
+    eig = ", ".join(f"{re:.6g}" + (f"{im:+.6g}j" if im else "") for re, im in pf["eigenvalues"])
+    region = ", ".join(f"{n} in [{lo:.4g}, {hi:.4g}]" for n, (lo, hi) in lyap["region"].items())
+    lines = [
+        f"analyse {d['scenario']}: path following k = {par['k']:g} 1/m, v_coll = {par['v_coll_mps']:g} m/s",
+        f"  eigenvalues (AD)            {eig}   [{pf['finding']}]",
+        f"  V = k d^2/2 + 1 - cos(a):   V' = {lyap['normal_form']}",
+        f"  certificate                 {'PROVEN' if lyap['certified'] else 'NOT PROVEN'} V' <= 0 on {region} "
+        f"({lyap['boxes']} boxes, interval branch and bound)",
+        f"  LaSalle                     {lyap['lasalle']}",
+    ]
+    for entry, bound in zip(pf["entry_states"], pf["entry_bounds"]):
+        lines.append(
+            f"  entry {entry['obstacle']:<8} (sampled)  alpha0 = {entry['alpha_rad']:.4g} rad: |delta| <= "
+            f"{bound['delta_max_m']:.4g} m (closest {bound['min_distance_m']:.4g} m), |omega| <= "
+            f"{bound['omega_max_radps']:.4g} rad/s"
+        )
+    lines.append(f"  admissible k                {pf['admissible']['finding']}")
+    sw = pf["switched"]
+    lines.append(f"  switched family             common quadratic V {'found' if sw['found'] else 'not found'}"
+                 + ("" if sw["found"] else f", dwell time {sw['dwell_time_s']} s") + f" ({sw['family']})")
+    lines.append(f"  margins (continuous | sampled T = {d['sampling_period_s']:g} s, ZOH + 1 sample delay)")
+
+    def fmt(value: Any, unit: str) -> str:
+        return "inf" if value is None else f"{value:.4g}{unit}"
+
+    for name, pair in d["margins"].items():
+        c, s = pair["continuous"], pair["sampled"]
+        lines.append(
+            f"    {name:<12} GM {fmt(c['gain_margin_db'], ' dB'):>11} | {fmt(s['gain_margin_db'], ' dB'):>10}   "
+            f"PM {fmt(c['phase_margin_deg'], '°'):>7} | {fmt(s['phase_margin_deg'], '°'):>7}   "
+            f"DM {fmt(c['delay_margin_s'], ' s'):>9} | {fmt(s['delay_margin_s'], ' s'):>9}"
+        )
+    return "\n".join(lines)
+
+
+def _cmd_analyse(args: argparse.Namespace) -> int:
+    from .analyse import DEFAULT_CLEARANCE_M, analyse
+    from .scenario import load_scenario, scenario_digest
+
+    scenario = load_scenario(args.scenario)
+    clearance = DEFAULT_CLEARANCE_M if args.clearance is None else args.clearance
+    try:
+        result = analyse(scenario, clearance_m=clearance)
+    except ValueError as err:
+        print(f"visnav: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out = result.as_dict()
+    out["scenario_digest"] = scenario_digest(scenario)
+    if args.json:
+        print(json.dumps(out, sort_keys=True))
+    else:
+        print(_analyse_human(out))
+    return EXIT_OK
 
 
 def _cmd_check_model(args: argparse.Namespace) -> int:

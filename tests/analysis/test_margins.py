@@ -565,3 +565,23 @@ def test_bad_frequency_grids_raise():
         frequency_response_data(L, np.ones((2, 2)))
     with pytest.raises(FrequencyGridError, match=r"ω = 2 rad/s is a pole of L"):
         frequency_response_data(control.ss([[0.0, 2.0], [-2.0, 0.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]]), [1.0, 2.0])
+
+
+def test_bad_controllers_raise():
+    with pytest.raises(SamplingError, match=r"controller_dt = 'x' with a 1-state controller: expected 0.0"):
+        LoopModel(plant_a=[[-1.0]], plant_b=[[1.0]], plant_c=[[1.0]], plant_d=[[0.0]], controller_a=[[-1.0]],
+                  controller_b=[[1.0]], controller_c=[[1.0]], controller_d=[[0.0]], controller_dt="x")
+    with pytest.raises(SamplingError, match=r"K has dt = True"):
+        loop_model([[-1.0]], [[1.0]], [[1.0]], None, control.tf([1.0], [1.0, -0.5], True))
+    with pytest.raises(LoopTypeError, match=r"K = 'gain': expected an \(m, p\) = \(1, 1\) gain matrix"):
+        loop_model([[-1.0]], [[1.0]], [[1.0]], None, "gain")
+    with pytest.raises(LoopTypeError, match=r"cannot be written in state-space form"):
+        loop_model([[-1.0]], [[1.0]], [[1.0]], None, control.tf([1.0, 0.0, 0.0], [1.0, 1.0]))
+
+
+def test_bad_sweep_options_raise():
+    L = control.tf([1.0], [1.0, 0.0])
+    with pytest.raises(FrequencyGridError, match=r"min_frequency = -1.0: expected a finite frequency >= 0"):
+        margins(L, min_frequency=-1.0)
+    with pytest.raises(FrequencyGridError, match=r"w_min = 'a', w_max = 10.0: expected numbers"):
+        margins_by_sweep(L, w_min="a", w_max=10.0)

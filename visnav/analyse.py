@@ -1,0 +1,231 @@
+"""The stability analysis of a scenario: what ``visnav analyse`` prints.
+
+Assembles, for one scenario:
+
+* the path-following law (10)–(12): linearisation by AD with an independent
+  closed form, eigenvalue curves against ``k`` and ``v_coll``, the quadratic
+  Lyapunov function of the linearisation (``control.lyap``), the
+  machine-checked certificate ``V̇ ≤ 0`` (exact normal form + interval
+  branch and bound), the region of attraction, the bounds along a bypass
+  and the admissible range of ``k`` for the scenario's entry angles;
+* the loops of the linearised controllers, broken at the angular velocity
+  ω (path following, per obstacle), at the pan-rate input (16) and at each
+  visual-servoing output channel (7) at the goal, continuous and sampled at
+  ``T_e`` with zero-order hold and one sample of computation delay: gain,
+  phase and delay margins with their crossover frequencies.
+
+Each claim carries how it was obtained: ``proven`` (the interval
+certificate), ``computed`` (linear algebra on the AD linearisation) or
+``sampled`` (the entry angles come from a simulation of the scenario).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.linearise import common_quadratic_lyapunov, quadratic_lyapunov
+from analysis.margins import frequency_response_data, loop_model, loop_transfer, margins, sampled_loop_transfer
+
+from . import model
+from .closed_loop import desired_features
+from .geometry import proximity
+from .parameters import Scenario
+from .stability import (
+    admissible_gains,
+    certify_path_following,
+    entry_bounds,
+    path_following_closed_form_eigenvalues,
+    path_following_model,
+)
+
+__all__ = ["Analysis", "analyse", "entry_angles_from_simulation", "DEFAULT_CLEARANCE_M"]
+
+DEFAULT_CLEARANCE_M = 0.1
+"""Default clearance the admissible gains must guarantee [m]."""
+
+_K_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 31))
+_V_CURVE = tuple(float(v) for v in np.linspace(0.05, 0.6, 12))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Analysis:
+    """Result of :func:`analyse` (JSON-ready through :meth:`as_dict`)."""
+
+    scenario: str
+    data: dict[str, Any]
+
+    def as_dict(self) -> dict[str, Any]:
+        """The whole analysis as plain JSON types."""
+        return _jsonable({"scenario": self.scenario, **self.data})
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, (np.floating, np.integer)):
+        return _jsonable(value.item())
+    if isinstance(value, complex):
+        return [value.real, value.imag]
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    return value
+
+
+def entry_angles_from_simulation(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:
+    """``(obstacle, δ, α)`` where each bypass of the simulated run reaches full path following.
+
+    The supervisor enters ``AVOID`` (µ_coll = 1) on crossing ``d−``; the angle
+    there is the entry angle of the Lyapunov analysis.  Sampled: one run.
+    """
+    from .simulation import simulate
+    from .supervisor import split_mode
+
+    result = simulate(scenario)
+    trace = result.trace
+    out = []
+    for event in trace.events:
+        before, after = split_mode(event.source)[0], split_mode(event.target)[0]
+        if before == "APPROACH" and after == "AVOID":
+            k = int(np.searchsorted(trace.times, event.time))
+            x, y, theta, _ = trace.states[k]
+            memory = dict(event.memory)
+            obstacle = scenario.obstacles[int(memory["obstacle"])]
+            prox = proximity(x, y, theta, obstacle, int(memory["side"]))
+            out.append((obstacle.name, prox.d_coll - scenario.envelopes.d_zero_m, prox.alpha))
+    return tuple(out)
+
+
+def _margin_pair(lm: Any, period: float, **where: Any) -> dict[str, Any]:
+    continuous = margins(loop_transfer(lm, **where))
+    sampled = margins(sampled_loop_transfer(lm, period, delay_samples=1, **where))
+    return {"continuous": continuous.as_dict(), "sampled": sampled.as_dict()}
+
+
+def _vs_loop(scenario: Scenario) -> Any:
+    """Visual-servoing loop at the goal in task space: ė = M q̇, q̇ = −λ J_r⁻¹ e.
+
+    ``M = C L* J_r(ϑ*)`` with ``C = (L*ᵀ L*)⁻¹ L*ᵀ``; by construction ``C L* = I``
+    so the three channels are decoupled integrators of gain λ_VS — computed
+    here from the model's rows, not assumed.
+    """
+    robot = scenario.robot
+    desired = desired_features(scenario)
+    rows = []
+    for x, y, z in desired:
+        rows.append(model.interaction_x_row(x, y, z))
+        rows.append(model.interaction_y_row(y, z))
+    interaction = np.array(rows, dtype=float)
+    c = np.linalg.solve(interaction.T @ interaction, interaction.T)
+    pan = scenario.goal.pan_rad
+    jr = np.array(model.reduced_jacobian(pan, robot.pan_offset_m, robot.camera_forward_m, robot.camera_lateral_m))
+    jr_inv = np.array(model.reduced_jacobian_inverse(pan, robot.pan_offset_m, robot.camera_forward_m,
+                                                     robot.camera_lateral_m))
+    m = c @ interaction @ jr  # task rate per joint rate
+    return loop_model(np.zeros((3, 3)), m, np.eye(3), None, scenario.gains.lambda_vs * jr_inv,
+                      input_names=("v", "omega", "pan_rate"), output_names=("e_Vy", "e_Vz", "e_Wx"))
+
+
+def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> Analysis:
+    """The analysis of ``scenario`` (see the module docstring).
+
+    Raises
+    ------
+    ValueError
+        A clearance that is negative or not smaller than ``d0``.
+    """
+    env, gains, limits = scenario.envelopes, scenario.gains, scenario.limits
+    if not (0.0 <= clearance_m < env.d_zero_m):
+        raise ValueError(
+            f"analyse: clearance_m = {clearance_m!r}; expected 0 <= clearance < d0 = {env.d_zero_m} m "
+            "(the path-following envelope itself)"
+        )
+    k, v = gains.k_path, gains.v_coll_mps
+    period = scenario.sampling_period_s
+    radii = [o.radius_m for o in scenario.obstacles] or [1.0]
+    pf = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=radii[0])
+    lin = pf.linearisation()
+    closed_form = path_following_closed_form_eigenvalues(k, v)
+    lyap = quadratic_lyapunov(lin.jacobian)
+    k_curve = [[[e.real, e.imag] for e in path_following_model(k=kk, v=v, d_zero=env.d_zero_m,
+                                                               radius=radii[0]).linearisation().eigenvalues]
+               for kk in _K_CURVE]
+    v_curve = [[[e.real, e.imag] for e in path_following_model(k=k, v=vv, d_zero=env.d_zero_m,
+                                                               radius=radii[0]).linearisation().eigenvalues]
+               for vv in _V_CURVE]
+    k_range = (1e-3, 1e3)
+    certificate = certify_path_following(
+        k_range=k_range, v_range=(0.0, limits.v_max_mps),
+        delta_range=(-env.d_zero_m, env.d_zero_m),
+        curvature_range=(1.0 / (max(radii) + 2.0 * env.d_zero_m), 1.0 / min(radii)),
+    )
+    entries = entry_angles_from_simulation(scenario)
+    delta0 = env.d_minus_m - env.d_zero_m
+    angles = sorted({round(a, 12) for _, _, a in entries}) or [0.0]
+    admissible = admissible_gains(
+        v=v, d_zero=env.d_zero_m, radius=min(radii), delta0=delta0, entry_angles=angles,
+        clearance=clearance_m, omega_max=limits.omega_max_radps, k_range=k_range,
+    )
+    bounds = [entry_bounds(k=k, v=v, d_zero=env.d_zero_m, radius=min(radii), delta0=delta0, alpha0=a)
+              for a in angles]
+    family = [path_following_model(k=k, v=v * s, d_zero=env.d_zero_m, radius=radii[0]).linearisation().jacobian
+              for s in (0.25, 0.5, 1.0)]
+    switched = common_quadratic_lyapunov(family, ["v_coll/4", "v_coll/2", "v_coll"])
+
+    loops: dict[str, Any] = {}
+    responses: dict[str, Any] = {}
+    for obstacle in scenario.obstacles:
+        pfo = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=obstacle.radius_m)
+        a_p, b_p, gain = pfo.plant_and_gain()
+        lm = loop_model(a_p, b_p, np.eye(2), None, -gain, input_names=("omega",), output_names=("delta", "alpha"))
+        name = f"omega@{obstacle.name}"
+        loops[name] = _margin_pair(lm, period, at_input="omega")
+        w = np.geomspace(1e-3, math.pi / period, 200)
+        data = frequency_response_data(loop_transfer(lm, at_input="omega"), w, name=name)
+        responses[name] = data.as_dict() if hasattr(data, "as_dict") else None
+    pan_lm = loop_model([[0.0]], [[1.0]], [[1.0]], None, [[gains.lambda_gc]], input_names=("pan_rate",),
+                        output_names=("e_gc",))
+    loops["pan"] = _margin_pair(pan_lm, period, at_input="pan_rate")
+    vs_lm = _vs_loop(scenario)
+    for channel in ("e_Vy", "e_Vz", "e_Wx"):
+        loops[f"vs:{channel}"] = _margin_pair(vs_lm, period, at_output=channel)
+
+    data: dict[str, Any] = {
+        "path_following": {
+            "parameters": {"k": k, "v_coll_mps": v, "d_zero_m": env.d_zero_m, "radius_m": radii[0]},
+            "equilibrium": {"delta_m": 0.0, "alpha_rad": 0.0, "residual_norm": float(np.linalg.norm(lin.residual))},
+            "jacobian": lin.jacobian.tolist(),
+            "eigenvalues": [[e.real, e.imag] for e in lin.eigenvalues],
+            "eigenvalues_closed_form": [[e.real, e.imag] for e in sorted(closed_form, key=lambda z: z.real)],
+            "modes": [m.as_dict() for m in lin.modes],
+            "hurwitz": lin.hurwitz,
+            "finding": lin.finding,
+            "claim": "computed",
+            "eigenvalues_vs_k": {"k": list(_K_CURVE), "eigenvalues": k_curve},
+            "eigenvalues_vs_v_coll": {"v_coll_mps": list(_V_CURVE), "eigenvalues": v_curve},
+            "quadratic_lyapunov": lyap.as_dict(),
+            "lyapunov": {**certificate.as_dict(), "claim": "proven" if certificate.certified else "not proven"},
+            "entry_states": [{"obstacle": n, "delta_m": d, "alpha_rad": a, "claim": "sampled"} for n, d, a in entries],
+            "entry_bounds": [
+                {"alpha0_rad": b.alpha0, "delta0_m": b.delta0, "V0": b.v0, "valid": b.valid,
+                 "delta_max_m": b.delta_max_m, "alpha_max_rad": b.alpha_max_rad,
+                 "omega_max_radps": b.omega_max_radps, "min_distance_m": b.min_distance_m}
+                for b in bounds
+            ],
+            "admissible_k": None if admissible.interval is None else list(admissible.interval),
+            "admissible": admissible.as_dict(),
+            "switched": {**switched.as_dict(),
+                         "family": "path-following linearisation at v_coll/4, v_coll/2, v_coll (the blend ramps v)"},
+        },
+        "margins": loops,
+        "frequency_responses": responses,
+        "sampling_period_s": period,
+    }
+    return Analysis(scenario=scenario.name, data=data)
