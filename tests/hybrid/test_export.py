@@ -1,6 +1,5 @@
 """Exports: DOT, JSON, affinity detection and the SpaceEx round trip."""
 
-import importlib.util
 import json
 import math
 import re
@@ -27,6 +26,7 @@ from hybrid import (
     to_json,
     to_spacex,
 )
+from hybrid.examples import reference_models
 from hybrid.export import SPACEEX_NAMESPACE
 
 NS = {"sx": SPACEEX_NAMESPACE}
@@ -571,15 +571,6 @@ def test_spacex_config():
 # ---------------------------------------------------------------------------- reference models
 
 
-def reference_models():
-    if importlib.util.find_spec("hybrid.examples") is None:
-        return {}
-    from hybrid.examples import reference_models as catalogue
-
-    return catalogue()
-
-
-@pytest.mark.skipif(not reference_models(), reason="hybrid.examples is not available")
 @pytest.mark.parametrize("name", sorted(reference_models()))
 def test_reference_models_export_to_spacex(name):
     model = reference_models()[name]
