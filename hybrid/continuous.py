@@ -55,6 +55,7 @@ from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
 from .model import Transition
 from .system import HybridSystem
+from .system import format_state as _fmt
 
 __all__ = [
     "METHODS",
@@ -374,10 +375,6 @@ class _Watch:
     name: str
     strict: bool
     transition: Transition | None = None
-
-
-def _fmt(x: Sequence[float]) -> str:
-    return "(" + ", ".join(f"{float(c):.10g}" for c in x) + ")"
 
 
 def _real(value: Any, what: str, mode: str, t: float, x: Sequence[float]) -> float:

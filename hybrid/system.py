@@ -177,18 +177,18 @@ class HybridSystem:
             n = len(v)
         except TypeError:
             raise ExecutionError(
-                f"system {self.name!r}: output returned {v!r} at t = {t:.17g} s, x = {_fmt(x)}; "
+                f"system {self.name!r}: output returned {v!r} at t = {t:.17g} s, x = {format_state(x)}; "
                 f"expected {len(self.automaton.variables)} values ({', '.join(self.automaton.variables)})"
             ) from None
         if n != len(self.automaton.variables):
             raise ExecutionError(
-                f"system {self.name!r}: output returned {n} values at t = {t:.17g} s, x = {_fmt(x)}; "
+                f"system {self.name!r}: output returned {n} values at t = {t:.17g} s, x = {format_state(x)}; "
                 f"expected {len(self.automaton.variables)} ({', '.join(self.automaton.variables)})"
             )
         for name, value in zip(self.automaton.variables, v):
             if value != value:
                 raise ExecutionError(
-                    f"system {self.name!r}: output {name!r} is NaN at t = {t:.17g} s, x = {_fmt(x)}"
+                    f"system {self.name!r}: output {name!r} is NaN at t = {t:.17g} s, x = {format_state(x)}"
                 )
         return tuple(v)
 
@@ -197,23 +197,24 @@ class HybridSystem:
             out = tuple(float(c) for c in value)
         except (TypeError, ValueError):
             raise ExecutionError(
-                f"system {self.name!r}: {what} returned {value!r} at t = {t:.17g} s, x = {_fmt(x)}; "
+                f"system {self.name!r}: {what} returned {value!r} at t = {t:.17g} s, x = {format_state(x)}; "
                 f"expected {self.dimension} real numbers ({', '.join(self.state_names)})"
             ) from None
         if len(out) != self.dimension:
             raise ExecutionError(
-                f"system {self.name!r}: {what} returned {len(out)} values at t = {t:.17g} s, x = {_fmt(x)}; "
+                f"system {self.name!r}: {what} returned {len(out)} values at t = {t:.17g} s, x = {format_state(x)}; "
                 f"expected {self.dimension} ({', '.join(self.state_names)})"
             )
         for name, c in zip(self.state_names, out):
             if math.isnan(c):
                 raise ExecutionError(
-                    f"system {self.name!r}: {what} gives NaN for {name!r} at t = {t:.17g} s, x = {_fmt(x)}"
+                    f"system {self.name!r}: {what} gives NaN for {name!r} at t = {t:.17g} s, x = {format_state(x)}"
                 )
         return out
 
 
-def _fmt(x: Sequence[float]) -> str:
+def format_state(x: Sequence[float]) -> str:
+    """``(x1, x2, ...)`` with 10 significant digits, for error messages (``repr`` if not numeric)."""
     try:
         return "(" + ", ".join(f"{float(c):.10g}" for c in x) + ")"
     except (TypeError, ValueError):

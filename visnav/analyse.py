@@ -30,6 +30,7 @@ import numpy as np
 from analysis.linearise import common_quadratic_lyapunov, quadratic_lyapunov
 from analysis.margins import frequency_response_data, loop_model, loop_transfer, margins, sampled_loop_transfer
 
+from .jsonable import jsonable
 from . import model
 from .closed_loop import desired_features
 from .geometry import proximity
@@ -60,23 +61,7 @@ class Analysis:
 
     def as_dict(self) -> dict[str, Any]:
         """The whole analysis as plain JSON types."""
-        return _jsonable({"scenario": self.scenario, **self.data})
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, (np.floating, np.integer)):
-        return _jsonable(value.item())
-    if isinstance(value, complex):
-        return [value.real, value.imag]
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    return value
+        return jsonable({"scenario": self.scenario, **self.data})
 
 
 def entry_angles_from_simulation(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:
@@ -189,7 +174,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
         loops[name] = _margin_pair(lm, period, at_input="omega")
         w = np.geomspace(1e-3, math.pi / period, 200)
         data = frequency_response_data(loop_transfer(lm, at_input="omega"), w, name=name)
-        responses[name] = data.as_dict() if hasattr(data, "as_dict") else None
+        responses[name] = data.as_dict()
     pan_lm = loop_model([[0.0]], [[1.0]], [[1.0]], None, [[gains.lambda_gc]], input_names=("pan_rate",),
                         output_names=("e_gc",))
     loops["pan"] = _margin_pair(pan_lm, period, at_input="pan_rate")

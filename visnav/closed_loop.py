@@ -245,7 +245,8 @@ class ClosedLoop:
             c.estimated = c.true_features
         image = c.image
         assert image is not None
-        u = self.command(x, v, image, _merge(c.true_features, c.estimated, image.visible), c.estimated, mode, memory)
+        u = self.command(x, v, image, _merge(c.true_features, c.estimated, image.visible), c.estimated, mode, memory,
+                         risk=(mu_coll, mu_occ))
         c.last_input = u
         c.last_pan = pan
         n_hidden = sum(1 for vis in image.visible if not vis)
@@ -270,6 +271,8 @@ class ClosedLoop:
         estimated: tuple[Point, ...],
         mode: str,
         memory: Mapping[str, float],
+        *,
+        risk: tuple[float, float] | None = None,
     ) -> tuple[float, float, float]:
         """The global control (19) ``(v, ω, ϖ)`` in ``mode`` (pure).
 
@@ -286,13 +289,13 @@ class ClosedLoop:
             reconstructed elsewhere.
         estimated : tuple of (X, Y, z)
             Reconstructed features (pan tracking on the reconstructed target).
+        risk : (µ_coll, µ_occ) or None
+            The mode's risk parameters at ``v`` when the caller has them already.
         """
         s = self.scenario
         g = s.gains
         px, py, theta, pan = x
-        collision, occlusion = split_mode(mode)
-        mu_coll = self.supervisor.mu_coll(collision, v, memory)
-        mu_occ = self.supervisor.mu_occ(occlusion, v, memory)
+        mu_coll, mu_occ = self.supervisor.risk(mode, v, memory) if risk is None else risk
         w_vs = (1.0 - mu_occ) * (1.0 - mu_coll)
         w_occ = (1.0 - mu_coll) * mu_occ
         q_vs = (

@@ -23,6 +23,7 @@ import numpy as np
 
 from hybrid import HybridTrajectory, simulate_continuous
 
+from .jsonable import jsonable
 from .closed_loop import ClosedLoop
 from .parameters import Scenario
 from .simulation import simulate
@@ -141,16 +142,8 @@ class ConvergenceStudy:
         out: dict[str, Any] = {}
         for name in self.__slots__:  # type: ignore[attr-defined]
             value = getattr(self, name)
-            out[name] = _jsonable(value)
+            out[name] = jsonable(value)
         return out
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, (tuple, list)):
-        return [_jsonable(v) for v in value]
-    return value
 
 
 def observed_order(steps: Sequence[float], errors: Sequence[float]) -> float:

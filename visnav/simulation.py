@@ -16,6 +16,7 @@ import numpy as np
 
 from hybrid import SampledTrace, simulate_sampled
 
+from .jsonable import jsonable
 from .closed_loop import ClosedLoop, robot_plant
 from .geometry import propagate_pose
 from .parameters import Scenario
@@ -59,20 +60,8 @@ class Metrics:
         out: dict[str, Any] = {}
         for name in self.__slots__:  # type: ignore[attr-defined]
             value = getattr(self, name)
-            out[name] = _jsonable(value)
+            out[name] = jsonable(value)
         return out
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, (tuple, list)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (np.floating, np.integer)):
-        return _jsonable(value.item())
-    return value
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
