@@ -28,9 +28,19 @@ Margins are computed by two independent routes that must agree:
 Both return a :class:`Margins`.  Conventions (both routes):
 
 * gain margin ``1 / |L(jω_π)|`` at each *phase crossover* ``ω_π`` (where
-  ``L`` crosses the negative real axis); the headline value is the one
-  closest to 1 in the log sense (as python-control), ``inf`` when there is
-  no phase crossover;
+  ``L`` crosses the negative real axis).  For a stable closed loop the
+  gain multipliers ``g`` that keep it stable form an interval around 1
+  bounded by these margins: the headline ``gain_margin`` is the *upper*
+  one, the smallest margin above 1 (``inf`` when none: any gain increase is
+  tolerated), and ``lower_gain_margin`` the largest margin below 1 (``None``
+  when none).  A phase crossover at the frequency of an open-loop pole on
+  the imaginary axis (unit circle) — where ``|L| = ∞``, as for the
+  oscillating kinematics of a path-following loop opened at ω — is an
+  artefact of the polynomial solver (``Im(num·conj den)`` vanishes with
+  ``den``), not a crossing of the negative real axis: it is dropped and a
+  note names the boundary poles.  For an unstable
+  closed loop the headline is the margin closest to 1 in the log sense (as
+  python-control);
 * phase margin ``(arg L(jω_c) mod 360°) − 180°`` at each *gain crossover*
   ``ω_c`` (``|L| = 1``); the headline value is the smallest in absolute
   value, ``inf`` when there is no gain crossover;
@@ -121,6 +131,7 @@ _BRENTQ_MAXITER = 200
 _ILL_POSED_CONDITION = 1e12
 _NYQUIST_BAND = 1e-9
 _TINY = 1e-300
+_POLE_CROSSOVER_RTOL = 1e-6
 
 
 # --------------------------------------------------------------------------- errors
@@ -550,11 +561,17 @@ class Margins:
     period : float or None
         Sampling period [s] of a sampled loop, ``None`` for a continuous one.
     gain_margin : float
-        ``1 / |L(jω_π)|`` at the phase crossover closest to gain 1 (log
-        sense); ``inf`` without a phase crossover.  Below 1 means that
-        *lowering* the gain destabilises.
+        Upper gain margin of a stable closed loop: the smallest ``1 / |L(jω_π)|``
+        above 1 over the phase crossovers, ``inf`` when none (unstable closed
+        loop: the margin closest to 1 in the log sense).
     gain_margin_db : float
         ``20 log10(gain_margin)`` [dB].
+    lower_gain_margin : float or None
+        Largest margin below 1 (stable closed loop): the gain may be divided
+        by up to ``1/lower_gain_margin``; ``None`` when no crossover
+        bounds the gain from below (or the closed loop is unstable).
+    lower_gain_margin_db : float or None
+        Its value in dB.
     phase_margin_deg : float
         Smallest phase margin in absolute value [deg]; ``inf`` without a gain crossover.
     delay_margin_s : float
@@ -595,6 +612,8 @@ class Margins:
     period: float | None
     gain_margin: float
     gain_margin_db: float
+    lower_gain_margin: float | None
+    lower_gain_margin_db: float | None
     phase_margin_deg: float
     delay_margin_s: float
     delay_margin_samples: float | None
@@ -1234,11 +1253,11 @@ def _assemble(*, name: str, method: str, period: float | None, matrices: Matrice
     pm = np.asarray(phase_margins_deg, dtype=float)[order_gc]
     dm = np.radians(np.remainder(pm, 360.0)) / w_gc if w_gc.size else np.zeros(0)
 
-    if gm.size:
-        i = int(np.argmin(np.abs(np.log(gm))))
-        gain_margin, w_pi = float(gm[i]), float(w_pc[i])
-    else:
-        gain_margin, w_pi = math.inf, math.nan
+    open_poles = np.linalg.eigvals(a) if a.size else np.zeros(0, dtype=complex)
+    pole_frequencies = _boundary_pole_frequencies(open_poles, period)
+    at_pole = np.array([_near_any(w, pole_frequencies) for w in w_pc], dtype=bool)
+    dropped = w_pc[at_pole]
+    w_pc, gm = w_pc[~at_pole], gm[~at_pole]
     if pm.size:
         j = int(np.argmin(np.abs(pm)))
         phase_margin, w_c = float(pm[j]), float(w_gc[j])
@@ -1246,8 +1265,7 @@ def _assemble(*, name: str, method: str, period: float | None, matrices: Matrice
     else:
         phase_margin, w_c, delay_margin = math.inf, math.nan, math.inf
 
-    # poles: open loop from the realisation, closed loop from u = r − y around it
-    open_poles = np.linalg.eigvals(a) if a.size else np.zeros(0, dtype=complex)
+    # poles: open loop from the realisation (above), closed loop from u = r − y around it
     one_plus_d = 1.0 + float(d[0, 0])
     if abs(one_plus_d) <= 1e-12 * max(1.0, abs(float(d[0, 0]))):
         raise LoopBreakError(
@@ -1260,7 +1278,19 @@ def _assemble(*, name: str, method: str, period: float | None, matrices: Matrice
     cl_unstable, cl_boundary = _count_poles(closed_poles, discrete)
     closed_stable = cl_unstable == 0 and cl_boundary == 0
 
+    gain_margin, w_pi, lower = _headline_gain_margins(gm, w_pc, closed_stable)
     notes = []
+    positive = sorted({round(float(w), 12) for w in pole_frequencies if w > 0.0})
+    if positive:
+        where = "unit circle" if discrete else "imaginary axis"
+        listed = ", ".join(f"{w:.6g}" for w in positive)
+        notes.append(
+            f"the open loop has poles on the {where} at ω = {listed} rad/s: |L| is infinite there and the Nyquist "
+            "curve closes at infinity; the closed loop becomes marginal as the gain tends to 0"
+            + (f"; the phase crossover(s) the solver returned at the pole(s) ({', '.join(f'{w:.6g}' for w in dropped)}"
+               " rad/s, where Im(num·conj den) vanishes with den) are not crossings of the negative real axis and are "
+               "dropped" if dropped.size else "")
+        )
     region = "outside the unit circle" if discrete else "in the right half plane"
     if unstable:
         notes.append(
@@ -1279,6 +1309,8 @@ def _assemble(*, name: str, method: str, period: float | None, matrices: Matrice
         name=name, method=method, period=period,
         gain_margin=gain_margin,
         gain_margin_db=20.0 * math.log10(gain_margin) if math.isfinite(gain_margin) else math.inf,
+        lower_gain_margin=lower,
+        lower_gain_margin_db=_db(lower),
         phase_margin_deg=phase_margin, delay_margin_s=delay_margin,
         delay_margin_samples=(delay_margin / period if discrete else None),
         phase_crossover_frequency=w_pi, gain_crossover_frequency=w_c,
@@ -1290,6 +1322,43 @@ def _assemble(*, name: str, method: str, period: float | None, matrices: Matrice
         closed_loop_poles=tuple(sorted((complex(p) for p in closed_poles), key=_pole_sort_key)),
         notes=tuple(notes),
     )
+
+
+def _db(gain: float | None) -> float | None:
+    """``20 log10(gain)`` [dB]; ``None`` for ``None``."""
+    return None if gain is None else 20.0 * math.log10(gain)
+
+
+def _boundary_pole_frequencies(poles: np.ndarray, period: float | None) -> np.ndarray:
+    """Frequencies [rad/s] of the poles on the imaginary axis (unit circle when sampled)."""
+    discrete = period is not None
+    poles = np.asarray(poles, dtype=complex)
+    if discrete:
+        on = np.abs(np.abs(poles) - 1.0) <= STABILITY_TOLERANCE
+        return np.abs(np.angle(poles[on])) / period
+    on = np.abs(poles.real) <= STABILITY_TOLERANCE * np.maximum(1.0, np.abs(poles))
+    return np.abs(poles[on].imag)
+
+
+def _near_any(w: float, frequencies: np.ndarray) -> bool:
+    """``w`` within ``_POLE_CROSSOVER_RTOL`` (relative) of one of ``frequencies`` (0 excluded)."""
+    return bool(w > 0.0 and np.any(np.abs(frequencies - w) <= _POLE_CROSSOVER_RTOL * max(w, 1e-300)))
+
+
+def _headline_gain_margins(gm: np.ndarray, w_pc: np.ndarray,
+                           closed_stable: bool) -> tuple[float, float, float | None]:
+    """``(gain_margin, its phase crossover, lower_gain_margin)`` as described in the module docstring."""
+    if not gm.size:
+        return math.inf, math.nan, None
+    if not closed_stable:
+        i = int(np.argmin(np.abs(np.log(np.maximum(gm, _TINY)))))
+        return float(gm[i]), float(w_pc[i]), None
+    above, below = gm > 1.0, gm < 1.0
+    lower = float(np.max(gm[below])) if below.any() else None
+    if not above.any():
+        return math.inf, math.nan, lower
+    i = int(np.flatnonzero(above)[np.argmin(gm[above])])
+    return float(gm[i]), float(w_pc[i]), lower
 
 
 def _real_gain_at(system: Matrices, point: float) -> float | None:

@@ -157,14 +157,16 @@ def test_sampled_loop_without_delay_is_plain_zoh():
 
 
 def test_unstable_open_loop_is_reported_with_stable_closed_loop():
-    """L = 2 / (s − 1): one RHP pole, closed-loop pole −1, lower gain margin 1/2 at ω = 0."""
+    """L = 2 / (s − 1): one RHP pole, closed-loop pole −1, lower gain margin 1/2 at ω = 0, no upper one."""
     for m in both(control.tf([2.0], [1.0, -1.0])):
         assert m.open_loop_unstable_poles == 1 and not m.open_loop_stable
         assert m.closed_loop_stable
         assert m.closed_loop_poles == pytest.approx((-1.0,), **CLOSED_FORM)
         assert m.phase_crossovers == (0.0,)
-        assert m.gain_margin == pytest.approx(0.5, **CLOSED_FORM)
-        assert m.gain_margin_db < 0.0
+        # stable for every gain multiplier g > 1/2: no upper bound, lower margin 1/2
+        assert m.gain_margin == math.inf
+        assert m.lower_gain_margin == pytest.approx(0.5, **CLOSED_FORM)
+        assert m.lower_gain_margin_db == pytest.approx(20 * math.log10(0.5), **CLOSED_FORM)
         assert m.gain_crossover_frequency == pytest.approx(math.sqrt(3.0), **CLOSED_FORM)
         assert m.phase_margin_deg == pytest.approx(60.0, **CLOSED_FORM)
         assert len(m.notes) == 1 and "1 pole(s) in the right half plane" in m.notes[0]
@@ -585,3 +587,33 @@ def test_bad_sweep_options_raise():
         margins(L, min_frequency=-1.0)
     with pytest.raises(FrequencyGridError, match=r"w_min = 'a', w_max = 10.0: expected numbers"):
         margins_by_sweep(L, w_min="a", w_max=10.0)
+
+
+# --------------------------------------------------------------------------- open-loop poles on the boundary
+
+
+def test_open_loop_poles_on_the_imaginary_axis_are_not_phase_crossovers():
+    """L = (2s + 1)/(s² + 4): poles ±2j; closed loop s² + 2g s + 4 + g is stable for every g > 0.
+
+    python-control's polynomial solver returns ω = 2 as a phase crossover (Im(num·conj den)
+    vanishes with den) with |L| = ∞, i.e. a "gain margin" of about 1e-17 (−340 dB).  It is not
+    a crossing of the negative real axis: dropped, the boundary poles named in a note.
+    """
+    import control as ct
+
+    _, _, _, w_pc, _, _ = ct.stability_margins(ct.tf([2.0, 1.0], [1.0, 0.0, 4.0]), returnall=True, method="poly")
+    assert any(abs(w - 2.0) < 1e-9 for w in np.real(w_pc))  # the artefact this guards against
+    for m in both(control.tf([2.0, 1.0], [1.0, 0.0, 4.0])):
+        assert m.open_loop_boundary_poles == 2 and m.closed_loop_stable
+        assert m.phase_crossovers == ()
+        assert m.gain_margin == math.inf and m.lower_gain_margin is None
+        assert any("poles on the imaginary axis at ω = 2 rad/s" in note for note in m.notes)
+
+
+def test_upper_gain_margin_is_reported_beside_boundary_poles():
+    """L = (2s − 1)/(s² + 4): closed loop s² + 2g s + 4 − g, stable iff 0 < g < 4: upper margin 4 at ω = 0."""
+    for m in both(control.tf([2.0, -1.0], [1.0, 0.0, 4.0])):
+        assert m.closed_loop_stable
+        assert m.gain_margin == pytest.approx(4.0, **CLOSED_FORM)
+        assert m.phase_crossover_frequency == 0.0
+        assert m.lower_gain_margin is None
