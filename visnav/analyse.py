@@ -22,6 +22,7 @@ certificate), ``computed`` (linear algebra on the AD linearisation) or
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,10 +31,10 @@ import numpy as np
 from analysis.linearise import common_quadratic_lyapunov, quadratic_lyapunov
 from analysis.margins import frequency_response_data, loop_model, loop_transfer, margins, sampled_loop_transfer
 
-from .jsonable import jsonable
 from . import model
-from .closed_loop import desired_features
 from .geometry import proximity
+from .goal_stability import PanTaskModel, VisualServoingModel, goal_loop_findings, pan_task_model, visual_servoing_model
+from .jsonable import jsonable
 from .parameters import Scenario
 from .stability import (
     admissible_gains,
@@ -50,6 +51,11 @@ DEFAULT_CLEARANCE_M = 0.1
 
 _K_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 31))
 _V_CURVE = tuple(float(v) for v in np.linspace(0.05, 0.6, 12))
+_LAMBDA_CURVE = tuple(float(x) for x in np.geomspace(0.05, 40.0, 15))
+"""Gains λ [1/s] of the goal-loop curves; 1/T = 20 1/s (the sampled loop's limit) lies inside."""
+_K_RANGE = (1e-3, 1e3)
+"""Range of k [1/m] of the certificate and of the admissible-gain search."""
+_K_MARGIN_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 13))
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -94,28 +100,42 @@ def _margin_pair(lm: Any, period: float, **where: Any) -> dict[str, Any]:
     return {"continuous": continuous.as_dict(), "sampled": sampled.as_dict()}
 
 
-def _vs_loop(scenario: Scenario) -> Any:
+def _vs_loop(vs: VisualServoingModel) -> Any:
     """Visual-servoing loop at the goal in task space: ė = M q̇, q̇ = −λ J_r⁻¹ e.
 
-    ``M = C L* J_r(ϑ*)`` with ``C = (L*ᵀ L*)⁻¹ L*ᵀ``; by construction ``C L* = I``
-    so the three channels are decoupled integrators of gain λ_VS — computed
-    here from the model's rows, not assumed.
+    ``M = E G = ∂ė_VS/∂q̇`` by AD of the symbolic model (the projection
+    composed with the kinematics); it equals ``C L* J_r = J_r`` (checked in
+    the goal findings), so the three channels are decoupled integrators of
+    gain λ_VS — computed, not assumed.
     """
-    robot = scenario.robot
-    desired = desired_features(scenario)
-    rows = []
-    for x, y, z in desired:
-        rows.append(model.interaction_x_row(x, y, z))
-        rows.append(model.interaction_y_row(y, z))
-    interaction = np.array(rows, dtype=float)
-    c = np.linalg.solve(interaction.T @ interaction, interaction.T)
-    pan = scenario.goal.pan_rad
-    jr = np.array(model.reduced_jacobian(pan, robot.pan_offset_m, robot.camera_forward_m, robot.camera_lateral_m))
-    jr_inv = np.array(model.reduced_jacobian_inverse(pan, robot.pan_offset_m, robot.camera_forward_m,
-                                                     robot.camera_lateral_m))
-    m = c @ interaction @ jr  # task rate per joint rate
-    return loop_model(np.zeros((3, 3)), m, np.eye(3), None, scenario.gains.lambda_vs * jr_inv,
+    jr_inv = np.array(model.reduced_jacobian_inverse(vs.goal[3], *vs.offsets), dtype=float)
+    m = vs.input_matrix()
+    return loop_model(np.zeros((3, 3)), m, np.eye(3), None, vs.lambda_vs * jr_inv,
                       input_names=("v", "omega", "pan_rate"), output_names=("e_Vy", "e_Vz", "e_Wx"))
+
+
+def _pan_loop(pan: PanTaskModel) -> Any:
+    """Pan loop at the goal (base at rest): ``ϑ̇ = ϖ``, ``e_gc = c ϑ``, ``ϖ = −K e_gc``; ``c, K`` by AD."""
+    c, gain = pan.loop_gains()
+    return loop_model([[0.0]], [[1.0]], [[c]], None, [[gain]], input_names=("pan_rate",), output_names=("e_gc",))
+
+
+def _omega_loop(scenario: Scenario, k: float, radius: float) -> Any:
+    env, v = scenario.envelopes, scenario.gains.v_coll_mps
+    a_p, b_p, gain = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=radius).plant_and_gain()
+    return loop_model(a_p, b_p, np.eye(2), None, -gain, input_names=("omega",), output_names=("delta", "alpha"))
+
+
+def _margin_curve(gains: Sequence[float], build: Any, period: float, **where: Any) -> dict[str, Any]:
+    """Headline margins of the loops ``build(g)`` for each gain ``g``, continuous and sampled."""
+    keys = ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "gain_crossover_frequency")
+    out: dict[str, Any] = {"continuous": {k: [] for k in keys}, "sampled": {k: [] for k in keys}}
+    for g in gains:
+        pair = _margin_pair(build(g), period, **where)
+        for kind in ("continuous", "sampled"):
+            for key in keys:
+                out[kind][key].append(pair[kind][key])
+    return out
 
 
 def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> Analysis:
@@ -124,7 +144,8 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     Raises
     ------
     ValueError
-        A clearance that is negative or not smaller than ``d0``.
+        A clearance that is negative or not smaller than ``d0``; ``v_coll`` above
+        ``v_max``; ``k`` outside the certified range ``[1e-3, 1e3]``.
     """
     env, gains, limits = scenario.envelopes, scenario.gains, scenario.limits
     if not (0.0 <= clearance_m < env.d_zero_m):
@@ -133,6 +154,17 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
             "(the path-following envelope itself)"
         )
     k, v = gains.k_path, gains.v_coll_mps
+    if not v <= limits.v_max_mps:
+        raise ValueError(
+            f"analyse: gains.v_coll_mps = {v!r} exceeds limits.v_max_mps = {limits.v_max_mps!r}: the robot cannot "
+            "follow the envelope at that speed and the certificate covers v in [0, v_max]; "
+            "fix: lower v_coll_mps or raise v_max_mps in the scenario"
+        )
+    if not _K_RANGE[0] <= k <= _K_RANGE[1]:
+        raise ValueError(
+            f"analyse: gains.k_path = {k!r} is outside [{_K_RANGE[0]:g}, {_K_RANGE[1]:g}] 1/m, the range the "
+            "Lyapunov certificate and the admissible-gain search cover; fix: choose k_path inside it"
+        )
     period = scenario.sampling_period_s
     radii = [o.radius_m for o in scenario.obstacles] or [1.0]
     pf = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=radii[0])
@@ -145,7 +177,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     v_curve = [[[e.real, e.imag] for e in path_following_model(k=k, v=vv, d_zero=env.d_zero_m,
                                                                radius=radii[0]).linearisation().eigenvalues]
                for vv in _V_CURVE]
-    k_range = (1e-3, 1e3)
+    k_range = _K_RANGE
     certificate = certify_path_following(
         k_range=k_range, v_range=(0.0, limits.v_max_mps),
         delta_range=(-env.d_zero_m, env.d_zero_m),
@@ -167,20 +199,40 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     loops: dict[str, Any] = {}
     responses: dict[str, Any] = {}
     for obstacle in scenario.obstacles:
-        pfo = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=obstacle.radius_m)
-        a_p, b_p, gain = pfo.plant_and_gain()
-        lm = loop_model(a_p, b_p, np.eye(2), None, -gain, input_names=("omega",), output_names=("delta", "alpha"))
+        lm = _omega_loop(scenario, k, obstacle.radius_m)
         name = f"omega@{obstacle.name}"
         loops[name] = _margin_pair(lm, period, at_input="omega")
         w = np.geomspace(1e-3, math.pi / period, 200)
         data = frequency_response_data(loop_transfer(lm, at_input="omega"), w, name=name)
         responses[name] = data.as_dict()
-    pan_lm = loop_model([[0.0]], [[1.0]], [[1.0]], None, [[gains.lambda_gc]], input_names=("pan_rate",),
-                        output_names=("e_gc",))
-    loops["pan"] = _margin_pair(pan_lm, period, at_input="pan_rate")
-    vs_lm = _vs_loop(scenario)
+    pan = pan_task_model(scenario)
+    vs = visual_servoing_model(scenario)
+    loops["pan"] = _margin_pair(_pan_loop(pan), period, at_input="pan_rate")
+    vs_lm = _vs_loop(vs)
     for channel in ("e_Vy", "e_Vz", "e_Wx"):
         loops[f"vs:{channel}"] = _margin_pair(vs_lm, period, at_output=channel)
+    goal = goal_loop_findings(scenario)
+    first = scenario.obstacles[0].radius_m if scenario.obstacles else radii[0]
+    lambda_curves = {
+        "lambda": list(_LAMBDA_CURVE),
+        "vs_task_eigenvalues": [[[e.real, e.imag] for e in visual_servoing_model(scenario, lambda_vs=g)
+                                 .task_linearisation().eigenvalues] for g in _LAMBDA_CURVE],
+        "pan_eigenvalues": [[[e.real, e.imag] for e in pan_task_model(scenario, lambda_gc=g)
+                             .pan_linearisation().eigenvalues] for g in _LAMBDA_CURVE],
+    }
+    margin_curves = {
+        "omega_vs_k": {"k": list(_K_MARGIN_CURVE), "loop": "omega@" + (scenario.obstacles[0].name
+                                                                        if scenario.obstacles else "none"),
+                       **_margin_curve(_K_MARGIN_CURVE, lambda g: _omega_loop(scenario, g, first), period,
+                                       at_input="omega")},
+        "pan_vs_lambda_gc": {"lambda_gc": list(_LAMBDA_CURVE),
+                             **_margin_curve(_LAMBDA_CURVE, lambda g: _pan_loop(pan_task_model(scenario, lambda_gc=g)),
+                                             period, at_input="pan_rate")},
+        "vs_vs_lambda_vs": {"lambda_vs": list(_LAMBDA_CURVE), "channel": "e_Vy",
+                            **_margin_curve(_LAMBDA_CURVE,
+                                            lambda g: _vs_loop(visual_servoing_model(scenario, lambda_vs=g)),
+                                            period, at_output="e_Vy")},
+    }
 
     data: dict[str, Any] = {
         "path_following": {
@@ -209,7 +261,10 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
             "switched": {**switched.as_dict(),
                          "family": "path-following linearisation at v_coll/4, v_coll/2, v_coll (the blend ramps v)"},
         },
+        "goal": goal.as_dict(),
+        "eigenvalues_vs_lambda": lambda_curves,
         "margins": loops,
+        "margins_vs_gains": margin_curves,
         "frequency_responses": responses,
         "sampling_period_s": period,
     }

@@ -27,6 +27,7 @@ from .controllers import (
     path_following,
     visual_servoing,
 )
+from . import model
 from .estimator import FeatureEstimator
 from .geometry import (
     ImageMeasurement,
@@ -50,7 +51,7 @@ def robot_plant() -> Plant:
     """The cart with pan-platform: state ``(x, y, theta, pan)``, input ``(v, omega, pan_rate)``."""
 
     def derivative(x: Sequence[float], u: Sequence[float]) -> tuple[float, float, float, float]:
-        return (u[0] * math.cos(x[2]), u[0] * math.sin(x[2]), u[1], u[2])
+        return model.pose_rates(x[2], u[0], u[1], u[2])
 
     def exact(x: Sequence[float], u: Sequence[float], dt: float) -> tuple[float, float, float, float]:
         return propagate_pose((x[0], x[1], x[2], x[3]), u[0], u[1], u[2], dt)
@@ -346,7 +347,7 @@ class ClosedLoop:
             def flow(t: float, x: Sequence[float], memory: Mapping[str, float]) -> tuple[float, ...]:
                 obs = self.observe(x)
                 u = self.command(x, obs.signals, obs.image, obs.features, obs.features, mode, memory)
-                return (u[0] * math.cos(x[2]), u[0] * math.sin(x[2]), u[1], u[2])
+                return model.pose_rates(x[2], u[0], u[1], u[2])
 
             return flow
 

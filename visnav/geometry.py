@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 from hybrid.errors import NumericalFailure
+from visnav import model
 from visnav.parameters import CameraModel, Obstacle, RobotGeometry
 
 __all__ = [
@@ -103,15 +104,28 @@ def propagate_pose(
 
 
 def camera_pose(x: float, y: float, theta: float, pan: float, robot: RobotGeometry) -> tuple[float, float, float]:
-    """Optical centre ``(cx, cy)`` [m] and camera heading ``phi = theta + pan`` [rad]."""
-    phi = theta + pan
-    c, s = math.cos(phi), math.sin(phi)
-    a, b, dx = robot.camera_forward_m, robot.camera_lateral_m, robot.pan_offset_m
-    return (
-        x + dx * math.cos(theta) + a * c - b * s,
-        y + dx * math.sin(theta) + a * s + b * c,
-        phi,
-    )
+    """Optical centre ``(cx, cy)`` [m] and camera heading ``phi = theta + pan`` [rad].
+
+    :func:`visnav.model.camera_centre` (the single definition) with the robot's offsets.
+    """
+    return model.camera_centre(x, y, theta, pan, robot.pan_offset_m, robot.camera_forward_m,
+                               robot.camera_lateral_m)
+
+
+def _project_checked(
+    cx: float, cy: float, phi: float, camera_height: float, wx: float, wy: float, wh: float, what: str
+) -> tuple[float, float, float]:
+    try:
+        out = model.project_world_point(cx, cy, phi, camera_height, wx, wy, wh)
+    except ZeroDivisionError:
+        out = (_NAN, _NAN, 0.0)
+    z = out[2]
+    if not z > 0.0:
+        raise NumericalFailure(
+            f"{what} at ({wx:.6g}, {wy:.6g}, {wh:.6g}) has depth z = {z:.6g} m: "
+            "expected z > 0 (the point is behind the camera)"
+        )
+    return out
 
 
 def project_point(
@@ -119,21 +133,14 @@ def project_point(
 ) -> tuple[float, float, float]:
     """Normalised image coordinates and depth ``(X, Y, z)`` of one world point.
 
+    :func:`visnav.model.project_world_point` (the single definition) with the check ``z > 0``.
+
     Raises
     ------
     NumericalFailure
         If the point is not in front of the camera (``z <= 0``).
     """
-    c, s = math.cos(phi), math.sin(phi)
-    dx, dy = wx - cx, wy - cy
-    z = dx * c + dy * s
-    if not z > 0.0:
-        raise NumericalFailure(
-            f"world point ({wx:.6g}, {wy:.6g}, {wh:.6g}) has depth z = {z:.6g} m: "
-            "expected z > 0 (the point is behind the camera)"
-        )
-    inv_z = 1.0 / z  # as in project_points: both give bit-identical results
-    return ((camera_height - wh) * inv_z, (dy * c - dx * s) * inv_z, z)
+    return _project_checked(cx, cy, phi, camera_height, wx, wy, wh, "world point")
 
 
 def project_points(
@@ -144,19 +151,8 @@ def project_points(
     points: tuple[tuple[float, float, float], ...],
 ) -> tuple[tuple[float, float, float], ...]:
     """:func:`project_point` for every point of ``points``; the error names the index."""
-    c, s = math.cos(phi), math.sin(phi)
-    out = []
-    for i, (wx, wy, wh) in enumerate(points):
-        dx, dy = wx - cx, wy - cy
-        z = dx * c + dy * s
-        if not z > 0.0:
-            raise NumericalFailure(
-                f"point {i} at ({wx:.6g}, {wy:.6g}, {wh:.6g}) has depth z = {z:.6g} m: "
-                "expected z > 0 (the point is behind the camera)"
-            )
-        inv_z = 1.0 / z
-        out.append(((camera_height - wh) * inv_z, (dy * c - dx * s) * inv_z, z))
-    return tuple(out)
+    return tuple(_project_checked(cx, cy, phi, camera_height, wx, wy, wh, f"point {i}")
+                 for i, (wx, wy, wh) in enumerate(points))
 
 
 # --------------------------------------------------------------------------- proximity

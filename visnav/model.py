@@ -7,7 +7,8 @@ closed-loop simulation, where a numpy call per scalar would cost more than the
 arithmetic); with ``ops=casadi`` and ``casadi.SX`` arguments they build the
 symbolic expressions from which ``analysis`` and the tests derive Jacobians by
 automatic differentiation.  This module is the single source of truth for
-equations (1), (5), the depth row and (13) of Folio & Cadenat.
+equations (1), (5), the depth row and (13) of Folio & Cadenat, of the camera
+pose and the pinhole projection, and of the path-frame equations (10)–(11).
 
 Conventions (see ``docs/model.md``)
 -----------------------------------
@@ -38,6 +39,9 @@ __all__ = [
     "feature_depth_rate_jacobian",
     "pan_column",
     "path_error_rates",
+    "camera_centre",
+    "pose_rates",
+    "project_world_point",
     "path_following_omega",
 ]
 
@@ -217,3 +221,55 @@ def path_following_omega(
     ``α̇ = −v (k δ + α + 2k sin α)`` whatever the curvature.
     """
     return side * v * (k * delta + alpha + 2.0 * k * ops.sin(alpha) + ops.cos(alpha) * curvature)
+
+
+def camera_centre(
+    x: Scalar, y: Scalar, theta: Scalar, pan: Scalar, pan_offset: float, cam_forward: float, cam_lateral: float,
+    ops: ModuleType = math,
+) -> tuple[Scalar, Scalar, Scalar]:
+    """Optical centre ``(cx, cy)`` [m] and camera heading ``phi = theta + pan`` [rad].
+
+    The pan centre P is ``pan_offset`` ahead of M on the base axis; the optical
+    centre is ``(cam_forward, cam_lateral)`` from P in the pan frame.
+    """
+    phi = theta + pan
+    c, s = ops.cos(phi), ops.sin(phi)
+    a, b, dx = cam_forward, cam_lateral, pan_offset
+    return (
+        x + dx * ops.cos(theta) + a * c - b * s,
+        y + dx * ops.sin(theta) + a * s + b * c,
+        phi,
+    )
+
+
+def project_world_point(
+    cx: Scalar, cy: Scalar, phi: Scalar, camera_height: float, wx: float, wy: float, wh: float,
+    ops: ModuleType = math,
+) -> tuple[Scalar, Scalar, Scalar]:
+    """Pinhole projection: normalised image coordinates and depth ``(X, Y, z)`` of a world point.
+
+    ``z = (W − C)·(cos phi, sin phi)`` along the optical axis, ``X = (h_c − h_w)/z``
+    (down), ``Y = ((W − C)·(−sin phi, cos phi))/z`` (left).  Valid for ``z > 0``;
+    the caller checks (:func:`visnav.geometry.project_point` raises).
+
+    Parameters
+    ----------
+    cx, cy, phi : float
+        Camera pose from :func:`camera_centre` [m, m, rad].
+    camera_height : float
+        Height of the optical centre [m].
+    wx, wy, wh : float
+        World point: position and height [m].
+    """
+    c, s = ops.cos(phi), ops.sin(phi)
+    dx, dy = wx - cx, wy - cy
+    z = dx * c + dy * s
+    inv_z = 1.0 / z
+    return ((camera_height - wh) * inv_z, (dy * c - dx * s) * inv_z, z)
+
+
+def pose_rates(
+    theta: Scalar, v: Scalar, omega: Scalar, pan_rate: Scalar, ops: ModuleType = math
+) -> tuple[Scalar, Scalar, Scalar, Scalar]:
+    """Kinematics of the cart and pan platform: ``(ẋ, ẏ, θ̇, ϑ̇) = (v cos θ, v sin θ, ω, ϖ)``."""
+    return (v * ops.cos(theta), v * ops.sin(theta), omega, pan_rate)

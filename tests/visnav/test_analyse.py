@@ -9,6 +9,7 @@ from analysis.certificate import recheck
 from analysis.margins import loop_model, loop_transfer, margins, margins_by_sweep, sampled_loop_transfer
 from analysis.polynomial import normal_form
 from visnav.analyse import _vs_loop, analyse
+from visnav.goal_stability import visual_servoing_model
 from visnav.cli import main
 from visnav.scenario import load_scenario
 from visnav.stability import lyapunov_rate_symbolic, path_following_closed_form_eigenvalues, path_following_model
@@ -74,7 +75,7 @@ def test_omega_loop_margins_agree_with_a_frequency_sweep(paper):
         assert a.phase_margin_deg == pytest.approx(b.phase_margin_deg, rel=1e-6)
         assert a.gain_crossover_frequency == pytest.approx(b.gain_crossover_frequency, rel=1e-6)
         assert a.delay_margin_s == pytest.approx(b.delay_margin_s, rel=1e-6)
-    vs = _vs_loop(paper)
+    vs = _vs_loop(visual_servoing_model(paper))
     np.testing.assert_allclose(vs.plant_b @ vs.controller_d, paper.gains.lambda_vs * np.eye(3), atol=1e-9)
 
 
@@ -88,3 +89,43 @@ def test_cli_analyse_json_and_bad_clearance(capsys):
 
 def test_analysis_is_deterministic(paper, result):
     assert json.dumps(analyse(paper).as_dict(), sort_keys=True) == json.dumps(result, sort_keys=True)
+
+
+def test_speeds_and_gains_out_of_range_are_refused(paper):
+    import dataclasses
+
+    fast = dataclasses.replace(paper, gains=dataclasses.replace(paper.gains, v_coll_mps=0.9))
+    with pytest.raises(ValueError, match=r"v_coll_mps = 0.9 exceeds limits.v_max_mps = 0.6.*fix: lower v_coll_mps"):
+        analyse(fast)
+    stiff = dataclasses.replace(paper, gains=dataclasses.replace(paper.gains, k_path=5e3))
+    with pytest.raises(ValueError, match=r"k_path = 5000.0 is outside \[0.001, 1000\]"):
+        analyse(stiff)
+
+
+def test_sampled_margins_against_gains_follow_the_closed_form(result, paper):
+    """Integrator λ/s under ZOH + one sample of delay: L(z) = λT/(z(z − 1)).
+
+    Gain margin 1/(λT) (closed loop z² − z + gλT stable iff gλT < 1); crossover
+    ω_c = (2/T) asin(λT/2) and phase margin 90° − (3/2) ω_c T (from arg L = −90° − 3ωT/2).
+    """
+    T = paper.sampling_period_s
+    for key, gains_key in (("pan_vs_lambda_gc", "lambda_gc"), ("vs_vs_lambda_vs", "lambda_vs")):
+        curve = result["margins_vs_gains"][key]
+        for lam, gm_db, pm, wc in zip(curve[gains_key], curve["sampled"]["gain_margin_db"],
+                                      curve["sampled"]["phase_margin_deg"],
+                                      curve["sampled"]["gain_crossover_frequency"]):
+            assert gm_db == pytest.approx(-20 * math.log10(lam * T), abs=1e-8), (key, lam)
+            if lam * T < 2:
+                w = 2 / T * math.asin(lam * T / 2)
+                assert wc == pytest.approx(w, rel=1e-9)
+                assert pm == pytest.approx(90 - math.degrees(1.5 * w * T), abs=1e-7)
+        assert min(curve["sampled"]["gain_margin_db"]) < 0 < max(curve["sampled"]["gain_margin_db"])
+        for c_pm in curve["continuous"]["phase_margin_deg"]:
+            assert c_pm == pytest.approx(90.0, abs=1e-6)
+
+
+def test_boundary_poles_of_the_omega_loop_are_explained_not_reported_as_a_gain_margin(result):
+    """The loop opened at ω has poles ±j v/ρ: no −340 dB 'gain margin', a note instead."""
+    c = result["margins"]["omega@low"]["continuous"]
+    assert c["gain_margin_db"] is None or c["gain_margin_db"] > 0
+    assert any("poles on the imaginary axis" in note for note in c["notes"])
