@@ -128,14 +128,47 @@ def _omega_loop(scenario: Scenario, k: float, radius: float) -> Any:
 
 def _margin_curve(gains: Sequence[float], build: Any, period: float, **where: Any) -> dict[str, Any]:
     """Headline margins of the loops ``build(g)`` for each gain ``g``, continuous and sampled."""
-    keys = ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "gain_crossover_frequency")
+    keys = ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "gain_crossover_frequency", "closed_loop_stable")
     out: dict[str, Any] = {"continuous": {k: [] for k in keys}, "sampled": {k: [] for k in keys}}
     for g in gains:
         pair = _margin_pair(build(g), period, **where)
         for kind in ("continuous", "sampled"):
             for key in keys:
                 out[kind][key].append(pair[kind][key])
+    for kind in ("continuous", "sampled"):
+        stable = out[kind]["closed_loop_stable"]
+        out[kind]["stable_gain_range"] = _stable_range(gains, stable)
+    out["sampled"]["stability_limit"] = _sampled_stability_limit(gains, out["sampled"]["closed_loop_stable"], build,
+                                                                 period, **where)
     return out
+
+
+def _sampled_stability_limit(gains: Sequence[float], stable: Sequence[bool], build: Any, period: float,
+                             **where: Any) -> float | None:
+    """Largest gain keeping the sampled closed loop stable, by bisection between grid points (rel. 1e-10).
+
+    ``None`` when the sampled loop is stable on the whole grid or unstable at its first point.
+    """
+    last_ok = None
+    for i, ok in enumerate(stable):
+        if ok:
+            last_ok = i
+        elif last_ok is not None:
+            lo, hi = gains[last_ok], gains[i]
+            while hi - lo > 1e-10 * hi:
+                mid = math.sqrt(lo * hi)
+                if margins(sampled_loop_transfer(build(mid), period, delay_samples=1, **where)).closed_loop_stable:
+                    lo = mid
+                else:
+                    hi = mid
+            return lo
+    return None
+
+
+def _stable_range(gains: Sequence[float], stable: Sequence[bool]) -> list[float] | None:
+    """``[lowest, highest]`` grid gain with a stable closed loop (``None`` when none; sampled: a grid, not a bound)."""
+    ok = [g for g, s in zip(gains, stable) if s]
+    return [min(ok), max(ok)] if ok else None
 
 
 def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> Analysis:

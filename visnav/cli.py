@@ -217,6 +217,29 @@ def _analyse_human(d: dict[str, Any]) -> str:
     sw = pf["switched"]
     lines.append(f"  switched family             common quadratic V {'found' if sw['found'] else 'not found'}"
                  + ("" if sw["found"] else f", dwell time {sw['dwell_time_s']} s") + f" ({sw['family']})")
+    goal = d["goal"]
+    task = ", ".join(f"{re:.6g}" for re, _ in goal["visual_servoing_task"]["eigenvalues"])
+    full = ", ".join(f"{re:.3g}" for re, _ in goal["closed_loop"]["eigenvalues"])
+    lines += [
+        f"  goal: e_VS task (7)         eigenvalues {task} (closed form {goal['visual_servoing_task']['closed_form'][0]:g})",
+        f"  goal: full loop (x,y,th,pan) eigenvalues {full}: {goal['closed_loop']['finding'].split(';')[0]}",
+        f"                              zero mode {[round(c, 4) for c in goal['closed_loop']['zero_mode'] or []]} moves "
+        f"the camera by {goal['closed_loop']['zero_mode_camera_motion'] or 0:.2g}: curve of equilibria (camera at "
+        "its goal pose, base turned about it)",
+        f"  goal: pan task (16)         eigenvalue {goal['pan_task']['eigenvalues'][0][0]:.6g}, "
+        f"|e_gc' + lambda_gc e_gc| <= {goal['pan_task']['closure_residual']:.2g} along the way",
+    ]
+    for key, curve in d["margins_vs_gains"].items():
+        gain_name = next(k for k in curve if k in ("k", "lambda_gc", "lambda_vs"))
+        sampled = curve["sampled"]["stable_gain_range"]
+        limit = curve["sampled"]["stability_limit"]
+        grid = curve[gain_name]
+        lines.append(
+            f"  {key:<27} sampled loop stable for {gain_name} in "
+            + (f"[{sampled[0]:.3g}, {sampled[1]:.3g}]" if sampled else "none")
+            + f" of the grid [{grid[0]:.3g}, {grid[-1]:.3g}]"
+            + (f"; unstable above {limit:.6g}" if limit is not None else "")
+        )
     lines.append(f"  margins (continuous | sampled T = {d['sampling_period_s']:g} s, ZOH + 1 sample delay)")
 
     def fmt(value: Any, unit: str) -> str:

@@ -219,6 +219,11 @@ class AdmissibleGains:
         The requirements and the entry offset used.
     k_searched : (float, float)
         The range of ``k`` scanned.
+    limits : tuple of dict
+        Per entry angle, which requirement binds: the grid ``k`` range that
+        guarantees the clearance alone (``clearance_k``, or ``None``), and the
+        smallest guaranteed ``|ω|`` bound over the grid (``best_omega_bound_radps``
+        at ``best_omega_k``).  An empty admissible set is explained by them.
     finding : str
     """
 
@@ -228,6 +233,7 @@ class AdmissibleGains:
     omega_max_radps: float
     delta0_m: float
     k_searched: tuple[float, float]
+    limits: tuple[dict[str, Any], ...]
     finding: str
 
     def as_dict(self) -> dict[str, Any]:
@@ -239,6 +245,7 @@ class AdmissibleGains:
             "omega_max_radps": self.omega_max_radps,
             "delta0_m": self.delta0_m,
             "k_searched": list(self.k_searched),
+            "limits": [dict(d) for d in self.limits],
             "finding": self.finding,
         }
 
@@ -273,8 +280,17 @@ def admissible_gains(
         raise ValueError("admissible_gains: entry_angles is empty; give at least one entry angle [rad]")
     ks = np.geomspace(k_range[0], k_range[1], grid)
     per_angle = []
+    limits = []
     pieces_note = ""
     for alpha0 in entry_angles:
+        bounds = [entry_bounds(k=float(k), v=v, d_zero=d_zero, radius=radius, delta0=delta0, alpha0=alpha0)
+                  for k in ks]
+        clear = [float(k) for k, b in zip(ks, bounds) if b.valid and b.min_distance_m >= clearance]
+        omegas = [(b.omega_max_radps, float(k)) for k, b in zip(ks, bounds) if b.valid]
+        best = min(omegas) if omegas else (math.inf, math.nan)
+        limits.append({"alpha0_rad": float(alpha0),
+                       "clearance_k": [min(clear), max(clear)] if clear else None,
+                       "best_omega_bound_radps": best[0], "best_omega_k": best[1]})
         def ok(k: float, a: float = alpha0) -> bool:
             return _admissible(k, v=v, d_zero=d_zero, radius=radius, delta0=delta0, alpha0=a,
                                clearance=clearance, omega_max=omega_max)
@@ -310,14 +326,23 @@ def admissible_gains(
         hi = min(i[1] for i in intervals)  # type: ignore[index]
         interval = (lo, hi) if lo <= hi else None
     if interval is None:
+        why = "; ".join(
+            (f"alpha0 = {d['alpha0_rad']:.4g} rad: clearance alone needs k in [{d['clearance_k'][0]:.4g}, "
+             f"{d['clearance_k'][1]:.4g}]" if d["clearance_k"] else f"alpha0 = {d['alpha0_rad']:.4g} rad: no k "
+             "guarantees the clearance")
+            + f", the smallest guaranteed |omega| bound is {d['best_omega_bound_radps']:.4g} rad/s "
+            f"(at k = {d['best_omega_k']:.4g})"
+            for d in limits
+        )
         finding = (f"no k in [{k_range[0]:g}, {k_range[1]:g}] guarantees clearance >= {clearance:g} m and "
-                   f"|omega| <= {omega_max:g} rad/s for every entry angle{pieces_note}")
+                   f"|omega| <= {omega_max:g} rad/s for every entry angle{pieces_note} ({why})")
     else:
         finding = (f"k in [{interval[0]:.6g}, {interval[1]:.6g}] 1/m guarantees clearance >= {clearance:g} m and "
                    f"|omega| <= {omega_max:g} rad/s for every entry angle{pieces_note}")
     return AdmissibleGains(
         interval=interval, per_angle=tuple(per_angle), clearance_m=float(clearance), omega_max_radps=float(omega_max),
-        delta0_m=float(delta0), k_searched=(float(k_range[0]), float(k_range[1])), finding=finding,
+        delta0_m=float(delta0), k_searched=(float(k_range[0]), float(k_range[1])), limits=tuple(limits),
+        finding=finding,
     )
 
 

@@ -120,6 +120,8 @@ def test_sampled_margins_against_gains_follow_the_closed_form(result, paper):
                 assert wc == pytest.approx(w, rel=1e-9)
                 assert pm == pytest.approx(90 - math.degrees(1.5 * w * T), abs=1e-7)
         assert min(curve["sampled"]["gain_margin_db"]) < 0 < max(curve["sampled"]["gain_margin_db"])
+        # z² − z + λT: a root leaves the unit circle at λT = 1
+        assert curve["sampled"]["stability_limit"] == pytest.approx(1 / T, rel=1e-9)
         for c_pm in curve["continuous"]["phase_margin_deg"]:
             assert c_pm == pytest.approx(90.0, abs=1e-6)
 

@@ -113,6 +113,16 @@ def test_admissible_gains_interval_and_empty_set():
                              omega_max=1.2)
     assert steep.interval is None and "no k" in steep.finding
     assert steep.per_angle[1][1] is None
+    # the empty set is explained: for α0 = −0.8 the clearance needs k >= k_c (closed form above), and
+    # there the guaranteed ω bound already exceeds 1.2 rad/s
+    limit = steep.limits[1]
+    k_c = 2 * (1 - math.cos(-0.8)) / ((D0 - 0.1) ** 2 - 0.04)
+    # first grid point at or above k_c: one step of the 2000-point log grid over 6 decades is 0.69 %
+    assert k_c <= limit["clearance_k"][0] <= k_c * 10 ** (6 / 1999)
+    assert "clearance alone needs k in" in steep.finding and "smallest guaranteed |omega| bound" in steep.finding
+    at_kc = entry_bounds(k=limit["clearance_k"][0], v=V, d_zero=D0, radius=R, delta0=-0.2, alpha0=-0.8)
+    assert at_kc.omega_max_radps > 1.2
+    assert limit["best_omega_bound_radps"] <= at_kc.omega_max_radps
 
 
 def test_bad_parameters_are_named():
