@@ -53,6 +53,8 @@ _K_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 31))
 _V_CURVE = tuple(float(v) for v in np.linspace(0.05, 0.6, 12))
 _LAMBDA_CURVE = tuple(float(x) for x in np.geomspace(0.05, 40.0, 15))
 """Gains λ [1/s] of the goal-loop curves; 1/T = 20 1/s (the sampled loop's limit) lies inside."""
+_RESPONSE_POINTS = 200
+"""Log-spaced frequencies of the Bode/Nyquist data, 1e-3 rad/s to the Nyquist frequency π/T."""
 _K_RANGE = (1e-3, 1e3)
 """Range of k [1/m] of the certificate and of the admissible-gain search."""
 _K_MARGIN_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 13))
@@ -231,19 +233,24 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
 
     loops: dict[str, Any] = {}
     responses: dict[str, Any] = {}
+    w = np.geomspace(1e-3, math.pi / period, _RESPONSE_POINTS)
+
+    def add_loop(name: str, lm: Any, **where: Any) -> None:
+        loops[name] = _margin_pair(lm, period, **where)
+        responses[name] = {
+            "continuous": frequency_response_data(loop_transfer(lm, **where), w, name=name).as_dict(),
+            "sampled": frequency_response_data(sampled_loop_transfer(lm, period, delay_samples=1, **where), w,
+                                               name=name).as_dict(),
+        }
+
     for obstacle in scenario.obstacles:
-        lm = _omega_loop(scenario, k, obstacle.radius_m)
-        name = f"omega@{obstacle.name}"
-        loops[name] = _margin_pair(lm, period, at_input="omega")
-        w = np.geomspace(1e-3, math.pi / period, 200)
-        data = frequency_response_data(loop_transfer(lm, at_input="omega"), w, name=name)
-        responses[name] = data.as_dict()
+        add_loop(f"omega@{obstacle.name}", _omega_loop(scenario, k, obstacle.radius_m), at_input="omega")
     pan = pan_task_model(scenario)
     vs = visual_servoing_model(scenario)
-    loops["pan"] = _margin_pair(_pan_loop(pan), period, at_input="pan_rate")
+    add_loop("pan", _pan_loop(pan), at_input="pan_rate")
     vs_lm = _vs_loop(vs)
     for channel in ("e_Vy", "e_Vz", "e_Wx"):
-        loops[f"vs:{channel}"] = _margin_pair(vs_lm, period, at_output=channel)
+        add_loop(f"vs:{channel}", vs_lm, at_output=channel)
     goal = goal_loop_findings(scenario)
     first = scenario.obstacles[0].radius_m if scenario.obstacles else radii[0]
     lambda_curves = {

@@ -47,6 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument("--clearance", type=float, default=None,
                      help="clearance [m] the admissible gains must guarantee (default: 0.1)")
     ana.add_argument("--json", action="store_true", help="print the analysis as one JSON object")
+    ana.add_argument("--out", default=None, help="folder for analysis.json and the figures (Bode, Nyquist, "
+                                                 "margins and eigenvalues against the gains)")
     ana.set_defaults(func=_cmd_analyse)
     chk = sub.add_parser("check-model", help="structural checks of the supervisor automaton (hybrid.check)")
     chk.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
@@ -259,7 +261,10 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     from .analyse import DEFAULT_CLEARANCE_M, analyse
     from .scenario import load_scenario, scenario_digest
 
+    from .io import figure_png_bytes, prepare_output_dir, write_bytes_atomic, write_text_atomic
+
     scenario = load_scenario(args.scenario)
+    folder = prepare_output_dir(args.out) if args.out else None
     clearance = DEFAULT_CLEARANCE_M if args.clearance is None else args.clearance
     try:
         result = analyse(scenario, clearance_m=clearance)
@@ -268,10 +273,22 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     out = result.as_dict()
     out["scenario_digest"] = scenario_digest(scenario)
+    written = []
+    if folder is not None:
+        import matplotlib.pyplot as plt
+
+        from .figures_analysis import analysis_figures
+
+        write_text_atomic(folder / "analysis.json", json.dumps(out, indent=1, sort_keys=True) + "\n")
+        written.append(str(folder / "analysis.json"))
+        for stem, figure in analysis_figures(out).items():
+            write_bytes_atomic(folder / f"{stem}.png", figure_png_bytes(figure))
+            plt.close(figure)
+            written.append(str(folder / f"{stem}.png"))
     if args.json:
         print(json.dumps(out, sort_keys=True))
     else:
-        print(_analyse_human(out))
+        print(_analyse_human(out) + "".join(f"\n  wrote {path}" for path in written))
     return EXIT_OK
 
 

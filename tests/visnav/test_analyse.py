@@ -131,3 +131,15 @@ def test_boundary_poles_of_the_omega_loop_are_explained_not_reported_as_a_gain_m
     c = result["margins"]["omega@low"]["continuous"]
     assert c["gain_margin_db"] is None or c["gain_margin_db"] > 0
     assert any("poles on the imaginary axis" in note for note in c["notes"])
+
+
+def test_cli_analyse_out_writes_json_and_figures(tmp_path, capsys):
+    assert main(["analyse", "--out", str(tmp_path)]) == 0
+    written = sorted(p.name for p in tmp_path.iterdir())
+    assert written == ["analysis.json", "analysis_bode.png", "analysis_eigenvalues_vs_gains.png",
+                       "analysis_margins_vs_gains.png", "analysis_nyquist.png"]
+    saved = json.loads((tmp_path / "analysis.json").read_text())
+    assert saved["goal"]["closed_loop"]["hurwitz"] is False
+    for name in written[1:]:
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "wrote" in capsys.readouterr().out
