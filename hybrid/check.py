@@ -1298,7 +1298,13 @@ def _graph_findings(a: HybridAutomaton, max_cycles: int) -> tuple[list[Finding],
             )
     index = {q: i for i, q in enumerate(a.mode_names)}
     order = {t.name: i for i, t in enumerate(a.transitions)}
-    cycles = list(itertools.islice(nx.simple_cycles(graph), max_cycles + 1))
+    # enumerate on integer labels: networkx walks sets of nodes, whose order for strings changes with
+    # PYTHONHASHSEED; with ints it is fixed, so the first max_cycles cycles are the same in every process
+    numbered = nx.DiGraph()
+    numbered.add_nodes_from(range(len(a.mode_names)))
+    numbered.add_edges_from(sorted({(index[u], index[v]) for u, v in graph.edges()}))
+    cycles = [[a.mode_names[i] for i in c]
+              for c in itertools.islice(nx.simple_cycles(numbered), max_cycles + 1)]
     capped = len(cycles) > max_cycles
     cycles = cycles[:max_cycles]
     normalised = []

@@ -566,3 +566,31 @@ def test_reference_models_report_exactly_their_planted_defects():
                     assert transition(model.system, key[len("guard "):]).guard(v, m) == value, (name, key)
                 elif key.startswith("invariant ") and " after " not in key:
                     assert invariant(model.system, key[len("invariant "):], v, m) == value, (name, key)
+
+
+def test_capped_cycle_enumeration_is_the_same_in_every_process():
+    """A complete graph on 6 modes has hundreds of cycles; with max_cycles = 15 the ones reported must not
+    depend on PYTHONHASHSEED (networkx walks sets of nodes: string hashing once made them vary)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent("""
+        import json
+        from hybrid import check
+        from hybrid.model import HybridAutomaton, Mode, Transition
+        names = [f"m{i}" for i in range(6)]
+        transitions = tuple(Transition(name=f"{a}->{b}", source=a, target=b, guard=lambda v, m: v[0])
+                            for a in names for b in names if a != b)
+        automaton = HybridAutomaton(name="complete", modes=tuple(Mode(name=n) for n in names),
+                                    transitions=transitions, variables=("x",))
+        report = check(automaton, None, max_cycles=15)
+        print(json.dumps([f.message for f in report.findings if f.kind == "zeno_candidate"]))
+    """)
+    outputs = set()
+    for seed in ("1", "2", "3"):
+        env = {**__import__("os").environ, "PYTHONHASHSEED": seed}
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+        outputs.add(out.stdout)
+    assert len(outputs) == 1
+    assert len(json.loads(outputs.pop())) == 15
