@@ -1,4 +1,5 @@
-# Quick start: `make demo` (the paper scenario) and `make test` (the whole suite).
+# Quick start: `make demo` (the verification report of the paper scenario -> reports/paper/)
+# and `make test` (the whole suite).
 # Each target creates the virtual environment and installs the project first.
 PYTHON ?= python3
 VENV   ?= .venv
@@ -16,7 +17,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/visnav simulate --scenario paper --out out/paper
+	$(VENV)/bin/visnav report --scenario paper --out reports/paper
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -50,6 +50,15 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument("--out", default=None, help="folder for analysis.json and the figures (Bode, Nyquist, "
                                                  "margins and eigenvalues against the gains)")
     ana.set_defaults(func=_cmd_analyse)
+    rep = sub.add_parser("report", help="the verification report of a scenario: report.md, report.html, "
+                                        "report.json and the figures")
+    rep.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
+    rep.add_argument("--out", default=None, help="output folder (default: reports/<scenario>)")
+    rep.add_argument("--quick", action="store_true", help="smaller budgets (structural samples, fuzzing, "
+                                                          "campaign, stiffness grid): under 20 s")
+    rep.add_argument("--seed", type=_non_negative_int, default=0, help="seed of every random study (default: 0)")
+    rep.add_argument("--json", action="store_true", help="print report.json's claims summary as JSON")
+    rep.set_defaults(func=_cmd_report)
     chk = sub.add_parser("check-model", help="structural checks of the supervisor automaton (hybrid.check)")
     chk.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
     chk.add_argument("--samples", type=_positive_int, default=300,
@@ -69,6 +78,47 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} is not positive; give a whole number >= 1")
     return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a whole number >= 0") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} is negative; give a whole number >= 0")
+    return value
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    import time
+
+    from .io import prepare_output_dir
+    from .report import ReportOptions, build_report
+    from .report_files import write_report
+    from .scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    folder = prepare_output_dir(args.out or f"reports/{scenario.name}")
+    def show(name: str) -> None:
+        print(f"visnav report: {name} ...", file=sys.stderr, flush=True)
+
+    progress = show if sys.stderr.isatty() else None
+    start = time.perf_counter()
+    report = build_report(scenario, ReportOptions.for_mode(quick=args.quick, seed=args.seed), progress=progress)
+    written = write_report(report, folder)
+    elapsed = time.perf_counter() - start
+    counts = report.data["claim_counts"]
+    if args.json:
+        print(json.dumps({"scenario": scenario.name, "out": str(folder), "claim_counts": counts,
+                          "files": [str(p) for p in written]}, sort_keys=True))
+    else:
+        lines = [f"visnav report {scenario.name}{' (quick)' if args.quick else ''}: {counts['proven']} proven, "
+                 f"{counts['measured']} measured, {counts['sampled']} sampled claims in {elapsed:.1f} s"]
+        lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
+        lines += [f"  wrote {p}" for p in written]
+        print("\n".join(lines))
+    return EXIT_OK
 
 
 def _summary(result: Any, digest: str) -> dict[str, Any]:
