@@ -27,6 +27,9 @@ bench: $(STAMP)
 	$(PY) benchmarks/bench_bdf_step.py
 	$(PY) benchmarks/bench_events.py
 	$(PY) benchmarks/bench_analyse.py
+	$(PY) benchmarks/bench_campaign.py
+	$(PY) benchmarks/bench_stiffness.py
+	$(PY) benchmarks/bench_fuzz.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -67,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--seed", type=int, default=0, help="seed of the sampling (default: 0)")
     chk.add_argument("--json", action="store_true", help="print the report as one JSON object")
     chk.set_defaults(func=_cmd_check_model)
+    from .cli_sweep import add_parser as _add_sweep; _add_sweep(sub)
+    from .cli_stiffness import add_parser as _add_stiffness; _add_stiffness(sub)
+    from .cli_fuzz import add_parser as _add_fuzz; _add_fuzz(sub)
     return parser
 
 
@@ -381,6 +384,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ScenarioError, OutputError) as err:
         print(f"visnav: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # e.g. `visnav report | head`: the reader left; not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
     except DivergenceError as err:
         if getattr(args, "json", False):
             print(json.dumps({"success": False, "diverged": True, "time_s": err.time, "mode": err.mode,

@@ -129,10 +129,79 @@ def _analysis_blocks(data: dict[str, Any]) -> list[Block]:
     return blocks
 
 
+def _stiffness_blocks(data: dict[str, Any]) -> list[Block]:
+    st = data["stiffness"]
+    blocks = [Block("h2", "Stiffness of the reconstruction ODE (13) and the integrator choice")]
+    rows = [[order, _fmt(row["alpha_deg"]), _fmt(row.get("published_deg")), _fmt(row["error_deg"])]
+            for order, row in st["stability"]["a_alpha"].items()]
+    blocks.append(Block("table", (["BDF order", "A(α) measured [deg]", "published [deg]", "difference [deg]"], rows)))
+    rows = [[scheme, _fmt(row["max_error_px"]), _fmt(row["max_depth_error_mm"]), _fmt(row.get("truncation_error_px"))]
+            for scheme, row in st["reconstruction"].items()]
+    blocks.append(Block("table", ([f"scheme (h = {st['period_s']:g} s)", "max |s - s~| [px]", "max |z - z~| [mm]",
+                                   "truncation error [px]"], rows)))
+    orders = st["observed_order"]
+    blocks.append(Block("p", "Observed orders (exact-solution orbit problem): "
+                        + ", ".join(f"{k} {_fmt(v)}" for k, v in orders.items()) + "."))
+    captions = {"stiffness_regions": "Stability regions with the trajectory's h·λ cloud",
+                "stiffness_error_vs_step": "Error against the step (observed order)",
+                "stiffness_error_vs_time": "Error against wall time (measured on the machine that wrote this "
+                                           "report: the one figure that is not reproducible byte for byte)",
+                "stiffness_ratio": "Stiffness ratio along the run"}
+    for stem in st["figures"]:
+        blocks.append(Block("figure", (stem, captions.get(stem, stem))))
+    blocks.append(Block("claims", _claims_of(data, "stiffness")))
+    return blocks
+
+
+def _fuzzing_blocks(data: dict[str, Any]) -> list[Block]:
+    fz = data["fuzzing"]
+    blocks = [Block("h2", "Fuzzing the switching logic (hypothesis)")]
+    blocks.append(Block("p", (f"{fz['examples_per_property']} examples per property, seed {fz['seed']}; failures "
+                              "are shrunk to minimal counterexamples, replayable with `visnav replay FILE` "
+                              "(their JSON is in report.json). Properties: docs/fuzzing.md.")))
+    for variant, result in fz["variants"].items():
+        blocks.append(Block("h3", f"Variant `{variant}`"))
+        rows = [[r["name"], r["kind"], _fmt(r["examples"]), _fmt(r["steps"]),
+                 "held" if not r["failures"] else "FAILED", r["message"] or ""] for r in result["properties"]]
+        blocks.append(Block("table", (["property", "kind", "examples", "steps", "result", "counterexample"], rows)))
+    blocks.append(Block("claims", _claims_of(data, "fuzzing")))
+    return blocks
+
+
+_SPEC_META = ("format", "version", "scenario", "scenario_digest", "scenario_toml", "samples", "seed")
+
+
+def _campaign_blocks(data: dict[str, Any]) -> list[Block]:
+    summary = data["campaign"]["summary"]
+    spec = data["campaign"]["spec"]
+    blocks = [Block("h2", "Monte-Carlo campaign")]
+    blocks.append(Block("p", (f"{summary['samples_done']} scenarios drawn around `{data['meta']['scenario']}` "
+                              f"(seed {spec.get('seed')}; sample i depends on (seed, i) only; spec hash "
+                              f"`{summary['spec_hash'][:16]}…`). Perturbations: "
+                              + ", ".join(f"{k} {_fmt(v)}" for k, v in spec.items()
+                                          if k not in _SPEC_META) + ".")))
+    blocks.append(Block("table", (["outcome", "count"], [[k, _fmt(v)] for k, v in summary["counts"].items()])))
+    rows = []
+    for key, label in (("clearance_quantiles_m", "min clearance [m]"),
+                       ("reconstruction_error_quantiles_px", "max reconstruction error [px]"),
+                       ("final_error_quantiles_px", "final feature error [px]")):
+        q = summary[key]
+        rows.append([label] + [_fmt(q.get(level)) for level in ("0", "0.05", "0.5", "0.95", "1")])
+    blocks.append(Block("table", (["quantity", "min", "5 %", "median", "95 %", "max"], rows)))
+    if summary["failures"]:
+        blocks.append(Block("p", "Failures: " + "; ".join(f"{k}: samples {_fmt(v)}"
+                                                          for k, v in summary["failures"].items())))
+    blocks.append(Block("claims", _claims_of(data, "campaign")))
+    return blocks
+
+
 SECTION_RENDERERS: dict[str, Callable[[dict[str, Any]], list[Block]]] = {
     "model": _model_blocks,
     "simulation": _simulation_blocks,
     "analysis": _analysis_blocks,
+    "stiffness": _stiffness_blocks,
+    "fuzzing": _fuzzing_blocks,
+    "campaign": _campaign_blocks,
 }
 """Block builders per section name (sections without one are listed by their claims only)."""
 

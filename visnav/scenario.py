@@ -582,9 +582,11 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
             "its return to 0 can mean 'obstacle overcome')",
             "choose an angle such as 0.2 rad",
         )
-    if not sup.detection_hysteresis_m >= 0.0:
+    if not sup.detection_hysteresis_m > 0.0:
         check.fail(
-            "supervisor.detection_hysteresis_m", sup.detection_hysteresis_m, "a value >= 0 [m]", "use 0.02"
+            "supervisor.detection_hysteresis_m", sup.detection_hysteresis_m,
+            "a value > 0 [m] (with 0 the supervisor can leave and re-enter the approach band at the same "
+            "instant, d = d+, forever: finding R2 of docs/fuzzing.md)", "use 0.02"
         )
 
     # -- poses

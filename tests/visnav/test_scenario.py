@@ -410,9 +410,11 @@ def test_arm_angle(paper, value):
     rejects(paper, "supervisor.arm_angle_rad", "choose an angle such as 0.2 rad", "0 < arm_angle_rad < pi/2")
 
 
-def test_detection_hysteresis(paper):
-    paper["supervisor"]["detection_hysteresis_m"] = -0.01
-    rejects(paper, "supervisor.detection_hysteresis_m", "use 0.02", ">= 0")
+@pytest.mark.parametrize("value", [-0.01, 0.0])
+def test_detection_hysteresis(paper, value):
+    """0 is refused too: FAR -> APPROACH and back would both be enabled at d = d+ (finding R2)."""
+    paper["supervisor"]["detection_hysteresis_m"] = value
+    rejects(paper, "supervisor.detection_hysteresis_m", "use 0.02", "> 0")
 
 
 def test_empty_name(paper):
