@@ -47,9 +47,10 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -445,6 +446,43 @@ def _observe(label: str, value: float) -> None:
         target(float(value), label=label)
 
 
+@contextlib.contextmanager
+def _project_constants_ignored() -> Iterator[None]:
+    """Keep hypothesis from mixing the project's own source constants into the draws.
+
+    Since 6.131 hypothesis draws, with a small probability, numbers found in
+    the source of every *local* module in ``sys.modules``; the examples of a
+    seed then depend on which project modules (and test files) happen to be
+    imported, and on every constant anyone adds anywhere.  A fuzzing run must
+    give the same examples for the same seed from the CLI, a library call or
+    the test suite, so its draws use hypothesis' global constants only.  The
+    hook is internal to hypothesis: when it is absent (another version) this
+    does nothing.
+    """
+    try:
+        from hypothesis.internal.conjecture import providers
+    except ImportError:  # pragma: no cover - hypothesis layout changed
+        yield
+        return
+    original = getattr(providers, "_get_local_constants", None)
+    empty_type = getattr(providers, "Constants", None)
+    cache = getattr(providers, "CONSTANTS_CACHE", None)
+    if original is None or empty_type is None or cache is None:  # pragma: no cover - other version
+        yield
+        return
+    from sortedcontainers import SortedSet  # a dependency of hypothesis
+
+    empty = empty_type(integers=SortedSet(), floats=SortedSet(key=providers.float_to_int), bytes=SortedSet(),
+                       strings=SortedSet())
+    cache.cache.clear()
+    providers._get_local_constants = lambda: empty
+    try:
+        yield
+    finally:
+        providers._get_local_constants = original
+        cache.cache.clear()
+
+
 def run_property(
     name: str,
     check: Callable[[Any, Observer], int | None],
@@ -501,7 +539,7 @@ def run_property(
     if seed is not None:
         wrapped = hypothesis_seed(seed)(wrapped)
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _project_constants_ignored():
             warnings.simplefilter("ignore", HypothesisWarning)  # large reprs of long failing sequences
             wrapped()
     except HypothesisException:
@@ -559,7 +597,7 @@ def run_machine(
     if seed is not None:
         Recorded = hypothesis_seed(seed)(Recorded)  # noqa: N806
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _project_constants_ignored():
             warnings.simplefilter("ignore", HypothesisWarning)
             run_state_machine_as_test(Recorded, settings=config)
     except HypothesisException:

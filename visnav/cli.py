@@ -16,6 +16,8 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from .cli_types import non_negative_int, positive_int
+
 __all__ = ["main", "build_parser"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 1, 2, 3
@@ -56,14 +58,14 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", default=None, help="output folder (default: reports/<scenario>)")
     rep.add_argument("--quick", action="store_true", help="smaller budgets (structural samples, fuzzing, "
                                                           "campaign, stiffness grid): under 20 s")
-    rep.add_argument("--seed", type=_non_negative_int, default=0, help="seed of every random study (default: 0)")
+    rep.add_argument("--seed", type=non_negative_int, default=0, help="seed of every random study (default: 0)")
     rep.add_argument("--json", action="store_true", help="print report.json's claims summary as JSON")
     rep.set_defaults(func=_cmd_report)
     chk = sub.add_parser("check-model", help="structural checks of the supervisor automaton (hybrid.check)")
     chk.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
-    chk.add_argument("--samples", type=_positive_int, default=300,
+    chk.add_argument("--samples", type=positive_int, default=300,
                      help="uniform samples per mode for the state-space checks (default: 300)")
-    chk.add_argument("--starts", type=_positive_int, default=8, help="optimiser starts per question (default: 8)")
+    chk.add_argument("--starts", type=positive_int, default=8, help="optimiser starts per question (default: 8)")
     chk.add_argument("--seed", type=int, default=0, help="seed of the sampling (default: 0)")
     chk.add_argument("--json", action="store_true", help="print the report as one JSON object")
     chk.set_defaults(func=_cmd_check_model)
@@ -73,24 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a positive whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not positive; give a whole number >= 1")
-    return value
 
 
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a whole number >= 0") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} is negative; give a whole number >= 0")
-    return value
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

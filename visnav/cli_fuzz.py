@@ -23,6 +23,8 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from .cli_types import positive_int
+
 __all__ = ["add_parser", "cmd_fuzz", "cmd_replay", "DEFAULT_OUT"]
 
 DEFAULT_OUT = "out/fuzz"
@@ -38,14 +40,6 @@ def _exit_codes() -> tuple[int, int, int]:
     return EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a positive whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not positive; give a whole number >= 1")
-    return value
 
 
 def _property_name(text: str) -> str:
@@ -71,7 +65,7 @@ def add_parser(sub: Any) -> None:
                     help="a property to run (repeatable; default: all, see docs/fuzzing.md)")
     fz.add_argument("--variant", type=_variant_name, default="resolved",
                     help="supervisor to fuzz: resolved (default), paper (as written) or a mutant")
-    fz.add_argument("--examples", type=_positive_int, default=None,
+    fz.add_argument("--examples", type=positive_int, default=None,
                     help="examples per property (default: each property's CI budget)")
     fz.add_argument("--seed", type=int, default=None,
                     help="hypothesis seed (default: derandomised, the CI examples)")

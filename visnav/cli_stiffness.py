@@ -15,17 +15,11 @@ import math
 import sys
 from typing import Any
 
+from .cli_types import non_negative_int
+
 __all__ = ["add_parser", "cmd_stiffness", "human_summary"]
 
 
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a whole number >= 0") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} is negative; give a whole number >= 0")
-    return value
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
@@ -38,7 +32,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     cmd.add_argument("--json", action="store_true", help="print the study as one JSON object")
     cmd.add_argument("--out", default=None, help="folder for stiffness.json and the figures (PNG)")
     cmd.add_argument("--seed", type=int, default=0, help="seed of the random scenarios (default: 0)")
-    cmd.add_argument("--random", type=_non_negative_int, default=None,
+    cmd.add_argument("--random", type=non_negative_int, default=None,
                      help="number of random scenarios (default: 6, or 2 with --quick)")
     cmd.add_argument("--quick", action="store_true",
                      help="fewer steps, tolerances, timing repeats and random scenarios (a few seconds)")

@@ -28,6 +28,8 @@ import sys
 import time
 from typing import Any, TextIO
 
+from .cli_types import non_negative_int, positive_int, positive_seconds
+
 __all__ = ["add_parser", "EXIT_INTERRUPTED", "RESULTS_FILE", "SUMMARY_FILE"]
 
 EXIT_INTERRUPTED = 130
@@ -39,34 +41,10 @@ DEFAULT_SAMPLES = 100
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a positive whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not positive; give a whole number >= 1")
-    return value
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a seed >= 0") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} is negative; give a seed >= 0")
-    return value
 
 
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number; give a time in seconds, e.g. 10") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"{text} is not a positive time; give seconds > 0, e.g. 10")
-    return value
 
 
 def add_parser(sub: Any) -> None:
@@ -79,19 +57,19 @@ def add_parser(sub: Any) -> None:
         "same command to resume an interrupted campaign.",
     )
     p.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file (default: paper)")
-    p.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES,
+    p.add_argument("--samples", type=positive_int, default=DEFAULT_SAMPLES,
                    help=f"number of scenarios N (default: {DEFAULT_SAMPLES})")
-    p.add_argument("--seed", type=_seed, default=0, help="seed; sample i depends on (seed, i) only (default: 0)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="seed; sample i depends on (seed, i) only (default: 0)")
     p.add_argument("--out", default=DEFAULT_OUT,
                    help=f"folder for {RESULTS_FILE} and {SUMMARY_FILE} (default: {DEFAULT_OUT})")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_positive_int, default=None,
+    where.add_argument("--workers", type=positive_int, default=None,
                        help="local worker processes (default: the number of CPUs; 1 runs in this process)")
-    where.add_argument("--dask-local", type=_positive_int, default=None, metavar="N",
+    where.add_argument("--dask-local", type=positive_int, default=None, metavar="N",
                        help="run on a Dask LocalCluster of N single-threaded worker processes")
     where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                        help="run on the Dask cluster of this scheduler (its workers must have visnav installed)")
-    p.add_argument("--connect-timeout", type=_seconds, default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
+    p.add_argument("--connect-timeout", type=positive_seconds, default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
                    help=f"seconds to reach the scheduler and find a worker (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the human summary")
     p.add_argument("--progress", action="store_true", help="show the progress bar even when stderr is not a terminal")

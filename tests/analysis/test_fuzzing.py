@@ -186,3 +186,29 @@ def test_run_machine_keeps_the_shrunk_run():
 def test_analysis_fuzzing_does_not_import_visnav():
     code = "import sys, analysis.fuzzing; sys.exit(1 if any(m.startswith('visnav') for m in sys.modules) else 0)"
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_draws_do_not_depend_on_which_project_modules_are_imported(tmp_path):
+    """hypothesis mixes constants of imported local modules into its draws; run_property must not.
+
+    Two processes fuzz the same property with the same seed, one after importing a local module
+    full of odd constants: the counterexamples must be byte-identical.
+    """
+    import subprocess
+    import sys
+
+    odd = tmp_path / "odd_constants.py"
+    odd.write_text("VALUES = (0.3141, 2.718281, 1234567, -42.5, 0.0625, 9.75e-3, 'zzz')\n")
+    code = (
+        "import sys; sys.path.insert(0, {path!r})\n"
+        "{extra}\n"
+        "from visnav.fuzz import counterexample_to_json, fuzz_property\n"
+        "r = fuzz_property('leave_release', variant='paper', seed=3, examples=150)\n"
+        "print(counterexample_to_json(r.counterexample) if r.counterexample else 'held')\n"
+    )
+    outputs = []
+    for extra in ("", "import odd_constants"):
+        done = subprocess.run([sys.executable, "-c", code.format(path=str(tmp_path), extra=extra)],
+                              capture_output=True, text=True, cwd=str(tmp_path), check=True)
+        outputs.append(done.stdout)
+    assert outputs[0] == outputs[1]

@@ -160,8 +160,9 @@ def test_every_mutant_is_caught_within_the_ci_budget(mutant):
         result = fuzz_property(name, variant=mutant, shrink=False)
         if not result.passed:
             break
+    # "caught by at least one" (the requirement): which property catches first may change with the
+    # draws, and hypothesis mixes the project's own constants into them, so any code change can shift it
     assert not result.passed, f"mutant {mutant} survived every property"
-    assert result.name == CATCHERS[mutant]
     assert result.examples <= budget(result.name)
     again = replay(result.counterexample)
     assert again.violated and again.message == result.counterexample.message

@@ -1,0 +1,44 @@
+"""Argument types of the ``visnav`` subcommands: one definition, one wording of every error.
+
+Each raises :class:`argparse.ArgumentTypeError` naming the value and what to give instead, which
+argparse turns into a usage error (exit code 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+__all__ = ["positive_int", "non_negative_int", "positive_seconds"]
+
+
+def _whole(text: str, minimum: int, wanted: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give {wanted}") from None
+    if value < minimum:
+        raise argparse.ArgumentTypeError(
+            f"{value} is {'not positive' if minimum == 1 else 'negative'}; give {wanted}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """A whole number >= 1 (counts: samples, examples, workers)."""
+    return _whole(text, 1, "a whole number >= 1")
+
+
+def non_negative_int(text: str) -> int:
+    """A whole number >= 0 (seeds, optional counts)."""
+    return _whole(text, 0, "a whole number >= 0")
+
+
+def positive_seconds(text: str) -> float:
+    """A finite time > 0 [s]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number; give a time in seconds, e.g. 10") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} is not a positive time; give seconds > 0, e.g. 10")
+    return value
