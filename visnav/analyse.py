@@ -251,7 +251,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     vs_lm = _vs_loop(vs)
     for channel in ("e_Vy", "e_Vz", "e_Wx"):
         add_loop(f"vs:{channel}", vs_lm, at_output=channel)
-    goal = goal_loop_findings(scenario)
+    goal = goal_loop_findings(scenario, vs=vs, pan=pan)
     first = scenario.obstacles[0].radius_m if scenario.obstacles else radii[0]
     lambda_curves = {
         "lambda": list(_LAMBDA_CURVE),

@@ -162,7 +162,7 @@ def _human(summary: dict[str, Any], written: list[str]) -> str:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from .io import figure_png_bytes, prepare_output_dir, write_text_atomic, write_bytes_atomic
+    from .io import prepare_output_dir, write_figures, write_text_atomic
     from .scenario import load_scenario, scenario_digest
     from .simulation import simulate
 
@@ -176,14 +176,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         write_text_atomic(folder / "summary.json", json.dumps(summary, indent=2, sort_keys=True) + "\n")
         written += [str(folder / "trajectory.csv"), str(folder / "summary.json")]
         if not args.no_figures:
-            import matplotlib.pyplot as plt
-
             from .figures import paper_figures
 
-            for stem, figure in paper_figures(result).items():
-                write_bytes_atomic(folder / f"{stem}.png", figure_png_bytes(figure))
-                plt.close(figure)
-                written.append(str(folder / f"{stem}.png"))
+            written += [str(path) for path in write_figures(folder, paper_figures(result)).values()]
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
@@ -300,7 +295,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     from .analyse import DEFAULT_CLEARANCE_M, analyse
     from .scenario import load_scenario, scenario_digest
 
-    from .io import figure_png_bytes, prepare_output_dir, write_bytes_atomic, write_text_atomic
+    from .io import prepare_output_dir, write_figures, write_text_atomic
 
     scenario = load_scenario(args.scenario)
     folder = prepare_output_dir(args.out) if args.out else None
@@ -314,16 +309,11 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     out["scenario_digest"] = scenario_digest(scenario)
     written = []
     if folder is not None:
-        import matplotlib.pyplot as plt
-
         from .figures_analysis import analysis_figures
 
         write_text_atomic(folder / "analysis.json", json.dumps(out, indent=1, sort_keys=True) + "\n")
         written.append(str(folder / "analysis.json"))
-        for stem, figure in analysis_figures(out).items():
-            write_bytes_atomic(folder / f"{stem}.png", figure_png_bytes(figure))
-            plt.close(figure)
-            written.append(str(folder / f"{stem}.png"))
+        written += [str(path) for path in write_figures(folder, analysis_figures(out)).values()]
     if args.json:
         print(json.dumps(out, sort_keys=True))
     else:

@@ -125,7 +125,7 @@ def cmd_stiffness(args: argparse.Namespace) -> int:
     import dataclasses
 
     from .cli import EXIT_BAD_INPUT, EXIT_OK
-    from .io import figure_png_bytes, prepare_output_dir, write_bytes_atomic, write_text_atomic
+    from .io import prepare_output_dir, write_figures, write_text_atomic
     from .scenario import load_scenario, scenario_digest
     from .stiffness import QUICK_SETTINGS, StiffnessStudyError, StudySettings, stiffness_study
 
@@ -145,18 +145,13 @@ def cmd_stiffness(args: argparse.Namespace) -> int:
     out["scenario_digest"] = scenario_digest(scenario)
     written: list[str] = []
     if folder is not None:
-        import matplotlib.pyplot as plt
-
         from .figures_stiffness import stiffness_figures
 
         full = study.as_dict(include_timing=True)
         full["scenario_digest"] = out["scenario_digest"]
         write_text_atomic(folder / "stiffness.json", json.dumps(full, indent=2, sort_keys=True) + "\n")
         written.append(str(folder / "stiffness.json"))
-        for stem, figure in stiffness_figures(study).items():
-            write_bytes_atomic(folder / f"{stem}.png", figure_png_bytes(figure))
-            plt.close(figure)
-            written.append(str(folder / f"{stem}.png"))
+        written += [str(path) for path in write_figures(folder, stiffness_figures(study)).values()]
     if args.json:
         print(json.dumps(out, sort_keys=True))
     else:

@@ -113,6 +113,8 @@ class VisualServoingModel:
         ``F(p) -> ṗ``, the full closed loop.
     offsets : tuple of 3 float
         ``(Dx, a, b)`` of the robot [m].
+    error_function, joint_rate_function : casadi.Function
+        ``p -> e_VS`` and ``p -> q̇``, built once (evaluated in loops by the checks).
     """
 
     lambda_vs: float
@@ -127,14 +129,16 @@ class VisualServoingModel:
     camera: Any
     function: Any
     offsets: tuple[float, float, float]
+    error_function: Any
+    joint_rate_function: Any
 
     def error_at(self, pose: Sequence[float]) -> np.ndarray:
         """``e_VS`` at a pose, shape (3,)."""
-        return _numeric(ca.Function("e_vs", [self.pose], [self.error]), pose).ravel()
+        return _numeric(self.error_function, pose).ravel()
 
     def joint_rates_at(self, pose: Sequence[float]) -> np.ndarray:
         """``(v, ω, ϖ)`` of (7) at a pose, shape (3,) [m/s, rad/s, rad/s]."""
-        return _numeric(ca.Function("q_vs", [self.pose], [self.joint_rates]), pose).ravel()
+        return _numeric(self.joint_rate_function, pose).ravel()
 
     def error_jacobian(self) -> np.ndarray:
         """``E = ∂e_VS/∂p`` at the goal, shape (3, 4), by AD."""
@@ -216,6 +220,8 @@ def visual_servoing_model(scenario: Scenario, *, lambda_vs: float | None = None)
         lambda_vs=lam, goal=goal, desired=desired, task_matrix=task_matrix, pose=pose, features=features,
         error=error, joint_rates=joint_rates, rates=rates, camera=camera,
         function=ca.Function("closed_loop_vs", [pose], [rates]), offsets=offsets,
+        error_function=ca.Function("e_vs", [pose], [error]),
+        joint_rate_function=ca.Function("q_vs", [pose], [joint_rates]),
     )
 
 
@@ -239,6 +245,8 @@ class PanTaskModel:
     error_rate : casadi.SX
         ``ė_gc = ∂e_gc/∂p · ṗ(p, v, ω, ϖ)`` by AD.
     goal : tuple of 4 float
+    pan_rate_function, closure_function : casadi.Function
+        ``(p, (v, ω)) -> ϖ`` and ``-> ė_gc + λ_gc e_gc``, built once.
     """
 
     lambda_gc: float
@@ -249,15 +257,16 @@ class PanTaskModel:
     pan_rate: Any
     error_rate: Any
     goal: tuple[float, float, float, float]
+    pan_rate_function: Any
+    closure_function: Any
 
     def pan_rate_at(self, pose: Sequence[float], v: float, omega: float) -> float:
         """``ϖ`` of (16) [rad/s]."""
-        return float(_numeric(ca.Function("pan", [self.pose, self.base], [self.pan_rate]), pose, [v, omega])[0, 0])
+        return float(_numeric(self.pan_rate_function, pose, [v, omega])[0, 0])
 
     def closure_residual(self, pose: Sequence[float], v: float, omega: float) -> float:
         """``ė_gc + λ_gc e_gc`` at a pose and base motion (0 when (16) decouples the task exactly)."""
-        f = ca.Function("closure", [self.pose, self.base], [self.error_rate + self.lambda_gc * self.error])
-        return float(_numeric(f, pose, [v, omega])[0, 0])
+        return float(_numeric(self.closure_function, pose, [v, omega])[0, 0])
 
     def pan_linearisation(self) -> Linearisation:
         """The pan loop ``ϑ̇ = ϖ(ϑ)`` with the base at rest at the goal (1 state); closed form ``−λ_gc``."""
@@ -303,7 +312,9 @@ def pan_task_model(scenario: Scenario, *, lambda_gc: float | None = None) -> Pan
     rates = ca.vertcat(*model.pose_rates(pose[2], base[0], base[1], pan_rate, ops=ca))
     error_rate = ca.mtimes(ca.jacobian(error, pose), rates)
     return PanTaskModel(lambda_gc=lam, y_gc_desired=y_gc_desired, pose=pose, base=base, error=error,
-                        pan_rate=pan_rate, error_rate=error_rate, goal=goal)
+                        pan_rate=pan_rate, error_rate=error_rate, goal=goal,
+                        pan_rate_function=ca.Function("pan", [pose, base], [pan_rate]),
+                        closure_function=ca.Function("closure", [pose, base], [error_rate + lam * error]))
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -364,10 +375,14 @@ class GoalLoopFindings:
         }
 
 
-def goal_loop_findings(scenario: Scenario, *, lambda_vs: float | None = None,
-                       lambda_gc: float | None = None) -> GoalLoopFindings:
-    """Linearise the goal loops and explain the zero eigenvalue of the full loop."""
-    vs = visual_servoing_model(scenario, lambda_vs=lambda_vs)
+def goal_loop_findings(scenario: Scenario, *, vs: VisualServoingModel | None = None,
+                       pan: PanTaskModel | None = None) -> GoalLoopFindings:
+    """Linearise the goal loops and explain the zero eigenvalue of the full loop.
+
+    ``vs`` and ``pan`` are the scenario's models when the caller has built them already
+    (default: built here with the scenario's gains).
+    """
+    vs = vs or visual_servoing_model(scenario)
     task = vs.task_linearisation()
     full = vs.closed_loop_linearisation()
     zero_mode = motion = None
@@ -383,7 +398,7 @@ def goal_loop_findings(scenario: Scenario, *, lambda_vs: float | None = None,
     jr = np.array(model.reduced_jacobian(vs.goal[3], robot.pan_offset_m, robot.camera_forward_m,
                                         robot.camera_lateral_m), dtype=float)
     eg = vs.input_matrix()
-    pan = pan_task_model(scenario, lambda_gc=lambda_gc)
+    pan = pan or pan_task_model(scenario)
     start = scenario.start
     residual = 0.0
     for s in np.linspace(0.0, 1.0, 5):

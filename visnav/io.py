@@ -7,7 +7,10 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["OutputError", "prepare_output_dir", "write_bytes_atomic", "write_text_atomic", "figure_png_bytes"]
+__all__ = [
+    "OutputError", "prepare_output_dir", "write_bytes_atomic", "write_text_atomic", "figure_png_bytes",
+    "figures_png", "write_png", "write_figures",
+]
 
 
 class OutputError(OSError):
@@ -58,3 +61,29 @@ def figure_png_bytes(figure: object, dpi: int = 120) -> bytes:
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})  # type: ignore[attr-defined]
     return buffer.getvalue()
+
+
+def figures_png(figures: dict[str, object]) -> dict[str, bytes]:
+    """PNG bytes of each figure (:func:`figure_png_bytes`), by stem; the figures are closed."""
+    import matplotlib.pyplot as plt
+
+    out: dict[str, bytes] = {}
+    for stem in sorted(figures):
+        out[stem] = figure_png_bytes(figures[stem])
+        plt.close(figures[stem])  # type: ignore[arg-type]
+    return out
+
+
+def write_png(folder: Path, png: dict[str, bytes]) -> dict[str, Path]:
+    """Write each image as ``folder/<stem>.png`` (atomically, sorted by stem); the paths by stem."""
+    written: dict[str, Path] = {}
+    for stem in sorted(png):
+        path = Path(folder) / f"{stem}.png"
+        write_bytes_atomic(path, png[stem])
+        written[stem] = path
+    return written
+
+
+def write_figures(folder: Path, figures: dict[str, object]) -> dict[str, Path]:
+    """Render (:func:`figures_png`) and write (:func:`write_png`) matplotlib figures."""
+    return write_png(folder, figures_png(figures))

@@ -425,7 +425,6 @@ def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
             "tool": "visnav report",
             "scenario": scenario.name,
             "scenario_digest": scenario_digest(scenario),
-            "automaton_digest": automaton_digest(scenario),
             "quick": options.quick,
             "seeds": {"report": options.seed},
             "budgets": {"check_samples": options.check_samples, "fuzz_examples": options.fuzz_examples,
@@ -447,6 +446,7 @@ def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
         data["sections"].append(name)
         claims += section_claims
         figures.update(section_figures)
+    data["meta"]["automaton_digest"] = data["model"]["automaton"]["digest"]  # computed once, by the model section
     data["claims"] = [c.as_dict() for c in claims]
     data["claim_counts"] = {s: sum(c.status == s for c in claims) for s in CLAIM_STATUSES}
     return Report(data=jsonable(data), figures=figures, timings_s=timings)

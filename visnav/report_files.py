@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .io import figure_png_bytes, write_bytes_atomic, write_text_atomic
+from .io import figures_png, write_png, write_text_atomic
 from .report import Report
 from .report_render import render_html, render_markdown
 
@@ -27,19 +27,10 @@ def write_report(report: Report, folder: Path) -> list[Path]:
     ``report.json`` last, so an interrupted write never leaves a report.json
     that points at missing figures.
     """
-    import matplotlib.pyplot as plt
-
     figure_dir = folder / FIGURE_DIR
     figure_dir.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    png: dict[str, bytes] = {}
-    for stem in sorted(report.figures):
-        data = figure_png_bytes(report.figures[stem])
-        plt.close(report.figures[stem])
-        png[stem] = data
-        path = figure_dir / f"{stem}.png"
-        write_bytes_atomic(path, data)
-        written.append(path)
+    png = figures_png(report.figures)
+    written = list(write_png(figure_dir, png).values())
     paths = {stem: f"{FIGURE_DIR}/{stem}.png" for stem in png}
     for name, text in (("report.md", render_markdown(report.data, paths)),
                        ("report.html", render_html(report.data, png)),
