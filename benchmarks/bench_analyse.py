@@ -15,7 +15,7 @@ import statistics
 import sys
 import time
 
-from visnav.analyse import analyse
+from visnav.studies.loop_analysis import analyse
 from visnav.scenario import load_scenario
 
 

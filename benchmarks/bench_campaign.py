@@ -28,7 +28,7 @@ import sys
 import time
 from collections import Counter
 
-from visnav.campaign import CampaignSpec, campaign_executor, process_pool, run_campaign
+from visnav.studies.campaign import CampaignSpec, campaign_executor, process_pool, run_campaign
 from visnav.scenario import load_scenario
 
 

@@ -4,7 +4,7 @@ Usage::
 
     python benchmarks/bench_stiffness.py [--rounds N] [--min-ratio R]
 
-The problem: the paper scenario's occlusion (``visnav.stiffness.occlusion_window``),
+The problem: the paper scenario's occlusion (``visnav.studies.stiffness.occlusion_window``),
 its first 300 sampling periods (15 s at h = 50 ms), from the true features at
 the last unoccluded sample; both sides get the same information, the zero-order-
 hold records (pan angle at the start of each period, joint rates held over it).
@@ -43,7 +43,7 @@ from visnav.estimator import FeatureEstimator
 from visnav.parameters import EstimatorSettings
 from visnav.scenario import load_scenario
 from visnav.simulation import simulate
-from visnav.stiffness import (
+from visnav.studies.stiffness import (
     HISTORY_PERIODS,
     histopolant_screw,
     occlusion_window,

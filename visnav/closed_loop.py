@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from hybrid import HybridSystem, Plant
 
-from .controllers import (
+from visnav.controllers import (
     avoidance_control,
     blend,
     occlusion_avoidance,
@@ -27,9 +27,9 @@ from .controllers import (
     path_following,
     visual_servoing,
 )
-from . import model
-from .estimator import FeatureEstimator
-from .geometry import (
+from visnav import model
+from visnav.estimator import FeatureEstimator
+from visnav.geometry import (
     ImageMeasurement,
     camera_pose,
     choose_bypass_side,
@@ -39,8 +39,8 @@ from .geometry import (
     proximity,
     wrap_angle,
 )
-from .parameters import Scenario
-from .supervisor import SupervisorModel, build_supervisor, split_mode
+from visnav.parameters import Scenario
+from visnav.supervisor import SupervisorModel, build_supervisor, split_mode
 
 __all__ = ["ClosedLoop", "LoopState", "Observation", "robot_plant", "desired_features", "record_names"]
 

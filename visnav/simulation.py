@@ -16,10 +16,10 @@ import numpy as np
 
 from hybrid import SampledTrace, simulate_sampled
 
-from .jsonable import jsonable
-from .closed_loop import ClosedLoop, robot_plant
-from .parameters import Scenario
-from .supervisor import split_mode
+from visnav.jsonable import jsonable
+from visnav.closed_loop import ClosedLoop, robot_plant
+from visnav.parameters import Scenario
+from visnav.supervisor import split_mode
 
 __all__ = ["SimulationResult", "Metrics", "simulate", "compute_metrics", "CHATTER_WINDOW_S", "CLEARANCE_SUBSTEPS"]
 

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 from hybrid import Box, HybridAutomaton, HybridSystem, MemoryVariable, Mode, Transition
 
-from .parameters import Envelopes, SupervisorSettings
+from visnav.parameters import Envelopes, SupervisorSettings
 
 __all__ = [
     "COLLISION_PHASES",

@@ -1,0 +1,152 @@
+"""`visnav report`: reproducible, self-contained, claims marked, bad input refused; the HTML in a browser."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from visnav.app.cli import main
+from visnav.app.report import CLAIM_STATUSES, Claim, ReportOptions, build_report, dependency_versions
+from visnav.app.report_render import render_markdown
+from visnav.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[3]
+COMMITTED = ROOT / "reports" / "paper"
+
+
+def _run_report(out: Path, *extra: str, hashseed: str = "7", blas_threads: str | None = None
+                ) -> subprocess.CompletedProcess:
+    # the console script, exactly as `make demo` runs it: hypothesis mixes constants of the imported
+    # project modules into its draws, so `python -m visnav.app.cli` (which imports the CLI twice) could differ
+    env = {**os.environ, "PYTHONHASHSEED": hashseed}
+    if blas_threads is not None:  # the CLI must override it: threaded LAPACK changes the round-off
+        env["OPENBLAS_NUM_THREADS"] = blas_threads
+    script = Path(sys.executable).with_name("visnav")
+    return subprocess.run([str(script), "report", "--scenario", "paper", "--out", str(out), *extra],
+                          capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def quick_dirs(tmp_path_factory):
+    """The quick report written twice, by two processes with different string hashing and BLAS threads."""
+    dirs = []
+    for seed, threads in (("1", "2"), ("2", None)):
+        out = tmp_path_factory.mktemp(f"quick{seed}")
+        done = _run_report(out, "--quick", hashseed=seed, blas_threads=threads)
+        assert done.returncode == 0, done.stderr
+        dirs.append(out)
+    return dirs
+
+
+def test_quick_report_is_byte_identical_across_processes(quick_dirs):
+    """report.json and report.md are byte-identical; so is every figure but the wall-time Pareto front."""
+    a, b = quick_dirs
+    for name in ("report.json", "report.md"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    for png in sorted((a / "figures").glob("*.png")):
+        if png.name != "stiffness_error_vs_time.png":  # plots measured wall-clock times
+            assert png.read_bytes() == (b / "figures" / png.name).read_bytes(), png.name
+
+
+def test_report_contents_and_claims(quick_dirs):
+    out = quick_dirs[0]
+    data = json.loads((out / "report.json").read_text())
+    assert data["sections"][:3] == ["model", "simulation", "analysis"]
+    assert data["meta"]["versions"] == dependency_versions()
+    assert len(data["meta"]["scenario_digest"]) == 64 and len(data["meta"]["automaton_digest"]) == 64
+    statuses = {c["status"] for c in data["claims"]}
+    assert statuses <= set(CLAIM_STATUSES) and "proven" in statuses and "sampled" in statuses
+    assert sum(data["claim_counts"].values()) == len(data["claims"])
+    comparison = {row["quantity"]: row for row in data["simulation"]["paper_comparison"]}
+    assert comparison["max_reconstruction_error_px"]["ours"] < comparison["max_reconstruction_error_px"]["paper"]
+    # every figure the documents refer to exists, and the Markdown links them relatively
+    md = (out / "report.md").read_text()
+    for stem in data["simulation"]["figures"] + data["analysis"]["figures"] + ["mode_graph"]:
+        assert (out / "figures" / f"{stem}.png").is_file()
+        assert f"(figures/{stem}.png)" in md
+    html = (out / "report.html").read_text()
+    assert html.count("data:image/png;base64,") == len(list((out / "figures").glob("*.png")))
+    assert "<script" not in html and "http://" not in html and "https://" not in html
+
+
+def test_committed_paper_report_regenerates(tmp_path):
+    """reports/paper is the output of the README's main job; regenerating it must give the same bytes."""
+    committed = json.loads((COMMITTED / "report.json").read_text())
+    if committed["meta"]["versions"] != dependency_versions():
+        differ = {k: (v, dependency_versions().get(k)) for k, v in committed["meta"]["versions"].items()
+                  if dependency_versions().get(k) != v}
+        pytest.skip(f"reports/paper was generated with other package versions {differ}: regenerate it with "
+                    "`make demo` on this machine")
+    done = _run_report(tmp_path)
+    assert done.returncode == 0, done.stderr
+    for name in ("report.json", "report.md"):
+        assert (tmp_path / name).read_bytes() == (COMMITTED / name).read_bytes(), (
+            f"{name} differs from reports/paper/{name}: the report changed; regenerate it with `make demo` and "
+            "review the diff")
+
+
+def test_claims_need_a_known_status():
+    with pytest.raises(ValueError, match="Claim.status = 'likely'"):
+        Claim(text="x", status="likely", section="model")
+    with pytest.raises(ValueError, match="check_samples = 0"):
+        ReportOptions(check_samples=0)
+
+
+def test_markdown_escapes_table_pipes():
+    paper = load_scenario("paper")
+    report = build_report(paper, ReportOptions.for_mode(quick=True))
+    text = render_markdown(report.data, {stem: f"figures/{stem}.png" for stem in report.figures})
+    for line in text.splitlines():
+        if line.startswith("|") and "normal form" in line:
+            assert "\\|" in line or "|" not in line.strip("|")
+
+
+def test_unknown_scenario_and_unwritable_folder_are_clear_errors(tmp_path, capsys):
+    assert main(["report", "--scenario", "no-such-scenario", "--out", str(tmp_path / "x")]) == 2
+    assert "no-such-scenario" in capsys.readouterr().err
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    assert main(["report", "--quick", "--out", str(blocker / "sub")]) == 2
+    assert str(blocker) in capsys.readouterr().err
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def test_html_report_renders_in_headless_chromium(quick_dirs):
+    """Open report.html in headless Chromium: every figure decodes, no console error, no failed request."""
+    if CHROMIUM is None:
+        if os.environ.get("VISNAV_REQUIRE_BROWSER"):
+            pytest.fail("VISNAV_REQUIRE_BROWSER is set but chromium is not installed (apt-get install chromium)")
+        pytest.skip("chromium not installed (apt-get install chromium; .ci/run installs it and requires this test)")
+    from playwright.sync_api import sync_playwright
+
+    page_file = quick_dirs[0] / "report.html"
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+            "--disable-sync", "--no-first-run"])
+        try:
+            page = browser.new_page()
+            problems: list[str] = []
+            page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}") if m.type in (
+                "error", "warning") else None)
+            page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
+            page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url[:80]}"))
+            page.goto(page_file.as_uri(), wait_until="load")
+            images = page.evaluate(
+                "Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.alt])")
+            heading = page.inner_text("h1")
+        finally:
+            browser.close()
+    assert problems == []
+    assert len(images) == len(list((quick_dirs[0] / "figures").glob("*.png"))) >= 9
+    for complete, width, height, alt in images:
+        assert complete and width > 100 and height > 100, alt
+    assert "Verification report" in heading

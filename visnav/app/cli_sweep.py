@@ -1,0 +1,245 @@
+"""``visnav sweep``: Monte-Carlo campaigns over scenario and gain distributions.
+
+::
+
+    visnav sweep [--scenario NAME|FILE] [--samples N] [--seed S] [--out DIR]
+                 [--workers N | --dask-local N | --scheduler tcp://HOST:PORT]
+                 [--connect-timeout S] [--json] [--progress]
+
+Writes ``DIR/results.jsonl`` (one line per finished sample, appended and
+``fsync``-ed as results arrive; see :mod:`visnav.app.campaign_store`) and, once
+every sample is done, ``DIR/summary.json``.  Rerunning the same command after
+an interruption (Ctrl-C, ``kill -9``, a crash) resumes the campaign: samples
+already stored are not run again, and the final files are byte-identical to
+those of an uninterrupted run.
+
+Exit codes: 0 the campaign completed (whatever its success rate), 1 the
+executor failed (results so far are kept), 2 bad input (scenario, options,
+output folder, a results file of another campaign, a scheduler that does not
+answer within ``--connect-timeout``), 130 interrupted (resumable).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from typing import Any, TextIO
+
+from visnav.app.cli_types import non_negative_int, positive_int, positive_seconds
+
+__all__ = ["add_parser", "EXIT_INTERRUPTED", "RESULTS_FILE", "SUMMARY_FILE"]
+
+EXIT_INTERRUPTED = 130
+"""Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
+RESULTS_FILE = "results.jsonl"
+SUMMARY_FILE = "summary.json"
+DEFAULT_OUT = "out/sweep"
+DEFAULT_SAMPLES = 100
+DEFAULT_CONNECT_TIMEOUT_S = 10.0
+
+
+
+
+
+
+
+
+def add_parser(sub: Any) -> None:
+    """Register the ``sweep`` subcommand on the subparsers ``sub`` of :func:`visnav.app.cli.build_parser`."""
+    p = sub.add_parser(
+        "sweep",
+        help="Monte-Carlo campaign over scenario and gain distributions (resumable)",
+        description="Run N perturbed copies of a scenario (start pose, obstacles, target, gains k, lambda_VS, "
+        "v_coll) and summarise success rate, clearance, reconstruction error and failure classes. Rerun the "
+        "same command to resume an interrupted campaign.",
+    )
+    p.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file (default: paper)")
+    p.add_argument("--samples", type=positive_int, default=DEFAULT_SAMPLES,
+                   help=f"number of scenarios N (default: {DEFAULT_SAMPLES})")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="seed; sample i depends on (seed, i) only (default: 0)")
+    p.add_argument("--out", default=DEFAULT_OUT,
+                   help=f"folder for {RESULTS_FILE} and {SUMMARY_FILE} (default: {DEFAULT_OUT})")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=positive_int, default=None,
+                       help="local worker processes (default: the number of CPUs; 1 runs in this process)")
+    where.add_argument("--dask-local", type=positive_int, default=None, metavar="N",
+                       help="run on a Dask LocalCluster of N single-threaded worker processes")
+    where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                       help="run on the Dask cluster of this scheduler (its workers must have visnav installed)")
+    p.add_argument("--connect-timeout", type=positive_seconds, default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
+                   help=f"seconds to reach the scheduler and find a worker (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the human summary")
+    p.add_argument("--progress", action="store_true", help="show the progress bar even when stderr is not a terminal")
+    p.set_defaults(func=_cmd_sweep)
+
+
+class _Progress:
+    """A one-line progress bar on a stream (redrawn at most every 0.1 s)."""
+
+    WIDTH = 30
+
+    def __init__(self, stream: TextIO, total: int, done: int, enabled: bool) -> None:
+        self.stream = stream
+        self.total = total
+        self.done = done
+        self.start_done = done
+        self.enabled = enabled
+        self.start = time.perf_counter()
+        self.last = -math.inf
+
+    def update(self, step: int = 1) -> None:
+        self.done += step
+        now = time.perf_counter()
+        if self.enabled and (now - self.last >= 0.1 or self.done == self.total):
+            self.last = now
+            self._draw(now)
+
+    def _draw(self, now: float) -> None:
+        fraction = self.done / self.total if self.total else 1.0
+        filled = int(round(fraction * self.WIDTH))
+        elapsed = now - self.start
+        ran = self.done - self.start_done
+        rate = ran / elapsed if elapsed > 0 else 0.0
+        eta = f"{(self.total - self.done) / rate:5.0f} s left" if rate > 0 else "        "
+        self.stream.write(f"\rsweep [{'#' * filled}{'.' * (self.WIDTH - filled)}] {self.done}/{self.total} "
+                          f"{rate:6.2f}/s {eta}")
+        self.stream.flush()
+
+    def finish(self) -> None:
+        if self.enabled and self.last > -math.inf:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _quantile_line(pairs: dict[str, float], unit: str) -> str:
+    if not pairs:
+        return "(none)"
+    names = {"0": "min", "0.05": "q05", "0.25": "q25", "0.5": "median", "0.75": "q75", "0.95": "q95", "1": "max"}
+    return "  ".join(f"{names.get(k, k)} {v:.4g}" for k, v in pairs.items()) + f" {unit}"
+
+
+def _human(out: dict[str, Any]) -> str:
+    s = out["summary"]
+    counts = ", ".join(f"{k} {v}" for k, v in s["counts"].items() if v)
+    rate = s["success_rate"]
+    lo, hi = s["success_interval_95"] or (None, None)
+    lines = [
+        f"sweep {out['scenario']} (seed {out['seed']}, {s['samples_requested']} samples, spec {s['spec_hash'][:12]}): "
+        + ("complete" if s["complete"] else f"{s['samples_done']} done"),
+        f"  executor                    {out['executor']}",
+        f"  this run                    {out['ran']} samples in {out['wall_time_s']:.1f} s"
+        + (f" ({out['scenarios_per_s']:.2f} scenarios/s)" if out["scenarios_per_s"] else "")
+        + (f", {out['resumed']} resumed from the results file" if out["resumed"] else ""),
+        f"  success rate                {rate:.4f} (95% Wilson interval [{lo:.4f}, {hi:.4f}])"
+        if rate is not None else "  success rate                (no results)",
+        f"  outcomes                    {counts}",
+        f"  min clearance               {_quantile_line(s['clearance_quantiles_m'], 'm')}",
+        f"  max reconstruction error    {_quantile_line(s['reconstruction_error_quantiles_px'], 'px')}",
+        f"  final feature error         {_quantile_line(s['final_error_quantiles_px'], 'px')}",
+    ]
+    for name, indices in s["failures"].items():
+        shown = ", ".join(str(i) for i in indices[:12]) + (", ..." if len(indices) > 12 else "")
+        lines.append(f"  {name:<27} samples {shown}")
+    lines += [f"  wrote {path}" for path in out["written"]]
+    return "\n".join(lines)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from visnav.studies.campaign import (
+        CampaignSpec,
+        CampaignSpecError,
+        SchedulerUnavailableError,
+        campaign_executor,
+        summarise,
+    )
+    from visnav.app.campaign_store import CampaignStoreError, open_store
+    from visnav.app.cli import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED
+    from visnav.app.files import prepare_output_dir, write_text_atomic
+    from visnav.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)  # ScenarioError: exit 2 in visnav.app.cli.main
+    try:
+        spec = CampaignSpec(scenario=scenario, samples=args.samples, seed=args.seed)
+    except CampaignSpecError as err:
+        print(f"visnav: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    folder = prepare_output_dir(args.out)  # OutputError: exit 2 in visnav.app.cli.main
+    results_path = folder / RESULTS_FILE
+    try:
+        store, report = open_store(results_path, spec)
+    except CampaignStoreError as err:
+        print(f"visnav: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as err:
+        print(f"visnav: error: --out {str(folder)!r}: cannot write {RESULTS_FILE} ({err.strerror or err}); "
+              "choose a writable folder", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    for bad in report.bad_lines:
+        print(f"visnav: warning: {results_path}: {bad}; dropped", file=sys.stderr)
+    if report.bad_lines:
+        print(f"visnav: warning: {results_path}: kept {report.results} valid results and rewrote the file without "
+              f"the {len(report.bad_lines)} bad line(s); their samples will be run again", file=sys.stderr)
+    resumed = report.results
+    with store:
+        progress = _Progress(sys.stderr, spec.samples, resumed, args.progress or sys.stderr.isatty())
+
+        def sink(result: Any) -> None:
+            store.append(result)
+            progress.update()
+
+        start = time.perf_counter()
+        description = "none needed (every sample was already stored)"
+        try:
+            if len(store.done) < spec.samples:
+                with campaign_executor(workers=args.workers, dask_local=args.dask_local, scheduler=args.scheduler,
+                                       connect_timeout_s=args.connect_timeout) as backend:
+                    from visnav.studies.campaign import run_campaign
+
+                    description = backend.description
+                    run_campaign(spec, backend.executor, sink, skip=store.done, window=backend.window)
+        except (CampaignSpecError, SchedulerUnavailableError) as err:
+            progress.finish()
+            print(f"visnav: error: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except KeyboardInterrupt:
+            progress.finish()
+            print(f"visnav: interrupted: {len(store.done)} of {spec.samples} samples are stored in {results_path}; "
+                  "rerun the same command to resume", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except Exception as err:  # noqa: BLE001 - an executor or worker failure, reported with the resume hint
+            progress.finish()
+            print(f"visnav: error: the campaign stopped ({type(err).__name__}: {err}); {len(store.done)} of "
+                  f"{spec.samples} samples are stored in {results_path}; rerun the same command to resume",
+                  file=sys.stderr)
+            return EXIT_TASK_FAILED
+        wall = time.perf_counter() - start
+        progress.finish()
+        store.compact()
+        summary = summarise(spec, store.results())
+    campaign = {k: v for k, v in spec.as_dict().items() if k != "scenario_toml"}
+    summary_dict = summary.as_dict()
+    write_text_atomic(folder / SUMMARY_FILE,
+                      json.dumps({"campaign": campaign, "summary": summary_dict}, indent=2, sort_keys=True) + "\n")
+    ran = spec.samples - resumed
+    out = {
+        "scenario": scenario.name,
+        "seed": spec.seed,
+        "executor": description,
+        "ran": ran,
+        "resumed": resumed,
+        "dropped_lines": [str(bad) for bad in report.bad_lines],
+        "wall_time_s": wall,
+        "scenarios_per_s": ran / wall if ran and wall > 0 else None,
+        "results_file": str(results_path),
+        "summary_file": str(folder / SUMMARY_FILE),
+        "written": [str(results_path), str(folder / SUMMARY_FILE)],
+        "summary": summary_dict,
+    }
+    if args.json:
+        print(json.dumps(out, sort_keys=True))
+    else:
+        print(_human(out))
+    return EXIT_OK

@@ -1,0 +1,452 @@
+"""The verification report of a scenario: what was simulated, proven, measured and sampled.
+
+:func:`build_report` runs every study on one scenario and returns a
+:class:`Report`: a JSON-ready dictionary (byte-identical for the same
+scenario, options and dependency versions: no wall-clock time, no absolute
+path, no date) and the figures as matplotlib figures.  Rendering to
+Markdown and self-contained HTML is :mod:`visnav.app.report_render`; writing the
+files is the CLI's job.
+
+Every claim of the report is a :class:`Claim` marked
+
+* ``proven`` — a sound certificate or an exact symbolic identity,
+  re-checkable from the report;
+* ``measured`` — a number computed by deterministic numerics on the model
+  (a simulation, eigenvalues, margins, errors against a reference);
+* ``sampled`` — a statement that generalises from samples and can miss
+  cases (structural checks by sampling, fuzzing, Monte-Carlo campaigns,
+  entry angles from one run).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any
+
+from visnav.jsonable import jsonable
+from visnav.parameters import Scenario
+
+__all__ = [
+    "CLAIM_STATUSES",
+    "DEPENDENCIES",
+    "PAPER_PUBLISHED",
+    "Claim",
+    "ReportOptions",
+    "Report",
+    "build_report",
+    "automaton_digest",
+    "dependency_versions",
+]
+
+CLAIM_STATUSES = ("proven", "measured", "sampled")
+"""How a claim was obtained, strongest first."""
+
+DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx", "matplotlib", "dask",
+                "distributed")
+"""Packages whose versions the report records."""
+
+PAPER_PUBLISHED = {
+    "task_achieved": True,
+    "collision": False,
+    "occlusion_duration_s": 15.0,
+    "max_reconstruction_error_px": 0.17,
+    "max_depth_error_mm": 1.164,
+    "controls_saturated": False,
+}
+"""Folio & Cadenat's published results for their scenario (``../shared/paper/NOTES.md``)."""
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Claim:
+    """One statement of the report and how it was obtained.
+
+    Attributes
+    ----------
+    text : str
+    status : {"proven", "measured", "sampled"}
+    section : str
+        The report section that supports it.
+    """
+
+    text: str
+    status: str
+    section: str
+
+    def __post_init__(self) -> None:
+        if self.status not in CLAIM_STATUSES:
+            raise ValueError(f"Claim.status = {self.status!r}; expected one of {', '.join(CLAIM_STATUSES)}")
+
+    def as_dict(self) -> dict[str, str]:
+        """JSON-ready view."""
+        return {"section": self.section, "status": self.status, "text": self.text}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ReportOptions:
+    """What the report runs, and how much.
+
+    Attributes
+    ----------
+    quick : bool
+        Smaller budgets everywhere (the ``--quick`` report, < 20 s).
+    seed : int
+        Seed of every random study (structural sampling, fuzzing, campaign).
+    check_samples : int
+        Samples per mode of the structural checks.
+    fuzz_examples : int
+        Hypothesis examples per fuzzing property.
+    campaign_samples : int
+        Scenarios of the Monte-Carlo campaign.
+    """
+
+    quick: bool = False
+    seed: int = 0
+    check_samples: int = 300
+    fuzz_examples: int = 60
+    campaign_samples: int = 40
+
+    @classmethod
+    def for_mode(cls, *, quick: bool, seed: int = 0) -> ReportOptions:
+        """The full or the quick budgets."""
+        if quick:
+            return cls(quick=True, seed=seed, check_samples=40, fuzz_examples=10, campaign_samples=6)
+        return cls(quick=False, seed=seed)
+
+    def __post_init__(self) -> None:
+        for name in ("check_samples", "fuzz_examples", "campaign_samples"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"ReportOptions.{name} = {value!r}; expected a whole number >= 1")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"ReportOptions.seed = {self.seed!r}; expected a whole number >= 0")
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Report:
+    """A built report.
+
+    Attributes
+    ----------
+    data : dict
+        JSON-ready content (what ``report.json`` holds), deterministic.
+    figures : dict of str to matplotlib Figure
+        Keyed by file stem; ``data`` refers to them by stem.
+    timings_s : dict of str to float
+        Wall time per section [s] (not part of ``data``: not reproducible).
+    """
+
+    data: dict[str, Any]
+    figures: dict[str, Any] = field(default_factory=dict)
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def claims(self) -> tuple[Claim, ...]:
+        """Every claim, in section order."""
+        return tuple(Claim(**c) for c in self.data["claims"])
+
+
+def dependency_versions() -> dict[str, str]:
+    """Installed versions of :data:`DEPENDENCIES` and of Python (``"not installed"`` when absent)."""
+    out = {"python": platform.python_version()}
+    for name in DEPENDENCIES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    try:
+        out["visnav"] = metadata.version("visnav")
+    except metadata.PackageNotFoundError:
+        out["visnav"] = "not installed"
+    return out
+
+
+def automaton_digest(scenario: Scenario) -> str:
+    """SHA-256 (hex) of the supervisor automaton's canonical JSON (``hybrid.export.to_json``)."""
+    from hybrid.export import to_json
+
+    from visnav.supervisor import build_supervisor
+
+    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+    text = json.dumps(to_json(model.automaton), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+# --------------------------------------------------------------------------- sections
+
+
+def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
+    from hybrid import check
+
+    from visnav.app.figures import mode_graph_figure
+    from visnav.scenario import scenario_to_toml
+    from visnav.supervisor import build_supervisor, measurement_box, measurement_system
+
+    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+    automaton = model.automaton
+    report = check(measurement_system(model), measurement_box(model, scenario.camera.half_width_px),
+                   samples=options.check_samples, starts=8 if not options.quick else 2, seed=options.seed)
+    checks = report.as_dict()
+    data = {
+        "parameters": tomllib.loads(scenario_to_toml(scenario)),
+        "automaton": {
+            "modes": len(automaton.modes),
+            "transitions": len(automaton.transitions),
+            "memory": sorted(m.name for m in automaton.memory),
+            "digest": automaton_digest(scenario),
+        },
+        "structural_checks": {"clean": report.clean, "samples_per_mode": options.check_samples,
+                              "seed": options.seed, **checks},
+        "figures": ["mode_graph"],
+    }
+    n_err, n_warn = len(report.errors), len(report.warnings)
+    claims = [Claim(
+        section="model", status="sampled",
+        text=(f"structural checks of the {len(automaton.modes)}-mode supervisor: "
+              + ("clean" if report.clean else f"{n_err} error(s), {n_warn} warning(s)")
+              + f" ({options.check_samples} samples per mode + corners and faces, seed {options.seed}; graph "
+              "checks exact)"),
+    )]
+    return data, claims, {"mode_graph": mode_graph_figure(automaton)}
+
+
+def _simulation_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
+    from visnav.app.figures import paper_figures
+    from visnav.simulation import simulate
+
+    result = simulate(scenario)
+    m = result.metrics
+    metrics = m.as_dict()
+    ours = {
+        "task_achieved": m.success,
+        "collision": m.collided,
+        "occlusion_duration_s": m.occlusion_duration_s,
+        "max_reconstruction_error_px": m.max_reconstruction_error_px,
+        "max_depth_error_mm": m.max_depth_error_mm,
+        "controls_saturated": not m.within_actuator_limits,
+    }
+    comparison = [{"quantity": k, "paper": PAPER_PUBLISHED[k], "ours": ours[k]} for k in PAPER_PUBLISHED]
+    data = {"metrics": metrics, "paper_comparison": comparison,
+            "figures": ["fig4_trajectory", "fig5_risk", "fig6_reconstruction", "fig7_controls"]}
+    claims = [
+        Claim(section="simulation", status="measured",
+              text=(f"the paper scenario {'succeeds' if m.success else 'fails'} ({m.termination}) "
+                    f"{'without' if not m.collided else 'WITH'} collision; minimum clearance "
+                    f"{m.min_clearance_m:.3g} m (exact arcs, 20 sub-samples per period)")),
+        Claim(section="simulation", status="measured",
+              text=(f"reconstruction while hidden: max |s - s~| = {m.max_reconstruction_error_px:.3g} px, "
+                    f"max |z - z~| = {m.max_depth_error_mm:.3g} mm over a {m.occlusion_duration_s:.4g} s occlusion "
+                    f"(paper: < {PAPER_PUBLISHED['max_reconstruction_error_px']} px, "
+                    f"< {PAPER_PUBLISHED['max_depth_error_mm']} mm over about 15 s)")),
+        Claim(section="simulation", status="measured",
+              text=(f"{len(m.transitions)} transitions, {m.chatter_count} chatter episode(s); peak |v|, |w|, "
+                    f"|pan rate| = {', '.join(f'{x:.3g}' for x in m.max_abs_input)} "
+                    f"({'within' if m.within_actuator_limits else 'BEYOND'} the actuator limits)")),
+    ]
+    return data, claims, paper_figures(result)
+
+
+def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
+    from visnav.studies.loop_analysis import analyse
+    from visnav.app.figures_analysis import analysis_figures
+
+    full = analyse(scenario).as_dict()
+    figures = analysis_figures(full)
+    data = {k: v for k, v in full.items() if k not in ("frequency_responses", "scenario")}
+    data["figures"] = sorted(figures)
+    pf = full["path_following"]
+    eig = ", ".join(f"{re:.6g}" for re, _ in pf["eigenvalues"])
+    region = ", ".join(f"{n} in [{lo:.4g}, {hi:.4g}]" for n, (lo, hi) in pf["lyapunov"]["region"].items())
+    goal = full["goal"]
+    claims = [
+        Claim(section="analysis", status="proven" if pf["lyapunov"]["certified"] else "measured",
+              text=(f"V' <= 0 for V = k delta^2/2 + 1 - cos(alpha) "
+                    f"{'PROVEN' if pf['lyapunov']['certified'] else 'NOT proven'} on {region} (interval branch and "
+                    f"bound on the exact normal form, {pf['lyapunov']['boxes']} boxes, re-checkable from the JSON); "
+                    "LaSalle: every solution with V < 2 converges to the envelope")),
+        Claim(section="analysis", status="measured",
+              text=f"path-following eigenvalues {eig} 1/s (AD; equal to the closed form to 1e-12)"),
+        Claim(section="analysis", status="sampled",
+              text=f"admissible k for the simulated entry angles: {pf['admissible']['finding']}"),
+        Claim(section="analysis", status="measured",
+              text=("goal: visual-servoing task eigenvalues "
+                    + ", ".join(f"{re:.4g}" for re, _ in goal["visual_servoing_task"]["eigenvalues"])
+                    + "; the full 4-state loop has one zero eigenvalue (a curve of equilibria: camera at its goal "
+                    "pose, base turned about it); pan task eigenvalue "
+                    f"{goal['pan_task']['eigenvalues'][0][0]:.4g}")),
+    ]
+    for name, pair in full["margins"].items():
+        s = pair["sampled"]
+        gm = "inf" if s["gain_margin_db"] is None else f"{s['gain_margin_db']:.3g} dB"
+        claims.append(Claim(
+            section="analysis", status="measured",
+            text=(f"margins of {name} sampled at {full['sampling_period_s']:g} s (ZOH + 1 delay): GM {gm}, "
+                  f"PM {s['phase_margin_deg']:.3g} deg, delay margin {s['delay_margin_s']:.3g} s"),
+        ))
+    for key, curve in full["margins_vs_gains"].items():
+        limit = curve["sampled"]["stability_limit"]
+        if limit is not None:
+            gain = next(k for k in curve if k in ("k", "lambda_gc", "lambda_vs"))
+            claims.append(Claim(section="analysis", status="measured",
+                                text=f"{key}: the sampled loop is unstable for {gain} above {limit:.4g}"))
+    return data, claims, figures
+
+
+def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
+    import dataclasses
+
+    from visnav.app.figures_stiffness import stiffness_figures
+    from visnav.studies.stiffness import QUICK_SETTINGS, StudySettings, stiffness_study
+
+    settings = dataclasses.replace(QUICK_SETTINGS if options.quick else StudySettings(), seed=options.seed)
+    study = stiffness_study(scenario, settings)
+    data = study.as_dict(include_timing=False)
+    figures = stiffness_figures(study)
+    data["figures"] = sorted(figures)
+    ans = data["answer"]
+    a_alpha = data["stability"]["a_alpha"]
+    worst = max(abs(row["error_deg"]) for row in a_alpha.values())
+    recon = data["reconstruction"]
+    rnd = data["stiffness"]["random"]
+    claims = [
+        Claim(section="stiffness", status="measured",
+              text=("A(alpha) of BDF1-6 measured from the boundary locus: "
+                    + ", ".join(f"{row['alpha_deg']:.4f}" for row in a_alpha.values())
+                    + f" deg, within {worst:.2g} deg of Hairer & Wanner; BDF7 is not zero-stable")),
+        Claim(section="stiffness", status="measured",
+              text=(f"is (13) stiff along the paper run? {'YES' if ans['stiff'] else 'NO'}: max |h lambda| = "
+                    f"{ans['max_abs_h_lambda']:.3g} at h = {data['period_s']:g} s; explicit RK4 stays stable up to h = "
+                    + ("any step searched" if ans["rk4_first_unstable_step_s"] is None
+                       else f"{ans['rk4_first_unstable_step_s']:.3g} s"))),
+        Claim(section="stiffness", status="sampled",
+              text=(f"{rnd['count']} random scenarios (seed {rnd['seed']}): max |h lambda| = "
+                    f"{rnd['max_abs_h_lambda']:.3g}, max stiffness ratio {rnd['max_stiffness_ratio']:.3g}")),
+        Claim(section="stiffness", status="measured",
+              text=(f"reconstruction at h = {data['period_s']:g} s: BDF4 {recon['bdf4']['max_error_px']:.3g} px, RK4 "
+                    f"{recon['rk4']['max_error_px']:.3g} px, Euler {recon['euler']['max_error_px']:.3g} px; what limits "
+                    f"it is the screw under zero-order hold (sampling floor {ans['sampling_floor_px']:.3g} px), not the "
+                    "BDF order (from order 3 on)")),
+    ]
+    return data, claims, figures
+
+
+def _fuzzing_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
+    from visnav.fuzzing.core import PAPER, PROPERTIES, RESOLVED, counterexample_to_json, fuzz_property
+
+    # the quick report leaves out the closed-loop (scenario) properties: one example is a whole simulation
+    names = [n for n, p in PROPERTIES.items() if not (options.quick and p.kind == "scenario")]
+    data: dict[str, Any] = {"examples_per_property": options.fuzz_examples, "seed": options.seed,
+                            "shrunk": not options.quick, "properties": names, "variants": {}}
+    claims = []
+    for variant in (RESOLVED, PAPER):
+        results = [fuzz_property(n, variant=variant, examples=min(options.fuzz_examples, PROPERTIES[n].ci_examples),
+                                 seed=options.seed, shrink=not options.quick) for n in names]
+        rows = [r.as_dict() for r in results]
+        counterexamples = {r.name: json.loads(counterexample_to_json(r.counterexample))
+                           for r in results if r.counterexample is not None}
+        failed = [r.name for r in results if not r.passed]
+        data["variants"][variant] = {"passed": not failed, "properties": rows, "counterexamples": counterexamples}
+        total = sum(r.examples for r in results)
+        if variant == RESOLVED:
+            text = (f"fuzzing the resolved supervisor: {len(rows) - len(failed)} of {len(rows)} properties held on "
+                    f"{total} hypothesis examples (seed {options.seed})"
+                    + (f"; FAILED: {', '.join(failed)}" if failed else ""))
+        else:
+            text = (f"fuzzing the paper's flag logic as written: {len(failed)} of {len(rows)} properties fail "
+                    f"({', '.join(failed) or 'none'}), each with a "
+                    + ("replayable counterexample (not shrunk in the quick report)" if options.quick
+                       else "shrunk, replayable counterexample"))
+        claims.append(Claim(section="fuzzing", status="sampled", text=text))
+    return data, claims, {}
+
+
+def _campaign_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
+    from visnav.studies.campaign import CampaignSpec, InlineExecutor, process_pool, run_campaign, summarise
+
+    spec = CampaignSpec(scenario=scenario, samples=options.campaign_samples, seed=options.seed)
+    results: list[Any] = []
+    # the results depend on (seed, index) only, not on the executor: two processes for the full report
+    executor = InlineExecutor() if options.quick else process_pool(2)
+    with executor:
+        run_campaign(spec, executor, results.append)
+    summary = summarise(spec, results).as_dict()
+    data = {"spec": {k: v for k, v in spec.as_dict().items() if k != "scenario_toml"}, "summary": summary}
+    rate, interval = summary["success_rate"], summary["success_interval_95"]
+    counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items() if v)
+    claims = [Claim(
+        section="campaign", status="sampled",
+        text=(f"Monte-Carlo campaign of {summary['samples_done']} perturbed scenarios (seed {options.seed}): "
+              f"success rate {rate:.3g} (95 % Wilson interval [{interval[0]:.3g}, {interval[1]:.3g}]); "
+              f"outcomes: {counts}; median clearance {summary['clearance_quantiles_m'].get('0.5', float('nan')):.3g} m"),
+    )]
+    return data, claims, {}
+
+
+_SECTIONS: tuple[tuple[str, Callable[..., tuple[dict[str, Any], list[Claim], dict]]], ...] = (
+    ("model", _model_section),
+    ("simulation", _simulation_section),
+    ("analysis", _analysis_section),
+    ("stiffness", _stiffness_section),
+    ("fuzzing", _fuzzing_section),
+    ("campaign", _campaign_section),
+)
+
+
+def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
+                 progress: Progress | None = None) -> Report:
+    """Run every study on ``scenario`` and assemble the report.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    options : ReportOptions, optional
+        Default: the full report with seed 0.
+    progress : callable, optional
+        Called with the name of each section as it starts (for a progress display).
+
+    Returns
+    -------
+    Report
+    """
+    import time
+
+    from visnav.scenario import scenario_digest
+
+    options = options or ReportOptions()
+    data: dict[str, Any] = {
+        "meta": {
+            "tool": "visnav report",
+            "scenario": scenario.name,
+            "scenario_digest": scenario_digest(scenario),
+            "quick": options.quick,
+            "seeds": {"report": options.seed},
+            "budgets": {"check_samples": options.check_samples, "fuzz_examples": options.fuzz_examples,
+                        "campaign_samples": options.campaign_samples},
+            "versions": dependency_versions(),
+        },
+        "sections": [],
+    }
+    figures: dict[str, Any] = {}
+    claims: list[Claim] = []
+    timings: dict[str, float] = {}
+    for name, build in _SECTIONS:
+        if progress is not None:
+            progress(name)
+        start = time.perf_counter()
+        section, section_claims, section_figures = build(scenario, options)
+        timings[name] = time.perf_counter() - start
+        data[name] = section
+        data["sections"].append(name)
+        claims += section_claims
+        figures.update(section_figures)
+    data["meta"]["automaton_digest"] = data["model"]["automaton"]["digest"]  # computed once, by the model section
+    data["claims"] = [c.as_dict() for c in claims]
+    data["claim_counts"] = {s: sum(c.status == s for c in claims) for s in CLAIM_STATUSES}
+    return Report(data=jsonable(data), figures=figures, timings_s=timings)
