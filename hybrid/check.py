@@ -78,6 +78,7 @@ from scipy.optimize import Bounds, minimize
 
 from .errors import ExecutionError, ModelDefinitionError
 from .graph import mode_graph
+from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import HybridAutomaton, Transition
 from .region import Box
 from .system import HybridSystem
@@ -1118,35 +1119,49 @@ class _Checker:
     def _chain(
         self, t: Transition, pt: _Point, limit: int
     ) -> tuple[list[Transition], float | None, float, dict[str, float]]:
-        """Fire ``t`` at ``pt``, then level-triggered jumps at the same instant.
+        """Fire ``t`` at ``pt``, then the rest of the instant by :func:`hybrid.instant.settle_instant`.
 
-        Returns the chain fired after ``t``, the guard of ``t`` when it fires
-        again (``None`` if it does not), a closeness (``<= 0`` when the chain
-        re-fires ``t``) and the post-jump values for the witness.
+        The instant after ``t`` is the executors' (level-triggered guards, ties
+        resolved by declaration order, at most ``limit`` further jumps); it
+        stops when ``t`` wins again.  Returns the chain fired after ``t``, the
+        guard of ``t`` when it fires again (``None`` if it does not), a
+        closeness (``<= 0`` when the chain re-fires ``t``) and the post-jump
+        values for the witness.
         """
-        x, m, v = self._post(t, pt)
-        q = t.target
-        chain: list[Transition] = []
+        x, m, _ = self._post(t, pt)
         post_values = {f"post {n}": c for n, c in zip(self.o.coords, x)}
-        for _ in range(limit):
-            level = [u for u in self.o.outgoing[q] if u.direction == 0]
-            guards = {u.name: self.o.guard(u, x, v, m) for u in level}
-            winner = next((u for u in level if guards[u.name] >= 0.0), None)
-            if winner is None:
-                if q == t.source:
-                    closeness = -guards[t.name]
-                else:
-                    back = [-guards[u.name] for u in level if u.target == t.source]
-                    rest = [-guards[u.name] for u in level]
-                    closeness = min(back) if back else (1.0 + min(rest) if rest else 2.0)
-                return chain, None, closeness, post_values
-            if winner is t:
-                return chain, guards[t.name], -guards[t.name], post_values
-            chain.append(winner)
-            x, m = self.o.jump(winner, x, v, m)
-            v = self.o.signals(x, m)
-            q = winner.target
-        return chain, None, 3.0, post_values
+        current = [x]
+
+        def signals(_mode: str, state: tuple[float, ...]) -> tuple[float, ...]:
+            return self.o.signals(state, m)
+
+        def guard(u: Transition, v: Sequence[float], mm: Mapping[str, float]) -> float:
+            return self.o.guard(u, current[0], v, mm)
+
+        def fire(u: Transition, state: tuple[float, ...], v: Sequence[float], mm: Mapping[str, float]
+                 ) -> tuple[tuple[float, ...], dict[str, float]]:
+            post = self.o.jump(u, state, v, mm)
+            current[0] = post[0]
+            return post
+
+        instant = settle_instant(self.o.outgoing, t.target, x, m, signals=signals, guard=guard, fire=fire,
+                                 ties="record", max_jumps=limit, stop_before=t)
+        chain = [step.transition for step in instant.jumps]
+        q, x, m = instant.mode, instant.state, instant.memory
+        v = self.o.signals(x, m)
+        if instant.stopped:
+            again = self.o.guard(t, x, v, m)
+            return chain, again, -again, post_values
+        if instant.zeno is not None:
+            return chain, None, 3.0, post_values
+        guards = {u.name: self.o.guard(u, x, v, m) for u in self.o.outgoing[q] if u.direction == 0}
+        if q == t.source:
+            closeness = -guards[t.name]
+        else:
+            back = [-guards[u.name] for u in self.o.outgoing[q] if u.direction == 0 and u.target == t.source]
+            rest = [-g for g in guards.values()]
+            closeness = min(back) if back else (1.0 + min(rest) if rest else 2.0)
+        return chain, None, closeness, post_values
 
     def _retriggers(self, space: _Space, t: Transition, k: int, pt: _Point, limit: int) -> bool:
         return self._violation(pt, k) == 0.0 and self._chain(t, pt, limit)[1] is not None
@@ -1171,7 +1186,7 @@ class _Checker:
             return []
         q = space.mode
         k = self.o.outgoing[q].index(t)
-        limit = 2 * len(self.a.transitions) + 2
+        limit = MAX_JUMPS_PER_INSTANT - 1  # t itself is the instant's first jump
         feasible = [pt for pt in points if self._violation(pt, k) == 0.0]
         runs = [self._chain(t, pt, limit) for pt in feasible]
         again = {n: r[1] for n, r in enumerate(runs) if r[1] is not None}

@@ -53,7 +53,8 @@ except ImportError:  # pragma: no cover - private names moved: fall back to inte
 
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
-from .model import Transition
+from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
+from .model import Transition, crossed
 from .system import HybridSystem
 from .system import format_state as _fmt
 
@@ -366,14 +367,20 @@ def locate_crossing(
     return lo, hi, phi_lo, phi_hi, iterations
 
 
-# ---------------------------------------------------------------------- the executor
-@dataclass(slots=True)
+# ---------------------------------------------------------------------- access to the user's functions
+@dataclass(frozen=True, slots=True)
 class _Watch:
-    """One watched function of the current mode: a guard, the invariant, or a stop."""
+    """One watched function of the current mode: a guard, the invariant, or a stop.
 
-    kind: str  # "guard" | "invariant" | "stop"
+    Its value ``phi`` switches the watch on by ``phi >= 0`` (``kind="level"``:
+    level guards and stops), ``phi > 0`` (``kind="strict"``: the invariant's
+    ``-inv``) or by a rising crossing of ``phi`` (``kind="crossing"``: a
+    crossing guard, ``phi = ±g``), the rule of :func:`hybrid.model.crossed`.
+    """
+
+    role: str  # "guard" | "invariant" | "stop"
     name: str
-    strict: bool
+    kind: str  # "level" | "strict" | "crossing"
     transition: Transition | None = None
 
 
@@ -390,7 +397,7 @@ def _real(value: Any, what: str, mode: str, t: float, x: Sequence[float]) -> flo
 
 
 class _Run:
-    """Mutable state of one execution (private; the result is immutable)."""
+    """Calls into the user's model for one execution: counted, checked, errors named (private)."""
 
     def __init__(self, system: HybridSystem, stops: Mapping[str, StopFunction], invariant_tol: float) -> None:
         self.system = system
@@ -403,7 +410,6 @@ class _Run:
         self.shape = (system.dimension,)
         self.guard_evaluations = 0
 
-    # -- user functions, wrapped so that nothing is swallowed -----------------------------
     def call(self, fn: Callable[..., Any], what: str, mode: str, t: float, x: Sequence[float], *args: Any) -> Any:
         try:
             return fn(*args)
@@ -425,23 +431,46 @@ class _Run:
         return _real(self.call(tr.guard, what, tr.source, t, x, v, memory), what, tr.source, t, x)
 
     def invariant(self, mode: str, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
-        inv = self.automaton.mode(mode).invariant
+        inv = self.invariants[mode]
         if inv is None:
             return math.inf
         what = f"invariant of mode {mode!r}"
         return _real(self.call(inv, what, mode, t, x, v, memory), what, mode, t, x)
 
-    def watches(self, mode: str) -> list[_Watch]:
-        out = [_Watch(kind="guard", name=tr.name, strict=False, transition=tr) for tr in self.outgoing[mode]]
-        if self.automaton.mode(mode).invariant is not None:
-            out.append(_Watch(kind="invariant", name=mode, strict=True))
-        out += [_Watch(kind="stop", name=name, strict=False) for name in self.stops]
-        return out
+    def flow_function(self, mode: str, memory: Mapping[str, float]) -> Callable[[float, np.ndarray], np.ndarray]:
+        """``fun(t, y)`` for the scipy solver in ``mode``: a fast path, and the checked one on any doubt."""
+        user_flow = self.system.flows[mode]
+        shape = self.shape
+
+        def fun(tt: float, y: np.ndarray) -> np.ndarray:
+            state = tuple(y.tolist())
+            try:
+                result = user_flow(tt, state, memory)
+                total = sum(result)  # NaN (or inf - inf) makes it NaN
+                if total == total:
+                    out = np.array(result, dtype=float)
+                    if out.shape == shape:
+                        return out
+            except Exception:
+                pass
+            return np.array(self.call(self.system.flow, f"flow of mode {mode!r}", mode, tt, state, mode, tt, state,
+                                      memory))
+
+        return fun
+
+    def watches(self, mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]) -> tuple[_Watch, ...]:
+        """The watches of a segment starting at ``(t, x)``."""
+        out = [_Watch(role="guard", name=tr.name, kind="level" if tr.direction == 0 else "crossing", transition=tr)
+               for tr in self.outgoing[mode]]
+        if self.invariants[mode] is not None:
+            out.append(_Watch(role="invariant", name=mode, kind="strict"))
+        out += [_Watch(role="stop", name=name, kind="level") for name in self.stops]
+        return tuple(out)
 
     def values(
-        self, watches: list[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
+        self, watches: Sequence[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
     ) -> list[float]:
-        """``phi`` of every watch (condition: ``phi >= 0``, ``> 0`` when strict).
+        """``phi`` of every watch (see :class:`_Watch`).
 
         A fast pass calls the user functions directly; if anything raises or
         is not a real number, a careful pass re-evaluates them one by one and
@@ -453,12 +482,12 @@ class _Run:
                 raise ValueError
             out = []
             for w in watches:
-                if w.kind == "guard":
+                if w.role == "guard":
                     tr = w.transition
                     g = float(tr.guard(v, memory))  # type: ignore[union-attr]
                     out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
-                elif w.kind == "invariant":
-                    out.append(-float(self.invariants[mode](v, memory)))
+                elif w.role == "invariant":
+                    out.append(-float(self.invariants[mode](v, memory)))  # type: ignore[misc]
                 else:
                     out.append(float(self.stops[w.name](t, x, mode, memory)))
             self.guard_evaluations += len(watches)
@@ -473,18 +502,18 @@ class _Run:
             return self.values_checked(watches, mode, memory, t, x)
 
     def values_checked(
-        self, watches: list[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
+        self, watches: Sequence[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
     ) -> list[float]:
         """:meth:`values` with every call wrapped: raises the precise error."""
         v = self.signals(mode, t, x)
         out = []
         for w in watches:
-            if w.kind == "guard":
+            if w.role == "guard":
                 tr = w.transition
                 assert tr is not None
                 g = self.guard(tr, v, memory, t, x)
                 out.append(-g if tr.direction < 0 else g)
-            elif w.kind == "invariant":
+            elif w.role == "invariant":
                 out.append(-self.invariant(mode, v, memory, t, x))
             else:
                 what = f"stop function {w.name!r}"
@@ -492,36 +521,376 @@ class _Run:
                 out.append(_real(s, what, mode, t, x))
         return out
 
-    def fire(
-        self, tr: Transition, mode: str, t: float, x: tuple[float, ...], memory: dict[str, float]
-    ) -> tuple[tuple[float, ...], dict[str, float]]:
-        """Apply the jump map and the memory reset of ``tr`` (both read pre-jump values)."""
-        v = self.signals(mode, t, x)
-        new_x = self.call(self.system.jump, f"jump map of transition {tr.name!r}", mode, t, x, tr.name, t, x, memory)
-        new_memory = dict(memory)
-        if tr.reset is not None:
-            update = self.call(tr.reset, f"reset of transition {tr.name!r}", mode, t, x, v, memory)
-            if not isinstance(update, Mapping) or set(update) != set(tr.writes):
-                got = sorted(update) if isinstance(update, Mapping) else repr(update)
-                raise ExecutionError(
-                    f"reset of transition {tr.name!r} at t = {t:.17g} s, x = {_fmt(x)} returned {got}; "
-                    f"expected a mapping with exactly the declared writes {sorted(tr.writes)}"
-                )
-            for name, value in update.items():
-                new_memory[name] = _real(value, f"reset of transition {tr.name!r} ({name})", mode, t, x)
-        return new_x, new_memory
+    def fire(self, t: float) -> Callable[[Transition, tuple[float, ...], Sequence[float], Mapping[str, float]],
+                                         tuple[tuple[float, ...], dict[str, float]]]:
+        """The kernel's ``fire`` at time ``t``: jump map and memory reset, both reading pre-jump values."""
+
+        def fire(tr: Transition, x: tuple[float, ...], v: Sequence[float], memory: Mapping[str, float]
+                 ) -> tuple[tuple[float, ...], dict[str, float]]:
+            mode = tr.source
+            new_x = self.call(self.system.jump, f"jump map of transition {tr.name!r}", mode, t, x, tr.name, t, x,
+                              memory)
+            new_memory = dict(memory)
+            if tr.reset is not None:
+                update = self.call(tr.reset, f"reset of transition {tr.name!r}", mode, t, x, v, memory)
+                if not isinstance(update, Mapping) or set(update) != set(tr.writes):
+                    got = sorted(update) if isinstance(update, Mapping) else repr(update)
+                    raise ExecutionError(
+                        f"reset of transition {tr.name!r} at t = {t:.17g} s, x = {_fmt(x)} returned {got}; "
+                        f"expected a mapping with exactly the declared writes {sorted(tr.writes)}"
+                    )
+                for name, value in update.items():
+                    new_memory[name] = _real(value, f"reset of transition {tr.name!r} ({name})", mode, t, x)
+            return new_x, new_memory
+
+        return fire
 
 
-def _winner(candidates: list[Transition], mode: str, t: float, x: Sequence[float]) -> Transition:
-    winner = candidates[0]
-    ties = [tr.name for tr in candidates[1:] if tr.priority == winner.priority]
-    if ties:
-        raise ExecutionError(
-            f"non-determinism in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}: transitions "
-            f"{[winner.name, *ties]} are enabled together with the same priority {winner.priority}; "
-            "give them distinct priorities or exclusive guards"
+# ---------------------------------------------------------------------- finding, locating, resolving events
+def _is_on(kind: str, phi: float) -> bool:
+    return phi > 0.0 if kind == "strict" else phi >= 0.0
+
+
+def _switched_on(watches: Sequence[_Watch], before: Sequence[float], after: Sequence[float]) -> list[int]:
+    """Watches that switch on between two evaluations (a crossing watch: :func:`hybrid.model.crossed`)."""
+    out = []
+    for k, w in enumerate(watches):
+        b, a = before[k], after[k]
+        if w.kind == "crossing":
+            if crossed(1, b, a):
+                out.append(k)
+        elif _is_on(w.kind, a) and not _is_on(w.kind, b):
+            out.append(k)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class _Bracket:
+    """An interval of one step where watches ``candidates`` switch on (found by :func:`_find_switch`)."""
+
+    lo: float
+    hi: float
+    phi_lo: list[float]
+    phi_hi: list[float]
+    candidates: list[int]
+
+
+def _find_switch(
+    values: Callable[[float, tuple[float, ...]], list[float]],
+    watches: Sequence[_Watch],
+    t_old: float,
+    t_new: float,
+    y_new: tuple[float, ...],
+    phi_old: list[float],
+    point: Callable[[float], tuple[float, ...]] | None,
+    sign_checks: int,
+) -> tuple[_Bracket | None, list[float]]:
+    """Evaluate the watches at ``sign_checks`` interior points of a step, then at its end.
+
+    Returns the first sub-interval where a watch switches on (or ``None``) and
+    the watch values at the step's end (when nothing switched on).
+    """
+    lo, phi_lo = t_old, phi_old
+    for i in range(1, sign_checks + 2):
+        if i <= sign_checks and point is not None:
+            hi = t_old + (t_new - t_old) * i / (sign_checks + 1)
+            phi_hi = values(hi, point(hi))
+        elif i <= sign_checks:
+            continue
+        else:
+            hi, phi_hi = t_new, values(t_new, y_new)
+        candidates = _switched_on(watches, phi_lo, phi_hi)
+        if candidates:
+            return _Bracket(lo, hi, phi_lo, phi_hi, candidates), phi_hi
+        lo, phi_lo = hi, phi_hi
+    return None, phi_lo
+
+
+def _locate(
+    values: Callable[[float, tuple[float, ...]], list[float]],
+    watches: Sequence[_Watch],
+    bracket: _Bracket,
+    point: Callable[[float], tuple[float, ...]],
+    event_tol: float,
+) -> tuple[float, tuple[float, ...], float, int]:
+    """First time in ``bracket`` where one of its candidates is on, to ``event_tol``.
+
+    A crossing candidate is on where ``phi >= 0`` (``> 0`` if it started the
+    bracket on zero), so the located time is the right end of the final
+    bracket, where the condition holds.
+
+    Returns
+    -------
+    t_star, x_star, t_left, iterations
+        The event time and state, and the final bracket's left end (where no
+        candidate is on yet: the kernel's "previous" evaluation).
+    """
+    cands = bracket.candidates
+    kinds = {k: ("strict" if watches[k].kind == "strict"
+                 or (watches[k].kind == "crossing" and bracket.phi_lo[k] == 0.0) else "level") for k in cands}
+    cache: dict[float, list[float]] = {}
+
+    def values_at(tt: float) -> list[float]:
+        if tt not in cache:
+            cache[tt] = values(tt, point(tt))
+        return cache[tt]
+
+    def any_on(tt: float) -> bool:
+        vals = values_at(tt)
+        return any(_is_on(kinds[k], vals[k]) for k in cands)
+
+    t_left, t_star, _, _, iterations = locate_crossing(
+        lambda tt: max(values_at(tt)[k] for k in cands),
+        bracket.lo, bracket.hi, max(bracket.phi_lo[k] for k in cands), max(bracket.phi_hi[k] for k in cands),
+        tol=event_tol, holds=any_on,
+    )
+    return t_star, point(t_star), t_left, iterations
+
+
+@dataclass(frozen=True, slots=True)
+class _Event:
+    """A located event of one segment: its time and state, which watches are on, the bracket's left end."""
+
+    time: float
+    state: tuple[float, ...]
+    on: tuple[int, ...]
+    left_time: float
+    left_state: tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class _Options:
+    """The solver and event settings of one execution (validated by :func:`_validated`)."""
+
+    method: str
+    rtol: float
+    atol: float
+    max_step: float
+    event_tol: float
+    sign_checks: int
+    max_steps: int
+    dense: bool
+    t_end: float
+
+
+@dataclass(slots=True)
+class _SegmentResult:
+    segment: FlowSegment
+    event: _Event | None
+    watches: tuple[_Watch, ...]
+    steps: int
+    rhs: int
+    roots: int
+    failure: str | None
+
+
+def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: tuple[float, ...],
+                  memory: Mapping[str, float], steps_before: int) -> _SegmentResult:
+    """Integrate ``mode`` from ``(t, x)`` until a watch switches on, the horizon, or a solver failure."""
+    seg_memory = dict(memory)
+    watches = run.watches(mode, seg_memory, t, x)
+    times, states, interpolants = [t], [x], []
+    steps = rhs = roots = 0
+    event: _Event | None = None
+    failure: str | None = None
+
+    def values(tt: float, xx: tuple[float, ...]) -> list[float]:
+        return run.values(watches, mode, seg_memory, tt, xx)
+
+    if t < opts.t_end:
+        solver = METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
+                                      rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step)
+        phi_old = values(t, x)
+        want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
+        while solver.status == "running":
+            if steps_before + steps >= opts.max_steps:
+                failure = (f"more than max_steps = {opts.max_steps} solver steps (at t = {solver.t:.17g} s in "
+                           f"mode {mode!r})")
+                break
+            message = solver.step()
+            steps += 1
+            if solver.status == "failed":
+                failure = f"{opts.method} failed at t = {solver.t:.17g} s in mode {mode!r}, x = {_fmt(solver.y)}: {message}"
+                break
+            t_old, t_new, y_new = float(solver.t_old), float(solver.t), tuple(solver.y.tolist())
+            interp = solver.dense_output() if want_dense else None
+            point = _point_evaluator(interp) if interp is not None and opts.sign_checks and watches else None
+            bracket, phi_old = (_find_switch(values, watches, t_old, t_new, y_new, phi_old, point, opts.sign_checks)
+                                if watches else (None, phi_old))
+            if bracket is None:
+                times.append(t_new)
+                states.append(y_new)
+                if interp is not None:
+                    interpolants.append(interp)
+                continue
+            if interp is None:
+                interp = solver.dense_output()
+            point = point or _point_evaluator(interp)
+            t_star, x_star, t_left, iterations = _locate(values, watches, bracket, point, opts.event_tol)
+            roots += iterations
+            phi_star = values(t_star, x_star)
+            on = tuple(k for k, w in enumerate(watches) if w.role != "guard" and _is_on(w.kind, phi_star[k])
+                       and k in bracket.candidates)
+            times.append(t_star)
+            states.append(x_star)
+            interpolants.append(interp)
+            event = _Event(time=float(t_star), state=x_star, on=on, left_time=t_left, left_state=point(t_left))
+            break
+        rhs = int(getattr(solver, "nfev", 0))
+    dense_out = OdeSolution(np.array(times), interpolants) if interpolants and opts.dense else None
+    segment = FlowSegment(
+        mode=mode, jump=jump, t_start=times[0], t_end=times[-1], times=_readonly(np.array(times)),
+        states=_readonly(np.array(states).reshape(len(states), -1)), memory=tuple(sorted(seg_memory.items())),
+        dense=dense_out,
+    )
+    return _SegmentResult(segment=segment, event=event, watches=watches, steps=steps, rhs=rhs, roots=roots,
+                          failure=failure)
+
+
+def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
+             previous: Sequence[float] | None, max_jumps: int) -> Instant:
+    """The instant at ``t``: :func:`hybrid.instant.settle_instant` on the system's output, guards and jump maps."""
+
+    def signals(q: str, state: tuple[float, ...]) -> tuple[float, ...]:
+        return run.signals(q, t, state)
+
+    def guard(tr: Transition, v: Sequence[float], m: Mapping[str, float]) -> float:
+        return run.guard(tr, v, m, t, x)
+
+    return settle_instant(run.outgoing, mode, x, memory, signals=signals, previous=previous, guard=guard,
+                          fire=run.fire(t), ties="raise", max_jumps=max_jumps, time=t,
+                          where=lambda state: f"x = {_fmt(state)}")
+
+
+def _landing_error(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
+                   last: str | None) -> ExecutionError | None:
+    """An error when the instant ends outside the invariant of its mode (beyond ``invariant_tol``)."""
+    inv = run.invariant(mode, run.signals(mode, t, x), memory, t, x)
+    if inv >= -run.invariant_tol:
+        return None
+    how = f"after transition {last!r}" if last else "initially"
+    return ExecutionError(
+        f"{how}, the state x = {_fmt(x)} at t = {t:.17g} s lies outside the invariant of mode "
+        f"{mode!r} ({run.automaton.mode(mode).invariant_text or 'inv'} = {inv:.6g} < 0) and no transition "
+        "is enabled there; fix the reset (jump map) or the invariant"
+    )
+
+
+# ---------------------------------------------------------------------- bookkeeping
+class _Book:
+    """What the driver accumulates: segments, events, the jump counter, work, termination (private)."""
+
+    def __init__(self, zeno_dt: float) -> None:
+        self.segments: list[FlowSegment] = []
+        self.events: list[HybridEvent] = []
+        self.jump_times: list[float] = []
+        self.j = 0
+        self.steps = self.rhs = self.roots = 0
+        self.termination, self.detail = "end_time", ""
+        self.zeno_report: ZenoReport | None = None
+        self.zeno_dt = zeno_dt
+
+    def add_segment(self, result: _SegmentResult) -> None:
+        self.segments.append(result.segment)
+        self.steps += result.steps
+        self.rhs += result.rhs
+        self.roots += result.roots
+
+    def record(self, t: float, instant: Instant) -> None:
+        for n, step in enumerate(instant.jumps):
+            self.j += 1
+            self.events.append(HybridEvent(
+                time=t, jump=self.j, transition=step.transition.name, source=step.source, target=step.target,
+                state_before=step.state_before, state_after=step.state_after,
+                memory=tuple(sorted(step.memory_after.items())), outranked=step.outranked, instantaneous=n > 0,
+            ))
+            self.jump_times.append(t)
+
+    def end(self, termination: str, detail: str) -> None:
+        self.termination, self.detail = termination, detail
+
+    def point_segment(self, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float]) -> None:
+        """A zero-length segment carrying the state at ``t`` (jumps after the last flow)."""
+        self.segments.append(FlowSegment(
+            mode=mode, jump=self.j, t_start=t, t_end=t, times=_readonly(np.array([t])),
+            states=_readonly(np.array([x])), memory=tuple(sorted(memory.items())),
+        ))
+
+    def accumulation(self) -> ZenoReport | None:
+        """A Zeno report when the last jump intervals shrink geometrically below ``zeno_dt``."""
+        times = self.jump_times
+        if len(times) < _ZENO_WINDOW + 1:
+            return None
+        d1, d2 = times[-1] - times[-2], times[-2] - times[-3]
+        if not (0.0 < d1 < d2) or d1 > self.zeno_dt:
+            return None
+        est = estimate_zeno(times, window=_ZENO_WINDOW)
+        if est is None or not est.accumulating:
+            return None
+        tail = self.events[-(_ZENO_WINDOW + 1):]
+        modes = tuple(dict.fromkeys(m for e in tail for m in (e.source, e.target)))
+        names = tuple(dict.fromkeys(e.transition for e in tail))
+        return ZenoReport(
+            kind="accumulation", zeno_time=est.zeno_time, ratio=est.ratio, jumps=len(self.events), modes=modes,
+            transitions=names, last_times=tuple(times[-12:]),
+            message=(
+                f"jumps accumulate: intervals shrink by r = {est.ratio:.6g} (fit scatter {est.scatter:.2g}), "
+                f"last interval {est.last_interval:.3g} s after {len(self.events)} jumps; estimated Zeno time "
+                f"t_Z = {est.zeno_time:.15g} s in mode(s) {list(modes)} via {list(names)}"
+            ),
         )
-    return winner
+
+    def instantaneous(self, t: float, instant: Instant, max_jumps: int) -> ZenoReport:
+        tail = self.events[-max_jumps:]
+        return ZenoReport(
+            kind="instantaneous", zeno_time=t, ratio=math.nan, jumps=len(self.events),
+            modes=tuple(dict.fromkeys(m for e in tail for m in (e.source, e.target))),
+            transitions=tuple(dict.fromkeys(e.transition for e in tail)),
+            last_times=tuple(self.jump_times[-12:]), message=instant.zeno or "",
+        )
+
+
+def _after_jumps(book: _Book, t: float, max_jumps: int, zeno: str, chatter_window: float | None,
+                 chatter_switches: int, stop_on_chatter: bool) -> bool:
+    """The run-level checks after an event's jumps; ``True`` when the run ends here."""
+    if len(book.events) >= max_jumps:
+        book.end("jump_limit", f"{len(book.events)} jumps (max_jumps = {max_jumps}) by t = {t:.17g} s")
+        return True
+    report = book.accumulation()
+    if report is not None and book.zeno_report is None:
+        book.zeno_report = report
+        if zeno == "raise":
+            raise ZenoError(report.message)
+        if zeno == "stop":
+            book.end("zeno", report.message)
+            return True
+    if chatter_window is not None and stop_on_chatter:
+        recent = find_chatter(book.events[-chatter_switches:], window=chatter_window, min_switches=chatter_switches)
+        if recent:
+            c = recent[0]
+            book.end("chatter", f"chatter between modes {list(c.modes)} via {list(c.transitions)}: {c.switches} "
+                     f"switches from t = {c.start:.9g} s to {c.end:.9g} s (shortest dwell {c.shortest_dwell:.3g} s)")
+            return True
+    return False
+
+
+def _event_outcome(run: _Run, result: _SegmentResult, mode: str) -> tuple[str, str] | None:
+    """A termination decided by the event itself (a stop function reached zero), or ``None``."""
+    event = result.event
+    assert event is not None
+    stops = [result.watches[k].name for k in event.on if result.watches[k].role == "stop"]
+    if stops:
+        return f"stop:{stops[0]}", f"stop function {stops[0]!r} reached zero at t = {event.time:.17g} s in mode {mode!r}"
+    return None
+
+
+def _deadlock_detail(run: _Run, result: _SegmentResult, mode: str) -> str:
+    event = result.event
+    assert event is not None
+    names = [result.watches[k].name for k in event.on if result.watches[k].role == "invariant"]
+    text = run.automaton.mode(mode).invariant_text or (names[0] if names else mode)
+    return (f"the flow leaves the invariant of mode {mode!r} ({text}) at t = {event.time:.17g} s, "
+            f"x = {_fmt(event.state)}, and no transition is enabled there (deadlock)")
 
 
 def simulate_continuous(
@@ -539,7 +908,7 @@ def simulate_continuous(
     event_tol: float = 1e-12,
     sign_checks: int = 3,
     max_jumps: int = 100_000,
-    max_jumps_per_instant: int = 16,
+    max_jumps_per_instant: int = MAX_JUMPS_PER_INSTANT,
     max_steps: int = 10_000_000,
     zeno: str = "stop",
     zeno_interval: float | None = None,
@@ -575,7 +944,8 @@ def simulate_continuous(
     max_jumps : int
         Total jumps before termination ``"jump_limit"``.
     max_jumps_per_instant : int
-        Jumps at one instant before instantaneous Zeno.
+        Jumps allowed at one instant (:data:`hybrid.instant.MAX_JUMPS_PER_INSTANT`
+        by default); one more enabled is instantaneous Zeno.
     max_steps : int
         Solver steps before termination ``"solver_failure"`` (never hang).
     zeno : {"stop", "continue", "raise"}
@@ -617,6 +987,74 @@ def simulate_continuous(
     DivergenceError
         A :class:`~hybrid.errors.NumericalFailure` raised by user code.
     """
+    _check_arguments(system, duration=duration, method=method, rtol=rtol, atol=atol, max_step=max_step,
+                     event_tol=event_tol, invariant_tol=invariant_tol, zeno=zeno, sign_checks=sign_checks,
+                     max_jumps=max_jumps, max_jumps_per_instant=max_jumps_per_instant, max_steps=max_steps,
+                     chatter_switches=chatter_switches, chatter_window=chatter_window)
+    mode, x, memory = _initial_state(system, x0, initial_mode, initial_memory)
+    opts = _Options(method=method, rtol=rtol, atol=atol, max_step=max_step, event_tol=event_tol,
+                    sign_checks=sign_checks, max_steps=max_steps, dense=dense, t_end=float(t0) + float(duration))
+    run = _Run(system, dict(stops or {}), invariant_tol)
+    book = _Book(zeno_interval if zeno_interval is not None else 1e-6 * float(duration))
+    t = float(t0)
+    instant = _resolve(run, mode, t, x, memory, None, max_jumps_per_instant)
+    after_event = False
+    while True:
+        book.record(t, instant)
+        mode, x, memory = instant.mode, instant.state, instant.memory
+        if instant.zeno is not None:
+            book.zeno_report = book.instantaneous(t, instant, max_jumps_per_instant)
+            if zeno == "raise":
+                raise ZenoError(instant.zeno)
+            book.end("zeno", instant.zeno)
+            if not book.segments or book.segments[-1].t_end != t or book.segments[-1].mode != mode:
+                book.point_segment(mode, t, x, memory)
+            break
+        error = _landing_error(run, mode, t, x, memory, book.events[-1].transition if book.events else None)
+        if error is not None:
+            raise error
+        if after_event and _after_jumps(book, t, max_jumps, zeno, chatter_window, chatter_switches,
+                                                   stop_on_chatter):
+            break
+        result = _flow_segment(run, opts, mode, book.j, t, x, memory, book.steps)
+        book.add_segment(result)
+        t, x = result.segment.t_end, tuple(result.segment.states[-1].tolist())
+        if result.failure is not None:
+            book.end("solver_failure", result.failure)
+            break
+        if result.event is None:
+            book.end("end_time", f"reached t = {t:.17g} s")
+            if book.segments[-1].jump != book.j:
+                book.point_segment(mode, t, x, memory)
+            break
+        outcome = _event_outcome(run, result, mode)
+        if outcome is not None:
+            book.end(*outcome)
+            break
+        x = result.event.state
+        previous = run.signals(mode, result.event.left_time, result.event.left_state)
+        instant = _resolve(run, mode, t, x, memory, previous, max_jumps_per_instant)
+        after_event = True
+        if not instant.jumps:
+            book.end("invariant_violated", _deadlock_detail(run, result, mode))
+            break
+    chatter = (find_chatter(book.events, window=chatter_window, min_switches=chatter_switches)
+               if chatter_window is not None else ())
+    return HybridTrajectory(
+        system=system.name, mode_names=system.automaton.mode_names, state_names=system.state_names,
+        segments=tuple(book.segments), events=tuple(book.events), termination=book.termination,
+        detail=book.detail, zeno=book.zeno_report, chatter=chatter, final_time=t, final_state=x, final_mode=mode,
+        final_memory=dict(memory),
+        stats=ExecutionStats(steps=book.steps, rhs_evaluations=book.rhs, guard_evaluations=run.guard_evaluations,
+                             root_iterations=book.roots, events=len(book.events)),
+    )
+
+
+def _check_arguments(system: Any, *, duration: float, method: str, rtol: float, atol: float, max_step: float,
+                     event_tol: float, invariant_tol: float, zeno: str, sign_checks: int, max_jumps: int,
+                     max_jumps_per_instant: int, max_steps: int, chatter_switches: int,
+                     chatter_window: float | None) -> None:
+    """Raise :class:`ExecutionError` naming the first bad argument of :func:`simulate_continuous`."""
     if not isinstance(system, HybridSystem):
         raise ExecutionError(f"simulate_continuous: system = {system!r}; expected a HybridSystem")
     if method not in METHODS:
@@ -638,6 +1076,10 @@ def simulate_continuous(
             raise ExecutionError(f"simulate_continuous: {name} = {value!r}; expected an int >= {least}")
     if chatter_window is not None and not (chatter_window > 0):
         raise ExecutionError(f"simulate_continuous: chatter_window = {chatter_window!r}; expected a positive time [s] or None")
+
+
+def _initial_state(system: HybridSystem, x0: Sequence[float], initial_mode: str | None,
+                   initial_memory: Mapping[str, float] | None) -> tuple[str, tuple[float, ...], dict[str, float]]:
     automaton = system.automaton
     mode = initial_mode or automaton.initial_mode
     automaton.mode(mode)
@@ -656,311 +1098,7 @@ def simulate_continuous(
             f"simulate_continuous: x0 = {x0!r}; expected {system.dimension} finite values "
             f"({', '.join(system.state_names)})"
         )
-    stops = dict(stops or {})
-    t_end = float(t0) + float(duration)
-    zeno_dt = zeno_interval if zeno_interval is not None else 1e-6 * float(duration)
-    run = _Run(system, stops, invariant_tol)
-    solver_class = METHODS[method]
-
-    segments: list[FlowSegment] = []
-    events: list[HybridEvent] = []
-    jump_times: list[float] = []
-    j = 0
-    t = float(t0)
-    steps = rhs = roots = 0
-    termination, detail = "end_time", ""
-    zeno_report: ZenoReport | None = None
-    chatter: tuple[ChatterEpisode, ...] = ()
-
-    def record_jump(tr: Transition, mode_from: str, t_jump: float, x_before: tuple[float, ...],
-                    x_after: tuple[float, ...], memory_after: dict[str, float], outranked: tuple[str, ...],
-                    instantaneous: bool) -> None:
-        nonlocal j
-        j += 1
-        events.append(HybridEvent(
-            time=t_jump, jump=j, transition=tr.name, source=mode_from, target=tr.target,
-            state_before=x_before, state_after=x_after, memory=tuple(sorted(memory_after.items())),
-            outranked=outranked, instantaneous=instantaneous,
-        ))
-        jump_times.append(t_jump)
-
-    def settle_instant(mode: str, t_now: float, x_now: tuple[float, ...], memory: dict[str, float],
-                       fired_here: int) -> tuple[str, tuple[float, ...], dict[str, float], str | None]:
-        """Fire level-triggered transitions enabled at this instant; returns a termination or None."""
-        while True:
-            v = run.signals(mode, t_now, x_now)
-            candidates = [tr for tr in run.outgoing[mode]
-                          if tr.direction == 0 and run.guard(tr, v, memory, t_now, x_now) >= 0.0]
-            if not candidates:
-                return mode, x_now, memory, None
-            if fired_here >= max_jumps_per_instant:
-                cycle = [e.transition for e in events[-fired_here:]]
-                return mode, x_now, memory, (
-                    f"instantaneous Zeno at t = {t_now:.17g} s: {fired_here} jumps at one instant "
-                    f"({' -> '.join(cycle)}), limit max_jumps_per_instant = {max_jumps_per_instant}"
-                )
-            winner = _winner(candidates, mode, t_now, x_now)
-            new_x, new_memory = run.fire(winner, mode, t_now, x_now, memory)
-            record_jump(winner, mode, t_now, x_now, new_x, new_memory,
-                        tuple(tr.name for tr in candidates[1:]), instantaneous=fired_here > 0)
-            mode, x_now, memory = winner.target, new_x, new_memory
-            fired_here += 1
-
-    def check_landing(mode: str, t_now: float, x_now: tuple[float, ...], memory: Mapping[str, float]) -> None:
-        v = run.signals(mode, t_now, x_now)
-        inv = run.invariant(mode, v, memory, t_now, x_now)
-        if inv < -invariant_tol:
-            how = f"after transition {events[-1].transition!r}" if events else "initially"
-            raise ExecutionError(
-                f"{how}, the state x = {_fmt(x_now)} at t = {t_now:.17g} s lies outside the invariant of mode "
-                f"{mode!r} ({automaton.mode(mode).invariant_text or 'inv'} = {inv:.6g} < 0) and no transition "
-                "is enabled there; fix the reset (jump map) or the invariant"
-            )
-
-    def zeno_check(last_transition_count: int) -> ZenoReport | None:
-        if len(jump_times) < _ZENO_WINDOW + 1:
-            return None
-        d1 = jump_times[-1] - jump_times[-2]
-        d2 = jump_times[-2] - jump_times[-3]
-        if not (0.0 < d1 < d2) or d1 > zeno_dt:
-            return None
-        est = estimate_zeno(jump_times, window=_ZENO_WINDOW)
-        if est is None or not est.accumulating:
-            return None
-        tail = events[-(_ZENO_WINDOW + 1):]
-        modes = tuple(dict.fromkeys(m for e in tail for m in (e.source, e.target)))
-        names = tuple(dict.fromkeys(e.transition for e in tail))
-        return ZenoReport(
-            kind="accumulation", zeno_time=est.zeno_time, ratio=est.ratio, jumps=len(events), modes=modes,
-            transitions=names, last_times=tuple(jump_times[-12:]),
-            message=(
-                f"jumps accumulate: intervals shrink by r = {est.ratio:.6g} (fit scatter {est.scatter:.2g}), "
-                f"last interval {est.last_interval:.3g} s after {len(events)} jumps; estimated Zeno time "
-                f"t_Z = {est.zeno_time:.15g} s in mode(s) {list(modes)} via {list(names)}"
-            ),
-        )
-
-    # --- initial instant ----------------------------------------------------------------------
-    mode, x, memory, instant_zeno = settle_instant(mode, t, x, memory, 0)
-    if instant_zeno is None:
-        check_landing(mode, t, x, memory)
-
-    while instant_zeno is None:
-        # --- one flow segment in `mode` -------------------------------------------------------
-        seg_times = [t]
-        seg_states = [x]
-        interpolants: list[Any] = []
-        seg_memory = dict(memory)
-        watches = run.watches(mode)
-        stricts = [w.strict for w in watches]
-        flow_mode = mode
-
-        user_flow = system.flows[mode]
-
-        def fun(tt: float, y: np.ndarray, _mode: str = flow_mode, _memory: dict[str, float] = seg_memory) -> np.ndarray:
-            state = tuple(y.tolist())
-            try:  # fast path; on any doubt the checked path raises the precise error
-                result = user_flow(tt, state, _memory)
-                total = sum(result)  # NaN (or inf - inf) makes it NaN
-                if total == total:
-                    out = np.array(result, dtype=float)
-                    if out.shape == run.shape:
-                        return out
-            except Exception:
-                pass
-            return np.array(run.call(system.flow, f"flow of mode {_mode!r}", _mode, tt, state, _mode, tt, state, _memory))
-
-        event: tuple[float, tuple[float, ...], list[int]] | None = None
-        if t < t_end:
-            solver = solver_class(fun, t, np.array(x), t_end, rtol=rtol, atol=atol, max_step=max_step)
-            phi_old = run.values(watches, mode, seg_memory, t, x)
-            while solver.status == "running":
-                if steps >= max_steps:
-                    termination = "solver_failure"
-                    detail = f"more than max_steps = {max_steps} solver steps (at t = {solver.t:.17g} s in mode {mode!r})"
-                    break
-                message = solver.step()
-                steps += 1
-                if solver.status == "failed":
-                    termination = "solver_failure"
-                    detail = (f"{method} failed at t = {solver.t:.17g} s in mode {mode!r}, "
-                              f"x = {_fmt(solver.y)}: {message}")
-                    break
-                t_old, t_new = float(solver.t_old), float(solver.t)
-                y_new = tuple(solver.y.tolist())
-                interp = solver.dense_output() if (dense or (sign_checks and watches)) else None
-                point = _point_evaluator(interp) if sign_checks and watches else None
-                # watched values along the step (interior points, then its end) until one switches on
-                lo_t, phi_lo = t_old, phi_old
-                candidates: list[int] = []
-                for i in range(1, sign_checks + 2) if watches else ():
-                    if i <= sign_checks:
-                        hi_t = t_old + (t_new - t_old) * i / (sign_checks + 1)
-                        phi_hi = run.values(watches, mode, seg_memory, hi_t, point(hi_t))  # type: ignore[misc]
-                    else:
-                        hi_t = t_new
-                        phi_hi = run.values(watches, mode, seg_memory, t_new, y_new)
-                    candidates = _switching_on(phi_lo, phi_hi, stricts)
-                    if candidates:
-                        break
-                    lo_t, phi_lo = hi_t, phi_hi
-                if not candidates:
-                    seg_times.append(t_new)
-                    seg_states.append(y_new)
-                    if interp is not None:
-                        interpolants.append(interp)
-                    phi_old = phi_lo
-                    continue
-                if interp is None:
-                    interp = solver.dense_output()
-                if point is None:
-                    point = _point_evaluator(interp)
-                cache: dict[float, list[float]] = {}
-
-                def values_at(tt: float) -> list[float]:
-                    if tt not in cache:
-                        cache[tt] = run.values(watches, mode, seg_memory, tt, point(tt))
-                    return cache[tt]
-
-                def any_on(tt: float) -> bool:
-                    vals = values_at(tt)
-                    return any((vals[k] > 0.0) if watches[k].strict else (vals[k] >= 0.0) for k in candidates)
-
-                # one search for the first of the candidates to switch on (max of their values)
-                _, t_star, _, _, iters = locate_crossing(
-                    lambda tt: max(values_at(tt)[k] for k in candidates),
-                    lo_t, hi_t, max(phi_lo[k] for k in candidates), max(phi_hi[k] for k in candidates),
-                    tol=event_tol, holds=any_on,
-                )
-                roots += iters
-                x_star = point(t_star)
-                phi_star = values_at(t_star)
-                active = []
-                for k, w in enumerate(watches):
-                    on = phi_star[k] > 0.0 if w.strict else phi_star[k] >= 0.0
-                    if on and (k in candidates or (w.kind == "guard" and w.transition is not None
-                                                   and w.transition.direction == 0)):
-                        active.append(k)
-                seg_times.append(t_star)
-                seg_states.append(x_star)
-                interpolants.append(interp)
-                event = (float(t_star), x_star, active)
-                break
-            rhs += int(getattr(solver, "nfev", 0))
-        if interpolants and dense:
-            dense_out: OdeSolution | None = OdeSolution(np.array(seg_times), interpolants)
-        else:
-            dense_out = None
-        t_seg_end = seg_times[-1]
-        segments.append(FlowSegment(
-            mode=mode, jump=j, t_start=seg_times[0], t_end=t_seg_end,
-            times=_readonly(np.array(seg_times)), states=_readonly(np.array(seg_states).reshape(len(seg_states), -1)),
-            memory=tuple(sorted(seg_memory.items())), dense=dense_out,
-        ))
-        t, x = t_seg_end, seg_states[-1]
-        if termination != "end_time" or event is None:
-            break
-        # --- the event instant ------------------------------------------------------------------
-        t_star, x_star, active = event
-        stop_hits = [watches[k].name for k in active if watches[k].kind == "stop"]
-        if stop_hits:
-            termination = f"stop:{stop_hits[0]}"
-            detail = f"stop function {stop_hits[0]!r} reached zero at t = {t_star:.17g} s in mode {mode!r}"
-            break
-        enabled = [watches[k].transition for k in active if watches[k].kind == "guard"]
-        enabled = sorted((tr for tr in enabled if tr is not None), key=lambda tr: tr.priority)
-        if not enabled:
-            w = watches[active[0]]
-            termination = "invariant_violated"
-            detail = (
-                f"the flow leaves the invariant of mode {mode!r} ({automaton.mode(mode).invariant_text or w.name}) "
-                f"at t = {t_star:.17g} s, x = {_fmt(x_star)}, and no transition is enabled there (deadlock)"
-            )
-            break
-        winner = _winner(enabled, mode, t_star, x_star)
-        new_x, new_memory = run.fire(winner, mode, t_star, x_star, memory)
-        record_jump(winner, mode, t_star, x_star, new_x, new_memory,
-                    tuple(tr.name for tr in enabled[1:]), instantaneous=False)
-        mode, x, memory = winner.target, new_x, new_memory
-        mode, x, memory, instant_zeno = settle_instant(mode, t_star, x, memory, 1)
-        if instant_zeno is not None:
-            break
-        check_landing(mode, t_star, x, memory)
-        t = t_star
-        if len(events) >= max_jumps:
-            termination = "jump_limit"
-            detail = f"{len(events)} jumps (max_jumps = {max_jumps}) by t = {t:.17g} s"
-            break
-        report = zeno_check(len(events))
-        if report is not None and zeno_report is None:
-            zeno_report = report
-            if zeno == "raise":
-                raise ZenoError(report.message)
-            if zeno == "stop":
-                termination, detail = "zeno", report.message
-                break
-        if chatter_window is not None and stop_on_chatter:
-            recent = find_chatter(events[-chatter_switches:], window=chatter_window, min_switches=chatter_switches)
-            if recent:
-                termination = "chatter"
-                c = recent[0]
-                detail = (f"chatter between modes {list(c.modes)} via {list(c.transitions)}: {c.switches} switches "
-                          f"from t = {c.start:.9g} s to {c.end:.9g} s (shortest dwell {c.shortest_dwell:.3g} s)")
-                break
-
-    if instant_zeno is not None:
-        tail = events[-max_jumps_per_instant:]
-        zeno_report = ZenoReport(
-            kind="instantaneous", zeno_time=t, ratio=math.nan, jumps=len(events),
-            modes=tuple(dict.fromkeys(m for e in tail for m in (e.source, e.target))),
-            transitions=tuple(dict.fromkeys(e.transition for e in tail)),
-            last_times=tuple(jump_times[-12:]), message=instant_zeno,
-        )
-        if zeno == "raise":
-            raise ZenoError(instant_zeno)
-        termination, detail = "zeno", instant_zeno
-        if not segments or segments[-1].t_end != t or segments[-1].mode != mode:
-            segments.append(FlowSegment(
-                mode=mode, jump=j, t_start=t, t_end=t, times=_readonly(np.array([t])),
-                states=_readonly(np.array([x])), memory=tuple(sorted(memory.items())),
-            ))
-    if termination == "end_time":
-        detail = f"reached t = {t:.17g} s"
-        if segments[-1].jump != j:  # jumps at the very end: a zero-length segment carries the final state
-            segments.append(FlowSegment(
-                mode=mode, jump=j, t_start=t, t_end=t, times=_readonly(np.array([t])),
-                states=_readonly(np.array([x])), memory=tuple(sorted(memory.items())),
-            ))
-    if chatter_window is not None:
-        chatter = find_chatter(events, window=chatter_window, min_switches=chatter_switches)
-    return HybridTrajectory(
-        system=system.name,
-        mode_names=automaton.mode_names,
-        state_names=system.state_names,
-        segments=tuple(segments),
-        events=tuple(events),
-        termination=termination,
-        detail=detail,
-        zeno=zeno_report,
-        chatter=chatter,
-        final_time=t,
-        final_state=x,
-        final_mode=mode,
-        final_memory=dict(memory),
-        stats=ExecutionStats(
-            steps=steps, rhs_evaluations=rhs, guard_evaluations=run.guard_evaluations,
-            root_iterations=roots, events=len(events),
-        ),
-    )
-
-
-def _switching_on(before: list[float], after: list[float], stricts: list[bool]) -> list[int]:
-    """Indices of the watches whose condition is false in ``before`` and true in ``after``."""
-    return [
-        k
-        for k, (b, a, strict) in enumerate(zip(before, after, stricts))
-        if ((a > 0.0) if strict else (a >= 0.0)) and not ((b > 0.0) if strict else (b >= 0.0))
-    ]
+    return mode, x, memory
 
 
 def _point_evaluator(interp: Any) -> Callable[[float], tuple[float, ...]]:

@@ -41,6 +41,8 @@ __all__ = [
     "MemoryVariable",
     "HybridAutomaton",
     "transition_fires",
+    "crossed",
+    "guard_value",
     "Conjunction",
     "all_of",
 ]
@@ -329,12 +331,31 @@ class HybridAutomaton:
 def transition_fires(
     t: Transition, v: Sequence[float], memory: Mapping[str, float], previous: Sequence[float] | None
 ) -> bool:
-    """Whether ``t`` is enabled at ``v`` given the previous signals (crossing semantics).
+    """Whether ``t`` is enabled at ``v`` given the previous signals (crossing semantics of :func:`crossed`).
+
+    This is the test of one transition on one evaluation; what fires at an
+    instant (priorities, ties, successive jumps) is :func:`hybrid.instant.settle_instant`.
 
     Raises
     ------
     ExecutionError
         The guard returned NaN (a NaN compares false and would silently disable it).
+    """
+    g = guard_value(t, v, memory)
+    if t.direction == 0:
+        return g >= 0.0
+    if previous is None:
+        return False
+    return crossed(t.direction, t.guard(previous, memory), g)
+
+
+def guard_value(t: Transition, v: Sequence[float], memory: Mapping[str, float]) -> float:
+    """``g(v, m)`` of ``t``; NaN is an error (it would silently disable the transition).
+
+    Raises
+    ------
+    ExecutionError
+        The guard returned NaN.
     """
     g = t.guard(v, memory)
     if g != g:
@@ -342,14 +363,25 @@ def transition_fires(
             f"guard of transition {t.name!r} (from mode {t.source!r}) is NaN at signals {tuple(v)!r}; "
             "a guard must return a real number (>= 0 when enabled)"
         )
-    if t.direction == 0:
-        return g >= 0.0
-    if previous is None:
-        return False
-    g_prev = t.guard(previous, memory)
-    if t.direction > 0:
-        return g_prev < 0.0 <= g
-    return g_prev > 0.0 >= g
+    return g
+
+
+def crossed(direction: int, before: float, after: float) -> bool:
+    """Whether a guard went from ``before`` to ``after`` across zero in ``direction`` (+1 rising, -1 falling).
+
+    Rising: ``before <= 0 <= after`` and ``before < after`` (zero reached from
+    below, or left upwards); falling mirrors it.  A guard that starts on zero
+    thus fires as soon as it moves in its direction; one that stays on zero
+    does not (see :mod:`hybrid.instant`).
+
+    Examples
+    --------
+    >>> crossed(+1, -1.0, 0.0), crossed(+1, 0.0, 0.5), crossed(+1, 0.0, 0.0), crossed(-1, 0.0, -2.0)
+    (True, True, False, True)
+    """
+    if direction > 0:
+        return before <= 0.0 <= after and before < after
+    return before >= 0.0 >= after and before > after
 
 
 @dataclass(frozen=True, slots=True)

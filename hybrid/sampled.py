@@ -5,8 +5,9 @@ Every sampling period ``T`` the executor
 1. lets the controller *measure* the plant (it may update its own discrete
    state, e.g. an estimator, from the input held over the period just ended);
 2. evaluates the automaton on the measured signals and fires enabled
-   transitions one at a time, in priority order, each a jump of the hybrid
-   time domain ``(t, j)``, until none is enabled (a limit on jumps per sample
+   transitions by the rule of :mod:`hybrid.instant` (priority order, each a
+   jump of the hybrid time domain ``(t, j)``, crossing guards against the
+   previous sample), until none is enabled (a limit on jumps per sample
    turns Zeno behaviour into a :class:`~hybrid.errors.ZenoError`);
 3. asks the controller for the input ``u`` of the new mode and holds it
    (zero-order hold) while the plant is integrated over ``[t, t + T]`` by its
@@ -29,7 +30,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .errors import DivergenceError, ExecutionError, NumericalFailure, ZenoError
-from .model import HybridAutomaton, transition_fires
+from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
+from .model import HybridAutomaton
 
 __all__ = [
     "Plant",
@@ -236,24 +238,24 @@ def settle(
     time: float = 0.0,
     sample: int = 0,
     jump: int = 0,
-    max_jumps: int = 8,
+    max_jumps: int = MAX_JUMPS_PER_INSTANT,
     outgoing: Mapping[str, tuple[Any, ...]] | None = None,
 ) -> tuple[str, dict[str, float], list[SampledEvent]]:
-    """Fire enabled transitions at one instant until none is enabled.
+    """Fire enabled transitions at one sample until none is enabled (:func:`hybrid.instant.settle_instant`).
 
-    One transition fires per jump, the smallest priority number first; the
-    others enabled at that jump are reported as ``outranked``.
+    The signals ``v`` are the state of the instant (a sampled-data automaton
+    has no jump map: the plant is not reset, only the memory); ties raise.
 
     Parameters
     ----------
     mode, memory : str, mapping
         Discrete state before the instant.
     v, previous : sequences of float
-        Signals now and at the previous evaluation (for crossing guards).
+        Signals now and at the previous sample (for crossing guards).
     time, sample, jump : float, int, int
         Hybrid time before the instant (recorded in the events).
     max_jumps : int
-        More jumps than this at one instant raise :class:`ZenoError`.
+        Jumps allowed at one instant; one more enabled raises :class:`ZenoError`.
 
     Returns
     -------
@@ -263,57 +265,26 @@ def settle(
     Raises
     ------
     ExecutionError
-        Two enabled transitions with the same priority (non-determinism), or a
-        reset that does not return exactly its declared ``writes``.
+        Two enabled transitions with the same priority (non-determinism), a NaN
+        guard, or a reset that does not return exactly its declared ``writes``.
     ZenoError
-        More than ``max_jumps`` jumps.
+        A transition still enabled after ``max_jumps`` jumps.
     """
     table = outgoing if outgoing is not None else {name: automaton.outgoing(name) for name in automaton.mode_names}
-    memory = dict(memory)
-    events: list[SampledEvent] = []
-    while True:
-        try:
-            candidates = [tr for tr in table[mode] if transition_fires(tr, v, memory, previous)]
-        except ExecutionError as err:
-            raise ExecutionError(f"at t = {time:.6g} s in mode {mode!r}: {err}") from err
-        if not candidates:
-            return mode, memory, events
-        winner = candidates[0]
-        ties = [tr.name for tr in candidates[1:] if tr.priority == winner.priority]
-        if ties:
-            raise ExecutionError(
-                f"non-determinism at t = {time:.6g} s in mode {mode!r}: transitions "
-                f"{[winner.name, *ties]} are enabled together with the same priority "
-                f"{winner.priority}; give them distinct priorities or exclusive guards"
-            )
-        if len(events) >= max_jumps:
-            raise ZenoError(
-                f"Zeno behaviour at t = {time:.6g} s: {len(events)} jumps at one instant "
-                f"({' -> '.join(e.transition for e in events)}), limit max_jumps_per_sample = {max_jumps}; "
-                "make the guards of the target modes exclusive of the resets' results"
-            )
-        if winner.reset is not None:
-            update = winner.reset(v, memory)
-            if set(update) != set(winner.writes):
-                raise ExecutionError(
-                    f"transition {winner.name!r}: reset returned {sorted(update)}, "
-                    f"declared writes {sorted(winner.writes)}"
-                )
-            memory.update(update)
-        jump += 1
-        events.append(
-            SampledEvent(
-                time=time,
-                jump=jump,
-                sample=sample,
-                transition=winner.name,
-                source=mode,
-                target=winner.target,
-                outranked=tuple(tr.name for tr in candidates[1:]),
-                memory=tuple(sorted(memory.items())),
-            )
+    try:
+        instant = settle_instant(table, mode, v, memory, previous=previous, max_jumps=max_jumps, time=time)
+    except ExecutionError as err:
+        raise ExecutionError(f"at t = {time:.6g} s in mode {mode!r}: {err}") from err
+    if instant.zeno is not None:
+        raise ZenoError(f"{instant.zeno} (simulate_sampled: max_jumps_per_sample)")
+    events = [
+        SampledEvent(
+            time=time, jump=jump + n, sample=sample, transition=step.transition.name, source=step.source,
+            target=step.target, outranked=step.outranked, memory=tuple(sorted(step.memory_after.items())),
         )
-        mode = winner.target
+        for n, step in enumerate(instant.jumps, start=1)
+    ]
+    return instant.mode, dict(instant.memory), events
 
 
 def simulate_sampled(
@@ -329,7 +300,7 @@ def simulate_sampled(
     initial_memory: Mapping[str, float] | None = None,
     stop: Callable[[float, Sequence[float], Any, Sequence[float], str, Mapping[str, float]], str | None]
     | None = None,
-    max_jumps_per_sample: int = 8,
+    max_jumps_per_sample: int = MAX_JUMPS_PER_INSTANT,
 ) -> SampledTrace:
     """Run the sampled-data closed loop for ``duration`` seconds.
 

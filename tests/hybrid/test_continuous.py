@@ -181,7 +181,7 @@ def test_equal_priorities_enabled_together_is_non_determinism():
         [Transition(name="left", source="wait", target="done", guard=lambda v, m: v[0] - 1.0),
          Transition(name="right", source="wait", target="done", guard=lambda v, m: v[0] - 1.0)]
     )
-    with pytest.raises(ExecutionError, match=r"non-determinism in mode 'wait'.*\['left', 'right'\]"):
+    with pytest.raises(ExecutionError, match=r"non-determinism at t = 1 s in mode 'wait'.*\['left', 'right'\]"):
         simulate_continuous(system, (0.0,), duration=2.0)
 
 

@@ -86,7 +86,7 @@ def test_zeno_at_one_instant_is_reported():
         ),
         variables=("x",),
     )
-    with pytest.raises(ZenoError, match=r"Zeno behaviour at t = 0 s: 3 jumps at one instant \(ab -> ba -> ab\)"):
+    with pytest.raises(ZenoError, match=r"instantaneous Zeno at t = 0 s in mode .b.: 3 jumps at one instant \(ab -> ba -> ab\)"):
         simulate_sampled(loop, integrator_plant(), Follow(), (0.0,), period=PERIOD, duration=1.0, max_jumps_per_sample=3)
 
 
