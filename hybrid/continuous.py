@@ -14,13 +14,17 @@ becomes true and false again inside one step is still caught (a bounded
 ``max_step`` tightens this further).  The first change is located by a
 bracketing root finder (Anderson–Björck regula falsi with bisection
 safeguards) to ``event_tol`` in time; the located time is the right end
-of the final bracket, where the guard *is* satisfied.  Transitions enabled at
-that instant fire in priority order (the others are reported as outranked;
-equal priorities are a non-determinism error), each a jump of the hybrid time
-domain ``(t, j)``; level-triggered transitions of the new mode that are
-enabled right after the jump fire at the same instant.  A crossing-triggered
-guard that sits on zero after its reset does not fire again: it must first
-go back below zero along the flow.
+of the final bracket, where the guard *is* satisfied.  What happens at that
+instant (and at the initial time) is decided by
+:func:`hybrid.instant.settle_instant`, the rule shared by every executor and
+check: priorities, ties (an error here), jump maps and resets, further
+level-triggered jumps of the new mode at the same instant, crossing guards
+against the state at the bracket's left end, and the jump limit.
+
+The driver :func:`simulate_continuous` only keeps the books; the work is done
+by small functions in the manner of scipy's ``_ivp``: :func:`_flow_segment`
+(one mode's integration), :func:`_find_switch` (watches along a step),
+:func:`_locate` (the bracket search) and :func:`_resolve` (the instant).
 
 Termination causes (``HybridTrajectory.termination``): ``"end_time"``,
 ``"jump_limit"``, ``"zeno"``, ``"chatter"``, ``"invariant_violated"`` (the flow

@@ -16,11 +16,10 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from visnav.app.cli_types import non_negative_int, positive_int
+from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_OK, EXIT_TASK_FAILED, non_negative_int, positive_int
 
 __all__ = ["main", "build_parser"]
 
-EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 1, 2, 3
 
 
 class _Parser(argparse.ArgumentParser):

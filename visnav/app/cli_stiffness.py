@@ -15,7 +15,7 @@ import math
 import sys
 from typing import Any
 
-from visnav.app.cli_types import non_negative_int
+from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_OK, non_negative_int
 
 __all__ = ["add_parser", "cmd_stiffness", "human_summary"]
 
@@ -124,7 +124,6 @@ def cmd_stiffness(args: argparse.Namespace) -> int:
     """Run the study for ``args`` and print or write it; returns the exit code."""
     import dataclasses
 
-    from visnav.app.cli import EXIT_BAD_INPUT, EXIT_OK
     from visnav.app.files import prepare_output_dir, write_figures, write_text_atomic
     from visnav.scenario import load_scenario, scenario_digest
     from visnav.studies.stiffness import QUICK_SETTINGS, StiffnessStudyError, StudySettings, stiffness_study

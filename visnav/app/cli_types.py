@@ -1,4 +1,7 @@
-"""Argument types of the ``visnav`` subcommands: one definition, one wording of every error.
+"""Exit codes and argument types of the ``visnav`` subcommands: one definition, one wording of every error.
+
+The exit codes are shared by every subcommand: 0 the task holds, 1 it failed
+(collision, timeout, a finding), 2 bad input, 3 the simulation diverged.
 
 Each raises :class:`argparse.ArgumentTypeError` naming the value and what to give instead, which
 argparse turns into a usage error (exit code 2).
@@ -9,7 +12,11 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["positive_int", "non_negative_int", "positive_seconds"]
+__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "positive_int", "non_negative_int",
+           "positive_seconds"]
+
+EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 1, 2, 3
+"""The exit codes of every ``visnav`` subcommand."""
 
 
 def _whole(text: str, minimum: int, wanted: str) -> int:
