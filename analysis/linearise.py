@@ -30,6 +30,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from hybrid.jsonable import to_jsonable
+
 __all__ = [
     "LinearisationError",
     "NotAnEquilibriumError",
@@ -88,12 +90,8 @@ class EigenMode:
     time_constant_s: float
 
     def as_dict(self) -> dict[str, float | None]:
-        """JSON-ready view (``None`` for non-finite numbers)."""
-        return {name: _finite(getattr(self, name)) for name in self.__slots__}  # type: ignore[attr-defined]
-
-
-def _finite(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
+        """JSON-ready view: every field, ``None`` for non-finite numbers."""
+        return to_jsonable(self)
 
 
 def eigen_modes(matrix: np.ndarray) -> tuple[EigenMode, ...]:
@@ -160,19 +158,20 @@ class Linearisation:
         return f"not Hurwitz: unstable, spectral abscissa {self.spectral_abscissa:.4g} 1/s"
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view: eigenvalues as ``[re, im]`` pairs."""
-        return {
+        """JSON-ready view: the residual as its norm ``residual_norm``, the eigenvalues as ``[re, im]``
+        pairs, the modes, and the :attr:`finding`."""
+        return to_jsonable({
             "name": self.name,
-            "state_names": list(self.state_names),
-            "point": list(self.point),
+            "state_names": self.state_names,
+            "point": self.point,
             "residual_norm": float(np.linalg.norm(self.residual)),
-            "jacobian": self.jacobian.tolist(),
-            "eigenvalues": [[m.real, m.imag] for m in self.modes],
-            "modes": [m.as_dict() for m in self.modes],
+            "jacobian": self.jacobian,
+            "eigenvalues": self.eigenvalues,
+            "modes": self.modes,
             "hurwitz": self.hurwitz,
             "spectral_abscissa": self.spectral_abscissa,
             "finding": self.finding,
-        }
+        })
 
 
 def linearise(
@@ -261,9 +260,8 @@ class QuadraticLyapunov:
     residual: float
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {"P": self.P.tolist(), "Q": self.Q.tolist(), "valid": self.valid,
-                "decay_rate": _finite(self.decay_rate), "residual": self.residual}
+        """JSON-ready view: every field, ``None`` for non-finite numbers (``P`` and ``residual`` of a failed solve)."""
+        return to_jsonable(self)
 
 
 def quadratic_lyapunov(a: np.ndarray, q: np.ndarray | None = None) -> QuadraticLyapunov:
@@ -322,10 +320,8 @@ class CommonLyapunov:
     dwell_time_s: float
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {"names": list(self.names), "found": self.found,
-                "P": None if self.P is None else self.P.tolist(),
-                "worst_margin": _finite(self.worst_margin), "dwell_time_s": _finite(self.dwell_time_s)}
+        """JSON-ready view: every field, ``None`` for non-finite numbers."""
+        return to_jsonable(self)
 
 
 def _margin(p: np.ndarray, family: Sequence[np.ndarray]) -> float:

@@ -96,6 +96,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
+from hybrid.jsonable import to_jsonable
+
 __all__ = [
     "DEFAULT_SWEEP_POINTS",
     "MIN_FREQUENCY_FRACTION",
@@ -275,16 +277,14 @@ class LoopModel:
         return int(self.plant_c.shape[0])
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view (matrices as nested lists)."""
-        return {
-            "plant": {"A": self.plant_a.tolist(), "B": self.plant_b.tolist(),
-                      "C": self.plant_c.tolist(), "D": self.plant_d.tolist()},
-            "controller": {"A": self.controller_a.tolist(), "B": self.controller_b.tolist(),
-                           "C": self.controller_c.tolist(), "D": self.controller_d.tolist(),
-                           "dt": self.controller_dt},
-            "input_names": list(self.input_names),
-            "output_names": list(self.output_names),
-        }
+        """JSON-ready view: ``plant`` and ``controller`` as ``{"A", "B", "C", "D"}`` nested lists, then the names."""
+        return to_jsonable({
+            "plant": {"A": self.plant_a, "B": self.plant_b, "C": self.plant_c, "D": self.plant_d},
+            "controller": {"A": self.controller_a, "B": self.controller_b, "C": self.controller_c,
+                           "D": self.controller_d, "dt": self.controller_dt},
+            "input_names": self.input_names,
+            "output_names": self.output_names,
+        })
 
 
 def loop_model(
@@ -636,20 +636,9 @@ class Margins:
         return self.open_loop_unstable_poles == 0
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view: non-finite numbers become ``None``, poles ``[re, im]`` pairs."""
-        out: dict[str, Any] = {}
-        for field in self.__slots__:  # type: ignore[attr-defined]
-            value = getattr(self, field)
-            if field == "closed_loop_poles":
-                out[field] = [[float(p.real), float(p.imag)] for p in value]
-            elif isinstance(value, tuple):
-                out[field] = [_json_number(v) if isinstance(v, float) else v for v in value]
-            elif isinstance(value, float):
-                out[field] = _json_number(value)
-            else:
-                out[field] = value
-        out["open_loop_stable"] = self.open_loop_stable
-        return out
+        """JSON-ready view: every field and ``open_loop_stable``; non-finite numbers become ``None``,
+        poles ``[re, im]`` pairs."""
+        return {**to_jsonable(self), "open_loop_stable": self.open_loop_stable}
 
 
 def margins(L: Any, *, name: str = "", min_frequency: float | None = None) -> Margins:
@@ -851,11 +840,8 @@ class LoopFrequencyResponse:
     nyquist_imag: np.ndarray
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view (arrays as lists; non-finite numbers as ``None``)."""
-        out: dict[str, Any] = {"name": self.name, "period": self.period}
-        for field in ("omega", "magnitude_db", "phase_deg", "nyquist_real", "nyquist_imag"):
-            out[field] = [_json_number(float(v)) for v in getattr(self, field)]
-        return out
+        """JSON-ready view: every field, arrays as lists, non-finite numbers as ``None``."""
+        return to_jsonable(self)
 
 
 def frequency_response_data(L: Any, w: Any, *, name: str = "") -> LoopFrequencyResponse:
@@ -1218,10 +1204,6 @@ def _refine(func: Any, lo: float, hi: float) -> float | None:
 
 
 # --------------------------------------------------------------------------- helpers: assembling a result
-
-
-def _json_number(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
 
 
 def _pole_sort_key(p: complex) -> tuple[float, float]:

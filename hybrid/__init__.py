@@ -1,7 +1,12 @@
 """A small hybrid-automaton library: models, mode graph, executors, traces.
 
-It knows nothing of robots.  See :mod:`hybrid.model`, :mod:`hybrid.graph`,
-:mod:`hybrid.export` and :mod:`hybrid.sampled`.
+It knows nothing of robots.  Models: :mod:`hybrid.model` (automata),
+:mod:`hybrid.system` (flows, jump maps, outputs), :mod:`hybrid.region` (boxes);
+the one rule of an instant: :mod:`hybrid.instant`; executors:
+:mod:`hybrid.sampled`, :mod:`hybrid.continuous`; diagnostics and checks:
+:mod:`hybrid.diagnostics`, :mod:`hybrid.check`; graph and exports:
+:mod:`hybrid.graph`, :mod:`hybrid.affine`, :mod:`hybrid.export`; the JSON
+policy: :mod:`hybrid.jsonable`; reference systems: :mod:`hybrid.examples`.
 """
 
 from .check import CheckReport, Finding, Witness, check
@@ -15,16 +20,8 @@ from .errors import (
     NumericalFailure,
     ZenoError,
 )
-from .export import (
-    AffineForm,
-    NotAffine,
-    NotAffineError,
-    affine_form,
-    spacex_config,
-    to_dot,
-    to_json,
-    to_spacex,
-)
+from .affine import AffineForm, NotAffine, NotAffineError, affine_form
+from .export import spacex_config, to_dot, to_json, to_spacex
 from .graph import mode_graph
 from .model import Conjunction, HybridAutomaton, MemoryVariable, Mode, Transition, all_of, transition_fires
 from .sampled import Plant, SampledEvent, SampledTrace, settle, simulate_sampled

@@ -28,6 +28,8 @@ from typing import Protocol
 
 import numpy as np
 
+from .jsonable import to_jsonable
+
 __all__ = [
     "JumpLike",
     "ZenoEstimate",
@@ -112,17 +114,8 @@ class ZenoReport:
     message: str
 
     def as_dict(self) -> dict[str, object]:
-        """JSON-ready view."""
-        return {
-            "kind": self.kind,
-            "zeno_time": _json_float(self.zeno_time),
-            "ratio": _json_float(self.ratio),
-            "jumps": self.jumps,
-            "modes": list(self.modes),
-            "transitions": list(self.transitions),
-            "last_times": [_json_float(t) for t in self.last_times],
-            "message": self.message,
-        }
+        """JSON-ready view: every field, non-finite times and ratio as ``None``."""
+        return to_jsonable(self)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -157,20 +150,8 @@ class ChatterEpisode:
         return math.inf if span <= 0.0 else (self.switches - 1) / span
 
     def as_dict(self) -> dict[str, object]:
-        """JSON-ready view."""
-        return {
-            "transitions": list(self.transitions),
-            "modes": list(self.modes),
-            "start": self.start,
-            "end": self.end,
-            "switches": self.switches,
-            "shortest_dwell": self.shortest_dwell,
-            "rate_per_s": _json_float(self.rate),
-        }
-
-
-def _json_float(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
+        """JSON-ready view: every field and ``rate_per_s`` (:attr:`rate`, ``None`` when instantaneous)."""
+        return {**to_jsonable(self), "rate_per_s": to_jsonable(self.rate)}
 
 
 def estimate_zeno(times: Sequence[float], *, window: int = 10) -> ZenoEstimate | None:

@@ -2,7 +2,7 @@
 
 The state-space questions of :mod:`hybrid.check` (non-determinism, deadlock,
 resets landing outside an invariant) and the affinity test of
-:mod:`hybrid.export` are answered on a :class:`Box` that the *user* declares:
+:mod:`hybrid.affine` are answered on a :class:`Box` that the *user* declares:
 an interval per continuous coordinate, a finite set of values per discrete
 coordinate (an obstacle index, a side ±1), and an interval or a fixed value
 per memory variable (memory not named keeps its initial value).
@@ -28,6 +28,7 @@ from types import MappingProxyType
 import numpy as np
 
 from .errors import ModelDefinitionError
+from .jsonable import to_jsonable
 
 __all__ = ["Box"]
 
@@ -184,12 +185,8 @@ class Box:
         return ", ".join(parts)
 
     def as_dict(self) -> dict[str, object]:
-        """JSON-ready description."""
-        return {
-            "bounds": {n: [lo, hi] for n, (lo, hi) in self.bounds.items()},
-            "choices": {n: list(values) for n, values in self.choices.items()},
-            "memory": {n: [lo, hi] for n, (lo, hi) in self.memory.items()},
-        }
+        """JSON-ready description: ``bounds``, ``choices`` and ``memory`` with lists for the tuples."""
+        return to_jsonable(self)
 
 
 def _interval(what: str, pair: object) -> tuple[float, float]:

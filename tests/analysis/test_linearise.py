@@ -1,3 +1,4 @@
+import json
 import math
 
 import casadi as ca
@@ -73,3 +74,40 @@ def test_no_common_lyapunov_for_the_classic_destabilising_pair_gives_a_dwell_tim
 
     grow = expm(a2 * (math.pi / 2 / math.sqrt(10))) @ expm(a1 * (math.pi / 2 / math.sqrt(10)))
     assert max(abs(np.linalg.eigvals(grow))) > 1
+
+
+# --------------------------------------------------------------------------- JSON views
+
+
+def test_eigen_mode_as_dict_writes_nonfinite_as_null():
+    zero, = (m for m in eigen_modes(np.array([[0.0, 0.0], [0.0, -1.0]])) if m.real == 0.0)
+    assert zero.as_dict() == {"real": 0.0, "imag": 0.0, "damping_ratio": None, "natural_frequency_radps": 0.0,
+                              "time_constant_s": None}
+
+
+def test_linearisation_as_dict_derives_norm_eigenvalues_and_finding():
+    x = ca.SX.sym("x", 2)
+    F = ca.Function("F", [x], [ca.vertcat(x[1], -2.0 * x[0] - 3.0 * x[1])])
+    lin = linearise(F, (0.0, 0.0), state_names=("p", "q"), name="pq")
+    data = lin.as_dict()
+    assert list(data) == ["name", "state_names", "point", "residual_norm", "jacobian", "eigenvalues", "modes",
+                          "hurwitz", "spectral_abscissa", "finding"]
+    assert data["name"] == "pq" and data["state_names"] == ["p", "q"] and data["point"] == [0.0, 0.0]
+    assert data["residual_norm"] == 0.0 and data["jacobian"] == [[0.0, 1.0], [-2.0, -3.0]]
+    assert data["eigenvalues"] == [[pytest.approx(-2.0), 0.0], [pytest.approx(-1.0), 0.0]]
+    assert data["modes"] == [m.as_dict() for m in lin.modes]
+    assert data["hurwitz"] is True and data["finding"] == lin.finding
+    json.dumps(data, allow_nan=False)
+
+
+def test_lyapunov_as_dicts_list_every_field_and_null_the_nonfinite():
+    good = quadratic_lyapunov(np.diag([-1.0, -2.0])).as_dict()
+    assert list(good) == ["P", "Q", "valid", "decay_rate", "residual"]
+    assert good["P"] == [[0.5, 0.0], [0.0, 0.25]] and good["valid"] is True and good["decay_rate"] == 2.0
+    bad = quadratic_lyapunov(np.diag([1.0, -1.0])).as_dict()
+    assert bad == {"P": [[None, None], [None, None]], "Q": [[1.0, 0.0], [0.0, 1.0]], "valid": False,
+                   "decay_rate": None, "residual": None}
+    none = common_quadratic_lyapunov([np.diag([-1.0, -2.0]), np.eye(2)], ("a", "b")).as_dict()
+    assert none == {"names": ["a", "b"], "found": False, "P": None, "worst_margin": None, "dwell_time_s": None}
+    for data in (good, bad, none):
+        json.dumps(data, allow_nan=False)

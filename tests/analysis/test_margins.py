@@ -449,6 +449,38 @@ def test_loop_model_is_frozen_with_read_only_arrays():
     json.dumps(model.as_dict(), allow_nan=False)
 
 
+def test_margins_as_dict_lists_every_field_then_open_loop_stable():
+    m = margins(control.tf([3.0], [1.0, -1.0]), name="unstable")
+    data = m.as_dict()
+    assert list(data) == [f.name for f in dataclasses.fields(Margins)] + ["open_loop_stable"]
+    assert data["open_loop_stable"] is False and data["open_loop_unstable_poles"] == 1
+    assert data["lower_gain_margin"] == pytest.approx(1.0 / 3.0) and data["period"] is None
+    assert data["closed_loop_poles"] == [[pytest.approx(-2.0), pytest.approx(0.0)]]
+    assert all(isinstance(note, str) for note in data["notes"])
+    assert json.loads(json.dumps(data, allow_nan=False)) == data
+
+
+def test_frequency_response_as_dict_writes_nonfinite_as_null():
+    fr = frequency_response_data(control.tf([1.0], [1.0, 0.0, 1.0]), np.array([0.5, 2.0]), name="osc")
+    data = fr.as_dict()
+    assert list(data) == ["name", "period", "omega", "magnitude_db", "phase_deg", "nyquist_real", "nyquist_imag"]
+    assert data["omega"] == [0.5, 2.0] and data["name"] == "osc" and data["period"] is None
+    assert data["nyquist_real"] == pytest.approx([1.0 / 0.75, -1.0 / 3.0])
+    silent = dataclasses.replace(fr, magnitude_db=np.array([-math.inf, 1.0]))
+    assert silent.as_dict()["magnitude_db"] == [None, 1.0]
+
+
+def test_loop_model_as_dict_groups_plant_and_controller():
+    model = loop_model([[0.0, 1.0], [-2.0, -3.0]], [[0.0], [1.0]], np.eye(2), None, [[1.0, 0.5]],
+                       input_names=("u",), output_names=("p", "q"))
+    data = model.as_dict()
+    assert list(data) == ["plant", "controller", "input_names", "output_names"]
+    assert data["plant"] == {"A": [[0.0, 1.0], [-2.0, -3.0]], "B": [[0.0], [1.0]], "C": [[1.0, 0.0], [0.0, 1.0]],
+                             "D": [[0.0], [0.0]]}
+    assert data["controller"] == {"A": [], "B": [], "C": [[]], "D": [[1.0, 0.5]], "dt": None}
+    assert data["input_names"] == ["u"] and data["output_names"] == ["p", "q"]
+
+
 def test_importing_margins_does_not_import_matplotlib():
     code = "import sys, analysis.margins; sys.exit(1 if 'matplotlib' in sys.modules else 0)"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -1,4 +1,4 @@
-"""Exports: DOT, JSON, affinity detection and the SpaceEx round trip."""
+"""Exports: DOT, JSON, affinity detection (hybrid.affine) and the SpaceEx round trip."""
 
 import json
 import math
@@ -26,6 +26,7 @@ from hybrid import (
     to_json,
     to_spacex,
 )
+from hybrid.affine import system_affinity
 from hybrid.examples import reference_models
 from hybrid.export import SPACEEX_NAMESPACE
 
@@ -250,6 +251,88 @@ def test_affine_form_memory_coordinate_and_errors():
         affine_form(lambda z: "a", ("x",), box)
 
 
+def test_affine_form_as_dict_lists_every_field_in_order():
+    form = affine_form(lambda z: (2.0 * z[0] - 0.5 * z[1] + 1.0, 7.0), ("x", "y"), Box(bounds={"x": (-1.0, 3.0),
+                                                                                            "y": (0.0, 2.0)}))
+    data = form.as_dict()
+    assert list(data) == ["names", "matrix", "offset", "max_residual", "points_checked"]
+    assert data["names"] == ["x", "y"] and data["matrix"] == [[2.0, -0.5], [0.0, 0.0]]
+    assert data["offset"] == [1.0, 7.0] and data["points_checked"] == form.points_checked
+    assert json.loads(json.dumps(data, allow_nan=False)) == data
+
+
+def test_not_affine_as_dict_names_the_witness_and_writes_nonfinite_as_strings():
+    box = Box(bounds={"x": (0.0, 1.0), "y": (0.0, 1.0)})
+    result = affine_form(lambda z: (z[0], math.inf if z[0] == 0.5 else 1.0), ("x", "y"), box)
+    assert isinstance(result, NotAffine) and result.kind == "non-finite"
+    data = result.as_dict()
+    assert list(data) == ["kind", "reason", "point", "direction", "second_difference", "relative", "component",
+                          "time"]
+    assert data["point"] == {"x": 0.5, "y": 0.5} and data["direction"] is None
+    assert data["second_difference"] == "inf" and data["relative"] == "inf" and data["component"] == 1
+    assert data["reason"] == result.reason and data["time"] is None
+    json.dumps(data, allow_nan=False)
+    curved = affine_form(lambda z: z[0] * z[0], ("x", "y"), box)
+    assert curved.as_dict()["direction"] == curved.direction_by_name == dict(zip(("x", "y"), curved.direction))
+    assert curved.point_by_name == dict(zip(("x", "y"), curved.point))
+
+
+# ---------------------------------------------------------------------------- system_affinity
+
+
+def test_system_affinity_of_the_ball():
+    affinity = system_affinity(bouncing_ball(), BALL_BOX)
+    assert affinity.coordinates.names == ("h", "v") and dict(affinity.coordinates.fixed_memory) == {}
+    fall = affinity.modes["fall"]
+    assert fall.flow.matrix == ((0.0, 1.0), (0.0, 0.0)) and fall.flow.offset == (0.0, -GRAVITY)
+    assert [r.coefficients() for r in fall.invariant] == [{"h": 1.0}]
+    bounce = affinity.transitions["bounce"]
+    assert [g.coefficients() for g in bounce.guard] == [{"h": -1.0}, {"v": -1.0}]
+    assert bounce.jump_map.matrix == ((1.0, 0.0), (0.0, -RESTITUTION)) and bounce.memory_reset is None
+    assert [label for label, _ in affinity.items()] == [
+        "flow of mode 'fall'", "invariant term 0 of mode 'fall'", "guard term 0 of transition 'bounce'",
+        "guard term 1 of transition 'bounce'", "jump map of transition 'bounce'",
+    ]
+    assert affinity.first_defect() is None
+
+
+def test_system_affinity_memory_identity_jump_and_defects():
+    affinity = system_affinity(thermostat(), THERMOSTAT_BOX)
+    assert affinity.coordinates.names == ("T", "switches")
+    assert dict(affinity.coordinates.fixed_memory) == {"count": 3.0}
+    heat = affinity.transitions["heat"]
+    assert heat.jump_map.matrix == ((1.0, 0.0),) and heat.jump_map.points_checked == 0
+    assert heat.memory_reset.matrix == ((0.0, 1.0),) and heat.memory_reset.offset == (1.0,)
+    label, witness = system_affinity(pendulum(), PENDULUM_BOX).first_defect()
+    assert label == "flow of mode 'swing'" and witness.kind == "second difference"
+    clock = bouncing_ball(flow=lambda t, x, m: (x[1], -GRAVITY + 0.01 * t))
+    label, witness = system_affinity(clock, BALL_BOX).first_defect()
+    assert label == "flow of mode 'fall'" and witness.kind == "time" and witness.time == 1.0
+
+
+def test_system_affinity_errors_name_the_purpose():
+    with pytest.raises(ModelDefinitionError, match=r"system_affinity: system = .*expected a HybridSystem"):
+        system_affinity(bouncing_ball().automaton, BALL_BOX)
+    with pytest.raises(ModelDefinitionError, match=r"affinity test of system 'ball': box = 3"):
+        system_affinity(bouncing_ball(), 3)
+    with pytest.raises(ModelDefinitionError, match=r"my export: Box.memory names unknown memory"):
+        system_affinity(bouncing_ball(), Box(bounds=dict(BALL_BOX.bounds), memory={"q": (0.0, 1.0)}),
+                        what="my export")
+    with pytest.raises(ModelDefinitionError, match=r"'switches' is written by a reset but the box gives it no"):
+        system_affinity(thermostat(), Box(bounds={"T": (15.0, 25.0)}))
+
+
+def test_affinity_lives_in_hybrid_affine_and_the_package_names_are_unchanged():
+    import hybrid
+    import hybrid.affine
+    import hybrid.export
+
+    for name in ("AffineForm", "NotAffine", "NotAffineError", "affine_form"):
+        assert getattr(hybrid, name) is getattr(hybrid.affine, name)
+        assert name not in hybrid.export.__all__
+    assert set(hybrid.export.__all__) == {"SPACEEX_NAMESPACE", "to_dot", "to_json", "to_spacex", "spacex_config"}
+
+
 # ---------------------------------------------------------------------------- JSON
 
 
@@ -285,6 +368,15 @@ def test_json_of_automaton_and_labels():
     assert all(t["affine"] is None and t["has_jump_map"] is False for t in data["transitions"])
     with pytest.raises(ModelDefinitionError, match="pass the HybridSystem to get affine coefficients"):
         to_json(water_tanks().automaton, TANKS_BOX)
+
+
+def test_json_labels_follow_the_policy_for_user_data():
+    labels = {"z": math.inf, "a": (np.float64(-math.inf), math.nan), 3: {"y": 1, "b": 2}, "c": 1 + 2j, "s": {2, 1}}
+    automaton = HybridAutomaton(name="a", modes=(Mode(name="x", labels=labels),), transitions=(), variables=())
+    data = to_json(automaton)["modes"][0]["labels"]
+    assert list(data) == ["3", "a", "c", "s", "z"] and list(data["3"]) == ["b", "y"]
+    assert data == {"3": {"b": 2, "y": 1}, "a": ["-inf", "nan"], "c": [1.0, 2.0], "s": [1, 2], "z": "inf"}
+    json.dumps(data, allow_nan=False)
 
 
 def test_json_memory_and_reasons():

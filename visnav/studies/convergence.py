@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from hybrid import HybridTrajectory, simulate_continuous
+from hybrid.jsonable import to_jsonable
 
-from visnav.jsonable import jsonable
 from visnav.closed_loop import ClosedLoop
 from visnav.parameters import Scenario
 from visnav.simulation import simulate
@@ -138,12 +138,8 @@ class ConvergenceStudy:
     continuous_events: tuple[tuple[float, str], ...]
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        out: dict[str, Any] = {}
-        for name in self.__slots__:  # type: ignore[attr-defined]
-            value = getattr(self, name)
-            out[name] = jsonable(value)
-        return out
+        """JSON-ready view: every field, non-finite numbers (an ``event_shift_s`` of ``nan``) as ``None``."""
+        return to_jsonable(self)
 
 
 def observed_order(steps: Sequence[float], errors: Sequence[float]) -> float:

@@ -46,6 +46,7 @@ import casadi as ca
 import numpy as np
 
 from analysis.linearise import Linearisation, linearise
+from hybrid.jsonable import to_jsonable
 
 from visnav import model
 from visnav.parameters import Scenario
@@ -361,18 +362,19 @@ class GoalLoopFindings:
     explanation: str
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {
+        """JSON-ready view: each linearisation (:meth:`Linearisation.as_dict`) with its closed form and
+        claim under the report's keys, the input matrix and the explanation."""
+        return to_jsonable({
             "visual_servoing_task": {**self.task.as_dict(), "closed_form": [self.task_closed_form] * 3,
                                      "claim": "computed"},
             "closed_loop": {**self.closed_loop.as_dict(), "zero_mode": self.zero_mode,
                             "zero_mode_camera_motion": self.zero_mode_camera_motion, "claim": "computed"},
-            "input_matrix": self.input_matrix.tolist(),
+            "input_matrix": self.input_matrix,
             "input_matrix_error_vs_reduced_jacobian": self.input_matrix_error,
             "pan_task": {**self.pan.as_dict(), "closed_form": [self.pan_closed_form],
                          "closure_residual": self.pan_closure_residual, "claim": "computed"},
             "explanation": self.explanation,
-        }
+        })
 
 
 def goal_loop_findings(scenario: Scenario, *, vs: VisualServoingModel | None = None,

@@ -1,12 +1,15 @@
 """The supervisor on the continuous-time executor, and the sampled loop converging to it."""
 
+import dataclasses
+import json
 import math
 
+import numpy as np
 import pytest
 
 from hybrid import simulate_continuous
 from visnav.closed_loop import ClosedLoop
-from visnav.studies.convergence import observed_order, sampled_convergence, simulate_continuous_time
+from visnav.studies.convergence import ConvergenceStudy, observed_order, sampled_convergence, simulate_continuous_time
 from visnav.scenario import load_scenario
 from visnav.simulation import simulate
 
@@ -95,3 +98,19 @@ def test_continuous_loop_on_a_stiff_method_agrees(paper, continuous):
     assert [e.transition for e in radau.events] == [e.transition for e in reference]
     assert max(abs(a.time - b.time) for a, b in zip(radau.events, reference)) < 1e-5
     assert math.isclose(radau.final_time, 12.0)
+
+
+def test_convergence_study_as_dict_lists_every_field(study):
+    data = study.as_dict()
+    assert list(data) == [f.name for f in dataclasses.fields(ConvergenceStudy)]
+    assert data["periods"] == list(study.periods) and data["order"] == study.order
+    assert data["continuous_events"] == [[t, name] for t, name in study.continuous_events]
+    assert json.loads(json.dumps(data, allow_nan=False)) == data
+
+
+def test_convergence_study_as_dict_writes_nonfinite_as_null(study):
+    odd = dataclasses.replace(study, event_shift_s=(math.nan,) + study.event_shift_s[1:], event_shift_order=math.nan,
+                              position_error_m=(np.float64(0.5),) + study.position_error_m[1:])
+    data = odd.as_dict()
+    assert data["event_shift_s"][0] is None and data["event_shift_order"] is None
+    assert data["position_error_m"][0] == 0.5 and type(data["position_error_m"][0]) is float

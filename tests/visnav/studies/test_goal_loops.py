@@ -1,5 +1,6 @@
 """The symbolic goal models against the float code, and their eigenvalues against closed forms."""
 
+import json
 import math
 
 import numpy as np
@@ -88,6 +89,22 @@ def test_goal_eigenvalues_match_the_closed_forms(paper):
     assert f.pan.eigenvalues[0] == pytest.approx(-lam_gc, abs=1e-12)
     assert f.pan_closure_residual <= 1e-12
     assert f.input_matrix_error <= 1e-12
+
+
+def test_goal_findings_as_dict_keeps_the_report_keys(paper):
+    f = goal_loop_findings(paper)
+    data = f.as_dict()
+    assert list(data) == ["visual_servoing_task", "closed_loop", "input_matrix",
+                          "input_matrix_error_vs_reduced_jacobian", "pan_task", "explanation"]
+    task = data["visual_servoing_task"]
+    assert list(task) == list(f.task.as_dict()) + ["closed_form", "claim"]
+    assert task["closed_form"] == [-paper.gains.lambda_vs] * 3 and task["claim"] == "computed"
+    loop = data["closed_loop"]
+    assert loop["zero_mode"] == list(f.zero_mode) and loop["zero_mode_camera_motion"] == f.zero_mode_camera_motion
+    assert data["input_matrix"] == f.input_matrix.tolist()
+    assert data["pan_task"]["closed_form"] == [-paper.gains.lambda_gc]
+    assert data["pan_task"]["closure_residual"] == f.pan_closure_residual
+    assert json.loads(json.dumps(data, allow_nan=False)) == data
 
 
 def test_zero_mode_is_a_curve_of_equilibria(paper):

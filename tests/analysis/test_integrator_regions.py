@@ -1,4 +1,4 @@
-"""Stability regions, boundary loci and A(α) angles of analysis.stability_regions."""
+"""Stability regions, boundary loci and A(α) angles of analysis.integrator_regions."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 
 from analysis.bdf import BdfOrderError
 from analysis.integrators import FIXED_STEP_SCHEMES, OdeProblem, UnknownSchemeError, integrate
-from analysis.stability_regions import (
+from analysis.integrator_regions import (
     PUBLISHED_A_ALPHA_DEG,
     a_alpha,
     boundary_locus,

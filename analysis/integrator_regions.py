@@ -40,8 +40,8 @@ magnitude inside what comparing with the published four-figure values needs.
 
 Examples
 --------
->>> round(a_alpha(4).alpha_deg, 3)
-73.351
+>>> round(a_alpha(4).alpha_deg, 4)  # published to three decimals, truncated: 73.351
+73.3517
 >>> round(real_stability_interval(stability_polynomial("rk4")), 4)
 -2.7853
 """
