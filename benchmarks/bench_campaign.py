@@ -28,7 +28,8 @@ import sys
 import time
 from collections import Counter
 
-from visnav.studies.campaign import CampaignSpec, campaign_executor, process_pool, run_campaign
+from analysis.campaigns import campaign_executor
+from visnav.studies.campaign import CampaignSpec, process_pool, run_campaign
 from visnav.scenario import load_scenario
 
 

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 __all__ = [
+    "K_PATH_RANGE",
     "RobotGeometry",
     "CameraModel",
     "Envelopes",
@@ -24,6 +25,15 @@ __all__ = [
     "Pose",
     "Scenario",
 ]
+
+
+K_PATH_RANGE = (1e-3, 1e3)
+"""Certified range ``[low, high]`` of the path-following gain ``k`` of (11) [1/m].
+
+The interval the Lyapunov certificate of the path-following law covers and the
+admissible-gain search scans (:mod:`visnav.studies.path_following`,
+:mod:`visnav.studies.loop_analysis`).  :mod:`visnav.scenario` refuses a
+``gains.k_path`` outside it, so that every command accepts the same scenarios."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

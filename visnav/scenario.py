@@ -39,9 +39,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from analysis.bdf import MAX_ORDER, MIN_ORDER, BdfOrderError
+
 from visnav import geometry
-from visnav.estimator import SCREW_MODELS
+from visnav.estimator import SCREW_MODELS, EstimatorSettingsError, validate_settings
 from visnav.parameters import (
+    K_PATH_RANGE,
     ActuatorLimits,
     CameraModel,
     Envelopes,
@@ -63,6 +66,8 @@ __all__ = [
     "load_scenario",
     "scenario_from_toml",
     "scenario_from_mapping",
+    "validate_scenario",
+    "validate_gains",
     "scenario_to_toml",
     "scenario_digest",
     "target_square",
@@ -70,8 +75,9 @@ __all__ = [
     "point_in_camera",
 ]
 
-#: Zero-stable BDF orders accepted for ``estimator.order``.
-ESTIMATOR_ORDERS = range(1, 7)
+#: Zero-stable BDF orders accepted for ``estimator.order`` (for reference: the check itself is
+#: :func:`visnav.estimator.validate_settings`).
+ESTIMATOR_ORDERS = range(MIN_ORDER, MAX_ORDER + 1)
 #: Minimum number of target points (``C = (LᵀL)⁻¹Lᵀ`` needs ``2N >= 3`` independent rows; the
 #: paper uses 4).
 MIN_TARGET_POINTS = 3
@@ -546,32 +552,8 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     _ordered(check, "envelopes", ("d_minus_m", "d_zero_m", "d_plus_m"), env)
     _ordered(check, "envelopes", ("D_minus_px", "D_zero_px", "D_plus_px"), env)
 
-    for f in dataclasses.fields(Gains):
-        why = "v_coll is the constant avoidance speed" if f.name == "v_coll_mps" else "every gain is positive"
-        check.positive(f"gains.{f.name}", getattr(records["gains"], f.name), why)
-    for f in dataclasses.fields(ActuatorLimits):
-        check.positive(f"limits.{f.name}", getattr(records["limits"], f.name), "limits are magnitudes")
-
-    est: EstimatorSettings = records["estimator"]
-    if est.order not in ESTIMATOR_ORDERS:
-        check.fail(
-            "estimator.order",
-            est.order,
-            "a BDF order in 1-6 (orders 7 and up are not zero-stable)",
-            "use 4, as in the paper",
-        )
-    if est.screw_model not in SCREW_MODELS:
-        close = difflib.get_close_matches(est.screw_model, SCREW_MODELS, n=1)
-        hint = f"did you mean {close[0]!r}? " if close else ""
-        check.fail(
-            "estimator.screw_model",
-            est.screw_model,
-            f"one of {', '.join(repr(m) for m in SCREW_MODELS)}",
-            f"{hint}use one of {', '.join(SCREW_MODELS)}",
-        )
-    check.positive("estimator.newton_tol", est.newton_tol)
-    if est.newton_maxiter < 1:
-        check.fail("estimator.newton_maxiter", est.newton_maxiter, "an iteration limit >= 1", "use 8")
+    _gains_and_limits(check, records["gains"], records["limits"])
+    _estimator(check, records["estimator"])
 
     sup: SupervisorSettings = records["supervisor"]
     if not 0.0 < sup.arm_angle_rad < math.pi / 2:
@@ -604,6 +586,112 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     return Scenario(
         **top, **records, obstacles=obstacles, target=target, start=poses["start"], goal=poses["goal"]
     )
+
+
+def _gains_and_limits(check: _Checker, gains: Gains, limits: ActuatorLimits) -> None:
+    """Rules 11-12 of ``docs/scenarios.md``: positive gains and limits, ``k`` certified, ``v_coll <= v_max``."""
+    for f in dataclasses.fields(Gains):
+        why = "v_coll is the constant avoidance speed" if f.name == "v_coll_mps" else "every gain is positive"
+        check.positive(f"gains.{f.name}", getattr(gains, f.name), why)
+    for f in dataclasses.fields(ActuatorLimits):
+        check.positive(f"limits.{f.name}", getattr(limits, f.name), "limits are magnitudes")
+    low, high = K_PATH_RANGE
+    if not low <= gains.k_path <= high:
+        check.fail(
+            "gains.k_path",
+            gains.k_path,
+            f"a gain in [{low:g}, {high:g}] 1/m, the range the Lyapunov certificate and the admissible-gain "
+            "search cover (visnav.parameters.K_PATH_RANGE)",
+            f"choose k_path between {low:g} and {high:g} (the paper scenario uses 4)",
+        )
+    if not gains.v_coll_mps <= limits.v_max_mps:
+        check.fail(
+            "gains.v_coll_mps",
+            gains.v_coll_mps,
+            f"at most limits.v_max_mps = {limits.v_max_mps!r} m/s: the robot cannot follow the envelope faster "
+            "than its speed limit, and the Lyapunov certificate covers v in [0, v_max]",
+            "lower gains.v_coll_mps or raise limits.v_max_mps",
+        )
+
+
+#: Scenario-file advice per estimator key; the rule itself is :func:`visnav.estimator.validate_settings`.
+_ESTIMATOR_FIXES = {
+    "order": "use 4, as in the paper",
+    "screw_model": f"use one of {', '.join(SCREW_MODELS)}",
+    "newton_tol": "set newton_tol to a positive value, e.g. 1e-12",
+    "newton_maxiter": "use 8",
+}
+
+
+def _estimator(check: _Checker, est: EstimatorSettings) -> None:
+    """Rule 13: :func:`visnav.estimator.validate_settings`, its error mapped to a :class:`ScenarioError`."""
+    try:
+        validate_settings(est)
+    except (EstimatorSettingsError, BdfOrderError) as err:
+        message = str(err)
+        for f in dataclasses.fields(EstimatorSettings):
+            value = getattr(est, f.name)
+            prefix = f"EstimatorSettings.{f.name} = {value!r}"
+            if not message.startswith(prefix):
+                continue
+            rest = message[len(prefix):]
+            at = rest.find("expected ")
+            # the estimator's text after "; " is its fix in Python terms; the scenario gives its own
+            expected = (rest[at + len("expected "):] if at >= 0 else rest.lstrip(": ")).split("; ", 1)[0]
+            fix = _ESTIMATOR_FIXES.get(f.name, "see docs/estimator.md")
+            if f.name == "screw_model" and isinstance(value, str):
+                close = difflib.get_close_matches(value, SCREW_MODELS, n=1)
+                fix = (f"did you mean {close[0]!r}? " if close else "") + fix
+            check.fail(f"estimator.{f.name}", value, expected, fix)
+        check.fail("estimator", None, f"valid estimator settings ({message})", "see docs/estimator.md")
+
+
+def validate_gains(gains: Gains, limits: ActuatorLimits, source: str = "<gains>") -> None:
+    """Check ``gains`` against the scenario rules (rules 11-12 of ``docs/scenarios.md``).
+
+    The check :func:`scenario_from_mapping` applies to the ``[gains]`` and ``[limits]``
+    tables, for records built in Python (e.g. with :func:`dataclasses.replace`):
+    every gain and limit > 0, ``k_path`` within :data:`visnav.parameters.K_PATH_RANGE`
+    [1/m], ``v_coll_mps <= limits.v_max_mps`` [m/s].
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``source``, the key, the value, the expectation and the fix.
+    """
+    _gains_and_limits(_Checker(source), gains, limits)
+
+
+def validate_scenario(scenario: Scenario, source: str | None = None) -> Scenario:
+    """Apply every rule of :func:`scenario_from_mapping` to a scenario built in Python.
+
+    The scenario goes through its canonical TOML (floats written as ``repr``, so
+    the round trip is exact) and back through the validator.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        E.g. a perturbed copy of a loaded scenario.
+    source : str, optional
+        Label used in error messages (default: the scenario's name).
+
+    Returns
+    -------
+    Scenario
+        An equal, validated scenario.
+
+    Raises
+    ------
+    ScenarioError
+        The first rule the scenario breaks (a non-finite number included).
+    """
+    label = scenario.name if source is None else source
+    try:
+        text = scenario_to_toml(scenario)
+    except (TypeError, ValueError) as err:
+        raise ScenarioError(label, None, None, f"finite numbers and strings only ({err})",
+                            "check the values computed for the scenario") from err
+    return scenario_from_toml(text, label)
 
 
 def _obstacles(

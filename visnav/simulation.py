@@ -1,8 +1,10 @@
-"""Run a scenario's closed loop and measure it.
+"""Run a scenario's closed loop, measure it and classify how it ended.
 
 :func:`simulate` returns a :class:`SimulationResult`: the sampled-data trace
-and the figures of merit that the CLI prints and the tests check.  Nothing
-here prints or writes files.
+and the figures of merit that the CLI prints and the tests check.
+:data:`OUTCOMES` is the one vocabulary of how a run ends, used by every study
+(campaigns, fuzzing); :func:`classify_run` is its classifier.  Nothing here
+prints or writes files.
 """
 
 from __future__ import annotations
@@ -16,12 +18,66 @@ import numpy as np
 
 from hybrid import SampledTrace, simulate_sampled
 
-from visnav.jsonable import jsonable
+from hybrid.jsonable import to_jsonable
+
 from visnav.closed_loop import ClosedLoop, robot_plant
 from visnav.parameters import Scenario
 from visnav.supervisor import split_mode
 
-__all__ = ["SimulationResult", "Metrics", "simulate", "compute_metrics", "CHATTER_WINDOW_S", "CLEARANCE_SUBSTEPS"]
+__all__ = [
+    "SimulationResult",
+    "Metrics",
+    "simulate",
+    "compute_metrics",
+    "classify_run",
+    "without_diagnosis",
+    "OUTCOMES",
+    "RUN_OUTCOMES",
+    "TIMEOUT_OUTCOMES",
+    "TARGET_LOST_WINDOW_S",
+    "LOOP_TRANSITION_COUNT",
+    "CHATTER_WINDOW_S",
+    "CLEARANCE_SUBSTEPS",
+]
+
+OUTCOMES = ("success", "collision", "timeout", "stuck_in_loop", "target_lost", "diverged", "invalid_scenario", "error")
+"""How a run ends, in report order: the one outcome vocabulary of every study.
+
+Runs that finished (:func:`classify_run`, :data:`RUN_OUTCOMES`):
+
+``success``
+    The task was achieved (feature error below the tolerance) without touching an obstacle.
+``collision``
+    The exact trajectory reached an obstacle surface (also between samples); wins over any other class.
+``timeout``
+    The scenario's duration ran out, for no cause diagnosed below.
+``stuck_in_loop``
+    A timeout in which the heading turned through a full circle, or one supervisor transition fired
+    :data:`LOOP_TRANSITION_COUNT` times or more: the robot went round an obstacle or round the mode graph.
+``target_lost``
+    A timeout that ends with no target point visible during the last :data:`TARGET_LOST_WINDOW_S`.
+
+Runs that did not finish (set by the caller that ran them):
+
+``diverged``
+    :class:`hybrid.DivergenceError` (the numerics broke down; the error gives time, mode and cause).
+``invalid_scenario``
+    The scenario broke a rule of :mod:`visnav.scenario` and was not run.
+``error``
+    Any other exception.
+"""
+
+RUN_OUTCOMES = OUTCOMES[:5]
+"""What :func:`classify_run` returns."""
+
+TIMEOUT_OUTCOMES = ("timeout", "stuck_in_loop", "target_lost")
+"""The outcomes of runs that used their whole duration (a timeout and its two diagnosed causes)."""
+
+TARGET_LOST_WINDOW_S = 5.0
+"""A timeout that ends with no target point visible for this long is ``target_lost`` [s]."""
+
+LOOP_TRANSITION_COUNT = 3
+"""A timeout in which one transition fired this many times or more is ``stuck_in_loop``."""
 
 CHATTER_WINDOW_S = 1.0
 """A transition undone by its reverse within this window counts as chatter [s]."""
@@ -59,7 +115,7 @@ class Metrics:
         out: dict[str, Any] = {}
         for name in self.__slots__:  # type: ignore[attr-defined]
             value = getattr(self, name)
-            out[name] = jsonable(value)
+            out[name] = to_jsonable(value)
         return out
 
 
@@ -191,3 +247,61 @@ def compute_metrics(scenario: Scenario, trace: SampledTrace) -> Metrics:
         sim_time_s=float(trace.times[-1] - trace.times[0]),
         steps=len(trace.times),
     )
+
+
+def classify_run(scenario: Scenario, trace: SampledTrace, metrics: Metrics) -> str:
+    """How a finished run ended: one of :data:`RUN_OUTCOMES` (meanings in :data:`OUTCOMES`).
+
+    In this order: ``collision`` (the dense clearance reached 0, or the run stopped on a
+    collision), ``success``, then a timeout diagnosed as ``target_lost`` (no target point
+    visible during the last :data:`TARGET_LOST_WINDOW_S`) or ``stuck_in_loop`` (heading
+    range of at least 2π, or one transition fired :data:`LOOP_TRANSITION_COUNT` times),
+    else ``timeout``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario run (its number of target points).
+    trace : hybrid.SampledTrace
+        The run's trace (records ``n_hidden``, state ``theta_rad``, events).
+    metrics : Metrics
+        :func:`compute_metrics` of the trace.
+
+    Examples
+    --------
+    >>> result = simulate(scenario)                       # doctest: +SKIP
+    >>> classify_run(result.scenario, result.trace, result.metrics)  # doctest: +SKIP
+    'success'
+    """
+    if metrics.collided or metrics.termination == "collision":
+        return "collision"
+    if metrics.termination == "success":
+        return "success"
+    n_points = len(scenario.target.points_m)
+    window = max(1, int(round(TARGET_LOST_WINDOW_S / trace.period)))
+    hidden = trace.record("n_hidden")
+    if len(hidden) >= window and bool((hidden[-window:] >= n_points).all()):
+        return "target_lost"
+    theta = trace.state("theta_rad")
+    counts: dict[str, int] = {}
+    for event in trace.events:
+        counts[event.transition] = counts.get(event.transition, 0) + 1
+    if float(theta.max() - theta.min()) >= 2.0 * math.pi or (counts and max(counts.values()) >= LOOP_TRANSITION_COUNT):
+        return "stuck_in_loop"
+    return "timeout"
+
+
+def without_diagnosis(outcome: str) -> str:
+    """``outcome`` with the diagnosed cause of a timeout dropped (``stuck_in_loop``, ``target_lost`` -> ``timeout``).
+
+    For result files whose format predates the diagnosis (campaign format version 1).
+
+    Raises
+    ------
+    ValueError
+        For a name outside :data:`OUTCOMES`.
+    """
+    if outcome not in OUTCOMES:
+        raise ValueError(f"outcome = {outcome!r}: expected one of {', '.join(OUTCOMES)}; fix: classify the run "
+                         "with visnav.simulation.classify_run")
+    return "timeout" if outcome in TIMEOUT_OUTCOMES else outcome

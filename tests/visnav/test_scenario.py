@@ -359,7 +359,6 @@ def test_gains_positive(paper, name, value):
         ("limits", "v_max_mps"),
         ("limits", "omega_max_radps"),
         ("limits", "pan_rate_max_radps"),
-        ("estimator", "newton_tol"),
     ],
 )
 @pytest.mark.parametrize("value", [0.0, -2.0])
@@ -379,7 +378,28 @@ def test_pan_offset_positive_explains_singularity(paper, value):
 @pytest.mark.parametrize("order", [0, 7, -1])
 def test_estimator_order(paper, order):
     paper["estimator"]["order"] = order
-    rejects(paper, "estimator.order", "use 4, as in the paper", "1-6")
+    rejects(paper, "estimator.order", "use 4, as in the paper", "a BDF order in 1..6")
+
+
+@pytest.mark.parametrize("value", [0.0, -2.0])
+def test_newton_tol(paper, value):
+    paper["estimator"]["newton_tol"] = value
+    rejects(paper, "estimator.newton_tol", "set newton_tol to a positive value", "a positive finite tolerance")
+
+
+@pytest.mark.parametrize(("key", "value"), [("order", 9), ("screw_model", "trapezoid"), ("newton_tol", -1.0),
+                                            ("newton_maxiter", 0)])
+def test_estimator_settings_are_checked_by_the_estimators_own_rule(paper, key, value):
+    """One rule: visnav.estimator.validate_settings; its expectation is quoted, the key is the scenario's."""
+    from analysis.bdf import BdfOrderError
+    from visnav.estimator import EstimatorSettingsError, validate_settings
+    from visnav.parameters import EstimatorSettings
+
+    paper["estimator"][key] = value
+    with pytest.raises((BdfOrderError, EstimatorSettingsError)) as own:
+        validate_settings(EstimatorSettings(**{key: value}))
+    err = rejects(paper, f"estimator.{key}", "")
+    assert err.value == value and err.expected in str(own.value)
 
 
 @pytest.mark.parametrize("order", [1, 6])
@@ -615,3 +635,90 @@ def test_load_accepts_path_objects(tmp_path):
     path = tmp_path / "paper"  # no suffix: a PathLike is always a path, never a built-in name
     path.write_text(scenario_to_toml(load_scenario("paper")), encoding="utf-8")
     assert load_scenario(path) == load_scenario("paper")
+
+
+# ---------------------------------------------------------------------------------------------
+# Gains: the certified range of k, v_coll within v_max (one rule for every command)
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("value", [5e3, 1e-4])
+def test_k_path_outside_the_certified_range(paper, value):
+    from visnav.parameters import K_PATH_RANGE
+
+    paper["gains"]["k_path"] = value
+    err = rejects(paper, "gains.k_path", "choose k_path between 0.001 and 1000", "a gain in [0.001, 1000] 1/m")
+    assert K_PATH_RANGE == (1e-3, 1e3) and "K_PATH_RANGE" in err.expected
+
+
+@pytest.mark.parametrize("value", [1e-3, 1e3])
+def test_k_path_range_is_closed(paper, value):
+    paper["gains"]["k_path"] = value
+    assert scenario_from_mapping(paper, SOURCE).gains.k_path == value
+
+
+def test_v_coll_above_v_max(paper):
+    paper["gains"]["v_coll_mps"] = 0.61
+    rejects(paper, "gains.v_coll_mps", "lower gains.v_coll_mps or raise limits.v_max_mps",
+            "at most limits.v_max_mps = 0.6 m/s")
+    paper["gains"]["v_coll_mps"] = 0.6
+    assert scenario_from_mapping(paper, SOURCE).gains.v_coll_mps == 0.6  # equal is accepted
+
+
+def test_validate_gains_is_the_same_rule_for_records_built_in_python():
+    from visnav.scenario import validate_gains
+
+    scenario = load_scenario("paper")
+    validate_gains(scenario.gains, scenario.limits, source="paper")
+    stiff = dataclasses.replace(scenario.gains, k_path=5e3)
+    with pytest.raises(ScenarioError, match=r"^scenario 'hand-built': gains.k_path = 5000.0: expected a gain in "):
+        validate_gains(stiff, scenario.limits, source="hand-built")
+    with pytest.raises(ScenarioError, match=r"gains.v_coll_mps = 0.2: expected at most limits.v_max_mps = 0.1 m/s"):
+        validate_gains(scenario.gains, dataclasses.replace(scenario.limits, v_max_mps=0.1))
+
+
+def test_validate_scenario_applies_every_rule():
+    from visnav.scenario import validate_scenario
+
+    scenario = load_scenario("paper")
+    assert validate_scenario(scenario) == scenario
+    moved = dataclasses.replace(scenario, obstacles=(dataclasses.replace(scenario.obstacles[0], center_m=(0.5, 0.0)),
+                                                     scenario.obstacles[1]))
+    with pytest.raises(ScenarioError, match=r"^scenario 'label': obstacles\[0\].center_m = .*critical envelope"):
+        validate_scenario(moved, "label")
+    infinite = dataclasses.replace(scenario, duration_s=math.inf)
+    with pytest.raises(ScenarioError, match=r"^scenario 'paper': expected finite numbers and strings only"):
+        validate_scenario(infinite)
+
+
+def test_the_paper_scenario_is_inside_every_range():
+    from visnav.parameters import K_PATH_RANGE
+
+    scenario = load_scenario("paper")
+    assert K_PATH_RANGE[0] <= scenario.gains.k_path <= K_PATH_RANGE[1]
+    assert scenario.gains.v_coll_mps <= scenario.limits.v_max_mps
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ("k_path = 4.0", "k_path = 5e3", "gains.k_path = 5000.0: expected a gain in [0.001, 1000] 1/m"),
+    ("v_coll_mps = 0.2", "v_coll_mps = 0.9", "gains.v_coll_mps = 0.9: expected at most limits.v_max_mps = 0.6 m/s"),
+])
+def test_every_command_refuses_the_same_scenario_with_the_same_message(tmp_path, old, new, message):
+    """A scenario ``visnav simulate`` refuses is refused by ``analyse`` and ``report`` alike: exit 2, one message."""
+    import subprocess
+    import sys
+
+    text = importlib.resources.files("visnav").joinpath("scenarios", "paper.toml").read_text(encoding="utf-8")
+    assert text.count(old) == 1
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(old, new))
+    errors = []
+    for command in (["simulate", "--no-figures"], ["analyse"], ["report", "--quick", "--out", str(tmp_path / "r")]):
+        proc = subprocess.run([sys.executable, "-m", "visnav.app.cli", *command, "--scenario", str(bad)],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2, (command, proc.stderr)
+        assert "Traceback" not in proc.stderr and proc.stdout == ""
+        errors.append(proc.stderr)
+    assert errors[0] == errors[1] == errors[2]
+    assert errors[0].startswith(f"visnav: error: scenario {str(bad)!r}: {message}") and "; fix: " in errors[0]
+    assert not (tmp_path / "r").exists()  # refused before any output

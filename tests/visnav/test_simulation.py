@@ -112,3 +112,59 @@ def test_dense_clearance_equals_the_exact_flow_sampled_point_by_point():
                 best = min(best, math.hypot(px - o.center_m[0], py - o.center_m[1]) - o.radius_m)
     # same formula, numpy vs math round-off: a few ulps of the coordinates (~1e-15 m)
     assert abs(dense_clearance(scenario, trace) - best) <= 1e-13
+
+
+# ---------------------------------------------------------------------------------------------
+# The outcome vocabulary and its classifier
+# ---------------------------------------------------------------------------------------------
+
+
+def _run(*, collided=False, termination="end_time", hidden=(0,) * 200, theta=(0.0, 0.1), transitions=()):
+    """A fake (scenario, trace, metrics) with what classify_run reads: 4 target points, T = 0.05 s."""
+    from types import SimpleNamespace
+
+    scenario = SimpleNamespace(target=SimpleNamespace(points_m=((0, 0, 0),) * 4))
+    records = {"n_hidden": np.array(hidden, dtype=float)}
+    trace = SimpleNamespace(period=0.05, record=records.__getitem__, state=lambda name: np.array(theta),
+                            events=[SimpleNamespace(transition=t) for t in transitions])
+    metrics = SimpleNamespace(collided=collided, termination=termination, success=termination == "success")
+    return scenario, trace, metrics
+
+
+def test_outcome_vocabulary():
+    from visnav.simulation import OUTCOMES, RUN_OUTCOMES, TIMEOUT_OUTCOMES
+
+    assert OUTCOMES == ("success", "collision", "timeout", "stuck_in_loop", "target_lost", "diverged",
+                        "invalid_scenario", "error")
+    assert RUN_OUTCOMES == OUTCOMES[:5] and set(TIMEOUT_OUTCOMES) <= set(RUN_OUTCOMES)
+
+
+def test_paper_run_is_classified_success(paper):
+    from visnav.simulation import classify_run
+
+    assert classify_run(paper.scenario, paper.trace, paper.metrics) == "success"
+
+
+def test_classify_run_order_of_the_classes():
+    from visnav.simulation import LOOP_TRANSITION_COUNT, TARGET_LOST_WINDOW_S, classify_run
+
+    window = int(round(TARGET_LOST_WINDOW_S / 0.05))
+    lost = (0,) * 50 + (4,) * window
+    assert classify_run(*_run(collided=True, termination="success")) == "collision"  # collision wins
+    assert classify_run(*_run(termination="collision")) == "collision"
+    assert classify_run(*_run(termination="success", hidden=lost)) == "success"
+    assert classify_run(*_run(hidden=lost, theta=(0.0, 7.0))) == "target_lost"
+    assert classify_run(*_run(hidden=(0,) * 50 + (4,) * (window - 1))) == "timeout"  # hidden, not long enough
+    assert classify_run(*_run(hidden=(0,) * 50 + (3,) * window)) == "timeout"  # one point still visible
+    assert classify_run(*_run(theta=(0.0, 2.0 * math.pi))) == "stuck_in_loop"  # a full turn
+    assert classify_run(*_run(transitions=("approach",) * LOOP_TRANSITION_COUNT)) == "stuck_in_loop"
+    assert classify_run(*_run(transitions=("approach",) * (LOOP_TRANSITION_COUNT - 1) + ("leave",))) == "timeout"
+
+
+def test_without_diagnosis():
+    from visnav.simulation import OUTCOMES, without_diagnosis
+
+    assert [without_diagnosis(name) for name in OUTCOMES] == [
+        "success", "collision", "timeout", "timeout", "timeout", "diverged", "invalid_scenario", "error"]
+    with pytest.raises(ValueError, match=r"outcome = 'exploded': expected one of success, collision"):
+        without_diagnosis("exploded")

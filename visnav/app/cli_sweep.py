@@ -28,9 +28,16 @@ import sys
 import time
 from typing import Any, TextIO
 
-from visnav.app.cli_types import non_negative_int, positive_int, positive_seconds
+from visnav.app.cli_types import (
+    EXIT_BAD_INPUT,
+    EXIT_OK,
+    EXIT_TASK_FAILED,
+    non_negative_int,
+    positive_int,
+    positive_seconds,
+)
 
-__all__ = ["add_parser", "EXIT_INTERRUPTED", "RESULTS_FILE", "SUMMARY_FILE"]
+__all__ = ["add_parser", "open_campaign_store", "EXIT_INTERRUPTED", "RESULTS_FILE", "SUMMARY_FILE", "FLAGS"]
 
 EXIT_INTERRUPTED = 130
 """Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
@@ -40,11 +47,52 @@ DEFAULT_OUT = "out/sweep"
 DEFAULT_SAMPLES = 100
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
 
+FLAGS = {
+    "workers": "--workers",
+    "dask_local": "--dask-local",
+    "scheduler": "--scheduler",
+    "connect_timeout_s": "--connect-timeout",
+    "samples": "--samples",
+    "seed": "--seed",
+}
+"""The options of ``visnav sweep`` by the name of the parameter they set in :mod:`analysis.campaigns`
+and :class:`visnav.studies.campaign.CampaignSpec` (their errors are shown with these names)."""
 
 
+def _error_text(err: Exception) -> str:
+    """The message of a campaign library error, its parameters named by their ``visnav sweep`` options."""
+    from analysis.campaigns import CampaignOptionError, SchedulerUnavailableError
+    from visnav.studies.campaign import CampaignSpecError
+
+    if isinstance(err, (CampaignOptionError, SchedulerUnavailableError)):
+        return err.render(FLAGS)
+    if isinstance(err, CampaignSpecError) and err.parameter in FLAGS:
+        return f"{FLAGS[err.parameter]} = {err.value!r}: expected {err.expected}; fix: {err.fix}"
+    return str(err)
 
 
+def open_campaign_store(path: Any, spec: Any) -> tuple[Any, Any]:
+    """:func:`visnav.app.campaign_store.open_store` for the results file of a ``visnav sweep`` campaign.
 
+    Parameters
+    ----------
+    path : path-like
+        The results file.
+    spec : visnav.studies.campaign.CampaignSpec
+        The campaign (its header: :func:`visnav.studies.campaign.store_header`).
+
+    Returns
+    -------
+    (CampaignStore, StoreReport)
+    """
+    from visnav.app.campaign_store import ResultCodec, StoreHints, open_store
+    from visnav.studies.campaign import SampleResult, store_header
+
+    codec = ResultCodec(to_dict=SampleResult.as_dict, from_dict=SampleResult.from_dict, index=lambda r: r.index)
+    hints = StoreHints(writer="visnav sweep", out_option="--out",
+                       same_campaign="the same scenario, --samples, --seed and distributions",
+                       quiet_keys=("scenario_toml",))  # the scenario's digest covers its text
+    return open_store(path, store_header(spec), codec, samples=spec.samples, hints=hints)
 
 
 def add_parser(sub: Any) -> None:
@@ -148,28 +196,22 @@ def _human(out: dict[str, Any]) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from visnav.studies.campaign import (
-        CampaignSpec,
-        CampaignSpecError,
-        SchedulerUnavailableError,
-        campaign_executor,
-        summarise,
-    )
-    from visnav.app.campaign_store import CampaignStoreError, open_store
-    from visnav.app.cli import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED
-    from visnav.app.files import prepare_output_dir, write_text_atomic
+    from analysis.campaigns import CampaignOptionError, SchedulerUnavailableError, campaign_executor
+    from visnav.studies.campaign import PRELOAD, CampaignSpec, CampaignSpecError, run_campaign, summarise
+    from visnav.app.campaign_store import CampaignStoreError
+    from visnav.app.files import prepare_output_dir
     from visnav.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)  # ScenarioError: exit 2 in visnav.app.cli.main
     try:
         spec = CampaignSpec(scenario=scenario, samples=args.samples, seed=args.seed)
     except CampaignSpecError as err:
-        print(f"visnav: error: {err}", file=sys.stderr)
+        print(f"visnav: error: {_error_text(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     folder = prepare_output_dir(args.out)  # OutputError: exit 2 in visnav.app.cli.main
     results_path = folder / RESULTS_FILE
     try:
-        store, report = open_store(results_path, spec)
+        store, report = open_campaign_store(results_path, spec)
     except CampaignStoreError as err:
         print(f"visnav: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -195,14 +237,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         try:
             if len(store.done) < spec.samples:
                 with campaign_executor(workers=args.workers, dask_local=args.dask_local, scheduler=args.scheduler,
-                                       connect_timeout_s=args.connect_timeout) as backend:
-                    from visnav.studies.campaign import run_campaign
-
+                                       connect_timeout_s=args.connect_timeout, preload=PRELOAD) as backend:
                     description = backend.description
                     run_campaign(spec, backend.executor, sink, skip=store.done, window=backend.window)
-        except (CampaignSpecError, SchedulerUnavailableError) as err:
+        except (CampaignOptionError, SchedulerUnavailableError) as err:
             progress.finish()
-            print(f"visnav: error: {err}", file=sys.stderr)
+            print(f"visnav: error: {_error_text(err)}", file=sys.stderr)
             return EXIT_BAD_INPUT
         except KeyboardInterrupt:
             progress.finish()
@@ -219,18 +259,30 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         progress.finish()
         store.compact()
         summary = summarise(spec, store.results())
+    out = _write_summary(folder, spec, summary, description=description, resumed=resumed, wall=wall,
+                         dropped=[str(bad) for bad in report.bad_lines])
+    print(json.dumps(out, sort_keys=True) if args.json else _human(out))
+    return EXIT_OK
+
+
+def _write_summary(folder: Any, spec: Any, summary: Any, *, description: str, resumed: int, wall: float,
+                   dropped: list[str]) -> dict[str, Any]:
+    """Write ``summary.json`` (the campaign without its scenario text, and the summary); return the output object."""
+    from visnav.app.files import write_text_atomic
+
     campaign = {k: v for k, v in spec.as_dict().items() if k != "scenario_toml"}
     summary_dict = summary.as_dict()
     write_text_atomic(folder / SUMMARY_FILE,
                       json.dumps({"campaign": campaign, "summary": summary_dict}, indent=2, sort_keys=True) + "\n")
     ran = spec.samples - resumed
-    out = {
-        "scenario": scenario.name,
+    results_path = folder / RESULTS_FILE
+    return {
+        "scenario": spec.scenario.name,
         "seed": spec.seed,
         "executor": description,
         "ran": ran,
         "resumed": resumed,
-        "dropped_lines": [str(bad) for bad in report.bad_lines],
+        "dropped_lines": dropped,
         "wall_time_s": wall,
         "scenarios_per_s": ran / wall if ran and wall > 0 else None,
         "results_file": str(results_path),
@@ -238,8 +290,3 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         "written": [str(results_path), str(folder / SUMMARY_FILE)],
         "summary": summary_dict,
     }
-    if args.json:
-        print(json.dumps(out, sort_keys=True))
-    else:
-        print(_human(out))
-    return EXIT_OK

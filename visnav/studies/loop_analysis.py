@@ -35,7 +35,8 @@ from visnav import model
 from visnav.geometry import proximity
 from visnav.studies.goal_loops import PanTaskModel, VisualServoingModel, goal_loop_findings, pan_task_model, visual_servoing_model
 from visnav.jsonable import jsonable
-from visnav.parameters import Scenario
+from visnav.parameters import K_PATH_RANGE, Scenario
+from visnav.scenario import validate_gains
 from visnav.studies.path_following import (
     admissible_gains,
     certify_path_following,
@@ -55,8 +56,6 @@ _LAMBDA_CURVE = tuple(float(x) for x in np.geomspace(0.05, 40.0, 15))
 """Gains λ [1/s] of the goal-loop curves; 1/T = 20 1/s (the sampled loop's limit) lies inside."""
 _RESPONSE_POINTS = 200
 """Log-spaced frequencies of the Bode/Nyquist data, 1e-3 rad/s to the Nyquist frequency π/T."""
-_K_RANGE = (1e-3, 1e3)
-"""Range of k [1/m] of the certificate and of the admissible-gain search."""
 _K_MARGIN_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 13))
 
 
@@ -176,11 +175,17 @@ def _stable_range(gains: Sequence[float], stable: Sequence[bool]) -> list[float]
 def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> Analysis:
     """The analysis of ``scenario`` (see the module docstring).
 
+    A scenario from :func:`visnav.scenario.load_scenario` is already valid; the gains
+    of one built in Python (``dataclasses.replace``) are checked by the same rules,
+    :func:`visnav.scenario.validate_gains` (``k`` in
+    :data:`visnav.parameters.K_PATH_RANGE`, ``v_coll <= v_max``).
+
     Raises
     ------
     ValueError
-        A clearance that is negative or not smaller than ``d0``; ``v_coll`` above
-        ``v_max``; ``k`` outside the certified range ``[1e-3, 1e3]``.
+        A clearance that is negative or not smaller than ``d0``.
+    visnav.scenario.ScenarioError
+        (a ``ValueError``) gains or limits that break a scenario rule.
     """
     env, gains, limits = scenario.envelopes, scenario.gains, scenario.limits
     if not (0.0 <= clearance_m < env.d_zero_m):
@@ -188,18 +193,8 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
             f"analyse: clearance_m = {clearance_m!r}; expected 0 <= clearance < d0 = {env.d_zero_m} m "
             "(the path-following envelope itself)"
         )
+    validate_gains(gains, limits, source=scenario.name)
     k, v = gains.k_path, gains.v_coll_mps
-    if not v <= limits.v_max_mps:
-        raise ValueError(
-            f"analyse: gains.v_coll_mps = {v!r} exceeds limits.v_max_mps = {limits.v_max_mps!r}: the robot cannot "
-            "follow the envelope at that speed and the certificate covers v in [0, v_max]; "
-            "fix: lower v_coll_mps or raise v_max_mps in the scenario"
-        )
-    if not _K_RANGE[0] <= k <= _K_RANGE[1]:
-        raise ValueError(
-            f"analyse: gains.k_path = {k!r} is outside [{_K_RANGE[0]:g}, {_K_RANGE[1]:g}] 1/m, the range the "
-            "Lyapunov certificate and the admissible-gain search cover; fix: choose k_path inside it"
-        )
     period = scenario.sampling_period_s
     radii = [o.radius_m for o in scenario.obstacles] or [1.0]
     pf = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=radii[0])
@@ -212,7 +207,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     v_curve = [[[e.real, e.imag] for e in path_following_model(k=k, v=vv, d_zero=env.d_zero_m,
                                                                radius=radii[0]).linearisation().eigenvalues]
                for vv in _V_CURVE]
-    k_range = _K_RANGE
+    k_range = K_PATH_RANGE
     certificate = certify_path_following(
         k_range=k_range, v_range=(0.0, limits.v_max_mps),
         delta_range=(-env.d_zero_m, env.d_zero_m),

@@ -40,6 +40,7 @@ import numpy as np
 from analysis.linearise import Linearisation, linearise
 
 from visnav import model
+from visnav.parameters import K_PATH_RANGE
 
 __all__ = [
     "PathFollowingModel",
@@ -265,7 +266,7 @@ def admissible_gains(
     entry_angles: Sequence[float],
     clearance: float,
     omega_max: float,
-    k_range: tuple[float, float] = (1e-3, 1e3),
+    k_range: tuple[float, float] = K_PATH_RANGE,
     grid: int = 2000,
 ) -> AdmissibleGains:
     """The set of ``k`` whose Lyapunov bounds guarantee clearance and the ω limit, per entry angle.

@@ -64,7 +64,7 @@ from analysis.integrators import (
     pareto_front,
 )
 from analysis.linearise import to_numpy
-from analysis.stability_regions import (
+from analysis.integrator_regions import (
     a_alpha,
     boundary_locus,
     first_unstable_step,
@@ -819,28 +819,36 @@ def random_scenarios(base: Scenario, count: int, seed: int) -> tuple[Scenario, .
     radius by a factor 0.85–1.25; the start ``y`` by ±0.3 m and heading by
     ±0.1 rad; ``λ_gc`` by a factor 0.75–1.5, ``k`` by 0.75–1.25 and
     ``v_coll`` is drawn in 0.15–0.3 m/s.  Same seed, same scenarios.
+
+    The moves are a :class:`visnav.perturbation.Perturbation` applied by
+    :func:`visnav.perturbation.apply_perturbation` to unit draws of
+    ``numpy.random.default_rng(seed)``.  The scenarios are *not* validated: they
+    probe the estimator's stiffness, and some break the paper's hypotheses
+    (e.g. obstacles less than 2 d+ apart after the moves); validating would
+    change the study.
     """
+    from visnav.perturbation import Move, Perturbation, Uniform, apply_perturbation
+
+    moves: list[Move] = []
+    for j, o in enumerate(base.obstacles):
+        if o.occludes(base.robot.camera_height_m):
+            moves += [Move(field=f"obstacles[{j}].x_m", change="offset", draw=Uniform(low=-0.3, high=0.3)),
+                      Move(field=f"obstacles[{j}].y_m", change="offset", draw=Uniform(low=-0.3, high=0.3)),
+                      Move(field=f"obstacles[{j}].radius_m", change="factor", draw=Uniform(low=0.85, high=1.25))]
+    moves += [
+        Move(field="start.y_m", change="offset", draw=Uniform(low=-0.3, high=0.3)),
+        Move(field="start.theta_rad", change="offset", draw=Uniform(low=-0.1, high=0.1)),
+        Move(field="gains.lambda_gc", change="factor", draw=Uniform(low=0.75, high=1.5)),
+        Move(field="gains.k_path", change="factor", draw=Uniform(low=0.75, high=1.25)),
+        Move(field="gains.v_coll_mps", change="value", draw=Uniform(low=0.15, high=0.3)),
+    ]
+    perturbation = Perturbation(moves=tuple(moves))
     rng = np.random.default_rng(seed)
-    out = []
-    for i in range(count):
-        obstacles = []
-        for o in base.obstacles:
-            if o.occludes(base.robot.camera_height_m):
-                dx, dy = rng.uniform(-0.3, 0.3, size=2)
-                o = Obstacle(name=o.name, center_m=(o.center_m[0] + float(dx), o.center_m[1] + float(dy)),
-                             radius_m=o.radius_m * float(rng.uniform(0.85, 1.25)), height_m=o.height_m)
-            obstacles.append(o)
-        start = Pose(x_m=base.start.x_m, y_m=base.start.y_m + float(rng.uniform(-0.3, 0.3)),
-                     theta_rad=base.start.theta_rad + float(rng.uniform(-0.1, 0.1)), pan_rad=base.start.pan_rad)
-        gains = dataclasses.replace(
-            base.gains,
-            lambda_gc=base.gains.lambda_gc * float(rng.uniform(0.75, 1.5)),
-            k_path=base.gains.k_path * float(rng.uniform(0.75, 1.25)),
-            v_coll_mps=float(rng.uniform(0.15, 0.3)),
-        )
-        out.append(dataclasses.replace(base, name=f"{base.name}-random-{seed}-{i}", obstacles=tuple(obstacles),
-                                       start=start, gains=gains))
-    return tuple(out)
+    return tuple(
+        apply_perturbation(base, perturbation, perturbation.from_unit(rng.random(perturbation.size)),
+                           name=f"{base.name}-random-{seed}-{i}", validate=False).scenario
+        for i in range(count)
+    )
 
 
 # --------------------------------------------------------------------------- estimator replays

@@ -1,12 +1,20 @@
-"""The campaign results file: durable appends, corruption detection, resume, spec hash."""
+"""The campaign results file: durable appends, corruption detection, resume, spec hash.
 
+Most tests use the store as ``visnav sweep`` does (:func:`visnav.app.cli_sweep.open_campaign_store`,
+results :class:`visnav.studies.campaign.SampleResult`); the last ones use it with another kind of
+result, through a header mapping and a :class:`ResultCodec` only.
+"""
+
+import dataclasses
 import json
 
 import pytest
 
-from visnav.studies.campaign import CampaignSpec, SampleResult
-from visnav.app.campaign_store import CampaignStoreError, line_checksum, open_store
+from hybrid.jsonable import canonical_json
+from visnav.app.campaign_store import CampaignStoreError, ResultCodec, StoreHints, line_checksum, open_store
+from visnav.app.cli_sweep import open_campaign_store
 from visnav.scenario import load_scenario
+from visnav.studies.campaign import CampaignSpec, SampleResult, store_header
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +32,7 @@ def result(index, outcome="timeout", clearance=0.25):
 
 def write(tmp_path, spec, indices):
     path = tmp_path / "results.jsonl"
-    store, report = open_store(path, spec)
+    store, report = open_campaign_store(path, spec)
     with store:
         for i in indices:
             store.append(result(i))
@@ -46,7 +54,7 @@ def test_new_file_has_header_then_one_line_per_result(tmp_path, spec):
 def test_reopen_reads_back_equal_results(tmp_path, spec):
     path, _ = write(tmp_path, spec, [4, 1, 7])
     before = path.read_bytes()
-    store, report = open_store(path, spec)
+    store, report = open_campaign_store(path, spec)
     with store:
         assert store.done == {1, 4, 7}
         assert store.results() == (result(1), result(4), result(7))
@@ -58,7 +66,7 @@ def test_truncated_last_line_is_dropped_and_the_rest_kept(tmp_path, spec):
     path, _ = write(tmp_path, spec, [0, 1, 2])
     text = path.read_text()
     path.write_text(text + text.splitlines()[2][:40])  # a write cut by SIGKILL: no end of line
-    store, report = open_store(path, spec)
+    store, report = open_campaign_store(path, spec)
     with store:
         assert store.done == {0, 1, 2}
     assert [b.line for b in report.bad_lines] == [5]
@@ -76,7 +84,7 @@ def test_bad_middle_lines_are_reported_by_number_and_reason(tmp_path, spec):
     lines.insert(4, "")
     lines.append(lines[1])  # sample 0 again
     path.write_text("\n".join(lines) + "\n")
-    store, report = open_store(path, spec)
+    store, report = open_campaign_store(path, spec)
     with store:
         assert store.done == {0, 3}
         assert store.results() == (result(0), result(3))
@@ -98,7 +106,7 @@ def test_malformed_field_and_out_of_range_index(tmp_path, spec):
     with path.open("a") as handle:
         for data in (bad, far):
             handle.write(json.dumps({"result": data, "sha256": line_checksum(data)}) + "\n")
-    store, report = open_store(path, spec)
+    store, report = open_campaign_store(path, spec)
     store.close()
     reasons = [b.reason for b in report.bad_lines]
     assert "malformed result (field 'outcome' = 'exploded': expected one of success" in reasons[0]
@@ -110,7 +118,7 @@ def test_other_campaign_is_refused_naming_the_difference(tmp_path, spec):
     other = CampaignSpec(scenario=spec.scenario, samples=10, seed=4)
     with pytest.raises(CampaignStoreError, match=r"belongs to another campaign .*seed 3 in the file, 4 now.*"
                                                   r"fix: rerun with the options of the interrupted campaign"):
-        open_store(path, other)
+        open_campaign_store(path, other)
 
 
 @pytest.mark.parametrize("content, problem", [
@@ -122,7 +130,7 @@ def test_not_a_campaign_file(tmp_path, spec, content, problem):
     path = tmp_path / "results.jsonl"
     path.write_text(content)
     with pytest.raises(CampaignStoreError, match=problem + ".*fix: choose another --out"):
-        open_store(path, spec)
+        open_campaign_store(path, spec)
     assert path.read_text() == content  # never overwritten
 
 
@@ -132,7 +140,7 @@ def test_compact_orders_by_index_whatever_the_arrival_order(tmp_path, spec):
     a, _ = write(tmp_path / "a", spec, [3, 0, 2, 1])
     b, _ = write(tmp_path / "b", spec, [1, 2, 0, 3])
     for path in (a, b):
-        store, _ = open_store(path, spec)
+        store, _ = open_campaign_store(path, spec)
         with store:
             store.compact()
             store.append(result(5))  # still appendable after compaction
@@ -142,7 +150,7 @@ def test_compact_orders_by_index_whatever_the_arrival_order(tmp_path, spec):
 
 
 def test_append_refuses_a_stored_or_foreign_index(tmp_path, spec):
-    store, _ = open_store(tmp_path / "results.jsonl", spec)
+    store, _ = open_campaign_store(tmp_path / "results.jsonl", spec)
     with store:
         store.append(result(2))
         with pytest.raises(ValueError, match=r"sample 2: expected a new index in \[0, 10\)"):
@@ -153,9 +161,83 @@ def test_append_refuses_a_stored_or_foreign_index(tmp_path, spec):
 
 def test_second_writer_is_refused_while_the_first_is_open(tmp_path, spec):
     path = tmp_path / "results.jsonl"
-    store, _ = open_store(path, spec)
+    store, _ = open_campaign_store(path, spec)
     with store:
         with pytest.raises(CampaignStoreError, match="another process is writing this campaign"):
-            open_store(path, spec)
-    store2, _ = open_store(path, spec)  # released on close
+            open_campaign_store(path, spec)
+    store2, _ = open_campaign_store(path, spec)  # released on close
     store2.close()
+
+
+def test_header_line_is_the_canonical_json_of_the_campaign_header(tmp_path, spec):
+    path, _ = write(tmp_path, spec, [2])
+    header, line = path.read_text().splitlines()
+    assert header == canonical_json(store_header(spec))
+    assert line == canonical_json({"result": result(2).as_dict(), "sha256": line_checksum(result(2).as_dict())})
+
+
+# ---------------------------------------------------------------------------------------------
+# Another kind of campaign: a header mapping and a codec, nothing of the robot
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Trial:
+    case: int
+    falsified: bool
+    robustness: float
+
+
+TRIALS = ResultCodec(
+    to_dict=dataclasses.asdict,
+    from_dict=lambda data: Trial(**data),
+    index=lambda trial: trial.case,
+)
+HEADER = {"format": "falsification", "version": 3, "spec_hash": "f" * 64, "spec": {"budget": 5, "property": "p"}}
+HINTS = StoreHints(writer="visnav falsify", out_option="--results", same_campaign="the same --budget")
+
+
+def test_any_result_kind_round_trips_and_resumes(tmp_path):
+    path = tmp_path / "trials.jsonl"
+    store, report = open_store(path, HEADER, TRIALS, samples=5, hints=HINTS)
+    with store:
+        assert report.created
+        store.append(Trial(case=3, falsified=True, robustness=-0.25))
+        store.append(Trial(case=0, falsified=False, robustness=1.5))
+    lines = path.read_text().splitlines()
+    assert json.loads(lines[0]) == HEADER and lines[0] == canonical_json(HEADER)
+    assert json.loads(lines[1]) == {"result": {"case": 3, "falsified": True, "robustness": -0.25},
+                                    "sha256": line_checksum({"case": 3, "falsified": True, "robustness": -0.25})}
+    store, report = open_store(path, HEADER, TRIALS, samples=5, hints=HINTS)
+    with store:
+        assert store.done == {0, 3} and report.results == 2
+        assert store.results() == (Trial(case=0, falsified=False, robustness=1.5),
+                                   Trial(case=3, falsified=True, robustness=-0.25))
+        with pytest.raises(ValueError, match=r"sample 5: expected a new index in \[0, 5\)"):
+            store.append(Trial(case=5, falsified=False, robustness=0.0))
+
+
+def test_another_kind_reports_malformed_lines_and_names_its_own_program(tmp_path):
+    path = tmp_path / "trials.jsonl"
+    store, _ = open_store(path, HEADER, TRIALS, samples=5, hints=HINTS)
+    store.close()
+    with path.open("a") as handle:
+        for data in ({"case": 1, "falsified": True}, {"case": 9, "falsified": True, "robustness": 0.0}):
+            handle.write(json.dumps({"result": data, "sha256": line_checksum(data)}) + "\n")
+    store, report = open_store(path, HEADER, TRIALS, samples=5, hints=HINTS)
+    store.close()
+    reasons = [b.reason for b in report.bad_lines]
+    assert reasons[0].startswith("malformed result (") and "robustness" in reasons[0]
+    assert reasons[1] == "index 9 outside the campaign's [0, 5)"
+    other = {**HEADER, "spec_hash": "0" * 64, "spec": {"budget": 6, "property": "p"}}
+    with pytest.raises(CampaignStoreError, match=r"budget 5 in the file, 6 now.*expected the same --budget to resume; "
+                                                  r"fix: .*choose another --results"):
+        open_store(path, other, TRIALS, samples=5, hints=HINTS)
+    with pytest.raises(CampaignStoreError, match=r"format version 3, this visnav writes 4.*written by visnav falsify"):
+        open_store(path, {**HEADER, "version": 4}, TRIALS, samples=5, hints=HINTS)
+
+
+def test_header_must_name_format_version_and_spec_hash(tmp_path):
+    with pytest.raises(ValueError, match=r"header\['spec_hash'\] = None: expected a non-empty str"):
+        open_store(tmp_path / "x.jsonl", {"format": "f", "version": 1}, TRIALS, samples=1)
+    assert not (tmp_path / "x.jsonl").exists()

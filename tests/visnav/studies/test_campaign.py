@@ -5,6 +5,7 @@ computation per sample, every run a timeout), so that whole campaigns take a sec
 """
 
 import concurrent.futures as cf
+import dataclasses
 import json
 import math
 import multiprocessing
@@ -17,33 +18,35 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import visnav.simulation
+from analysis.campaigns import (
+    CampaignOptionError,
+    InlineExecutor,
+    SchedulerUnavailableError,
+    campaign_executor,
+    wilson_interval,
+)
 from hybrid import DivergenceError
+from visnav.app.cli import main
+from visnav.app.cli_sweep import FLAGS, open_campaign_store
+from visnav.closed_loop import desired_features
+from visnav.perturbation import PerturbationError, Uniform
+from visnav.scenario import load_scenario
 from visnav.studies.campaign import (
+    CAMPAIGN_OUTCOMES,
     QUANTILES,
     CampaignSpec,
     CampaignSpecError,
-    InlineExecutor,
     SampleResult,
-    SchedulerUnavailableError,
-    Uniform,
-    campaign_executor,
-    classify,
     run_campaign,
     run_sample,
     sample_scenario,
     summarise,
-    wilson_interval,
 )
-from visnav.app.campaign_store import open_store
-from visnav.app.cli import main
-from visnav.closed_loop import desired_features
-from visnav.scenario import load_scenario
 
 PAPER_TOML = Path(__file__).parents[3] / "visnav" / "scenarios" / "paper.toml"
 
@@ -100,11 +103,35 @@ def test_spec_validation_names_parameter_value_expectation_fix(paper, changes, m
 
 
 def test_uniform_validation():
-    with pytest.raises(CampaignSpecError, match=r"Uniform = \(2.0, 1.0\): expected low <= high; fix: swap"):
+    with pytest.raises(PerturbationError, match=r"Uniform = \(2.0, 1.0\): expected low <= high; fix: swap"):
         Uniform(low=2.0, high=1.0)
-    with pytest.raises(CampaignSpecError, match=r"Uniform.high = nan: expected a finite number"):
+    with pytest.raises(PerturbationError, match=r"Uniform.high = nan: expected a finite number"):
         Uniform(low=0.0, high=math.nan)
     assert Uniform(low=1.0, high=3.0).at(0.25) == 1.5
+
+
+def test_perturbation_declares_every_draw_in_order(paper):
+    spec = CampaignSpec(scenario=paper, samples=3, seed=0, obstacle_radius_m=0.02)
+    moves = spec.perturbation().moves
+    assert len(moves) == 3 + 4 * len(paper.obstacles) + 3 + 3
+    assert [m.label for m in moves[:3]] == ["start.dx_m", "start.dy_m", "start.dtheta_rad"]
+    assert moves[5].field == "obstacles[0].radius_m" and moves[5].draw.half_width == 0.02
+    assert [m.field for m in moves[-3:]] == ["gains.k_path", "gains.lambda_vs", "gains.v_coll_mps"]
+    assert moves[-3].change == "factor" and moves[-3].draw == spec.k_path_scale
+
+
+def test_default_perturbation_ranges_keep_the_paper_gains_valid(paper):
+    """k and v_coll at the ends of the default factor ranges pass the scenario rules (k range, v_coll <= v_max)."""
+    from visnav.parameters import K_PATH_RANGE
+    from visnav.scenario import validate_gains
+
+    spec = CampaignSpec(scenario=paper, samples=1, seed=0)
+    for k_factor in (spec.k_path_scale.low, spec.k_path_scale.high):
+        for v_factor in (spec.v_coll_scale.low, spec.v_coll_scale.high):
+            gains = dataclasses.replace(paper.gains, k_path=paper.gains.k_path * k_factor,
+                                        v_coll_mps=paper.gains.v_coll_mps * v_factor)
+            validate_gains(gains, paper.limits, source="paper")
+            assert K_PATH_RANGE[0] <= gains.k_path <= K_PATH_RANGE[1] and gains.v_coll_mps <= paper.limits.v_max_mps
 
 
 def test_spec_hash_identifies_the_campaign(paper):
@@ -204,11 +231,19 @@ def test_short_samples_time_out(short_results, short_spec):
     assert all(r.sim_time_s == pytest.approx(short_spec.scenario.duration_s, abs=0.051) for r in short_results)
 
 
-def test_classify_prefers_collision_over_the_termination_reason():
-    assert classify(SimpleNamespace(collided=True, termination="success")) == "collision"
-    assert classify(SimpleNamespace(collided=False, termination="collision")) == "collision"
-    assert classify(SimpleNamespace(collided=False, termination="success")) == "success"
-    assert classify(SimpleNamespace(collided=False, termination="end_time")) == "timeout"
+def test_outcomes_are_the_run_vocabulary_without_timeout_diagnoses():
+    assert CAMPAIGN_OUTCOMES == ("success", "collision", "timeout", "diverged", "invalid_scenario", "error")
+    assert set(CAMPAIGN_OUTCOMES) <= set(visnav.simulation.OUTCOMES)
+
+
+def test_a_diagnosed_timeout_is_stored_as_a_timeout(short_spec, monkeypatch):
+    """Format version 1: ``stuck_in_loop`` and ``target_lost`` (visnav.simulation.classify_run) are timeouts."""
+    reference = run_sample(short_spec, 0)
+    for diagnosis in ("stuck_in_loop", "target_lost"):
+        monkeypatch.setattr(visnav.simulation, "classify_run", lambda scenario, trace, metrics, d=diagnosis: d)
+        assert run_sample(short_spec, 0) == reference  # outcome "timeout", metrics unchanged
+    monkeypatch.setattr(visnav.simulation, "classify_run", lambda scenario, trace, metrics: "collision")
+    assert run_sample(short_spec, 0).outcome == "collision"
 
 
 def test_divergence_and_errors_are_classified_not_raised(short_spec, monkeypatch):
@@ -355,8 +390,9 @@ def _free_port():
 def test_scheduler_not_listening_fails_within_the_timeout():
     address = f"tcp://127.0.0.1:{_free_port()}"
     start = time.perf_counter()
-    with pytest.raises(SchedulerUnavailableError, match=re.escape(f"--scheduler '{address}': no Dask scheduler "
-                                                                  "answered") + r".*within the connect timeout of 1 s"):
+    with pytest.raises(SchedulerUnavailableError, match=re.escape(f"scheduler address '{address}': no Dask "
+                                                                  "scheduler answered") + r".*within the connect "
+                                                                  r"timeout of 1 s.*or raise connect_timeout_s"):
         with campaign_executor(scheduler=address, connect_timeout_s=1.0):
             pass
     assert time.perf_counter() - start < 1.0 + 1.5
@@ -374,17 +410,35 @@ def test_scheduler_that_accepts_but_never_answers_fails_within_the_timeout():
         assert time.perf_counter() - start < 1.0 + 1.5
 
 
-@pytest.mark.parametrize("options, message", [
-    ({"scheduler": "localhost:8786"}, r"--scheduler = 'localhost:8786': expected an address tcp://HOST:PORT"),
-    ({"scheduler": "tcp://host:99999"}, r"expected an address tcp://HOST:PORT"),
-    ({"workers": 0}, r"--workers = 0: expected an integer >= 1"),
-    ({"workers": 2, "dask_local": 2}, r"--dask-local = 2: expected one executor option, but --workers and --dask-local"),
-    ({"workers": 2, "connect_timeout_s": 0}, r"--connect-timeout = 0: expected a positive number of seconds"),
+@pytest.mark.parametrize("options, message, flags", [
+    ({"scheduler": "localhost:8786"}, r"scheduler address = 'localhost:8786': expected an address tcp://HOST:PORT",
+     r"--scheduler = 'localhost:8786': expected an address tcp://HOST:PORT.*; fix: e.g. --scheduler tcp://"),
+    ({"scheduler": "tcp://host:99999"}, r"expected an address tcp://HOST:PORT", r"--scheduler = 'tcp://host:99999'"),
+    ({"workers": 0}, r"workers = 0: expected an integer >= 1", r"--workers = 0: expected an integer >= 1"),
+    ({"workers": 2, "dask_local": 2}, r"dask_local = 2: expected one executor option, but workers and dask_local",
+     r"--dask-local = 2: expected one executor option, but --workers and --dask-local"),
+    ({"workers": 2, "connect_timeout_s": 0}, r"connect_timeout_s = 0: expected a positive number of seconds",
+     r"--connect-timeout = 0: expected a positive number of seconds"),
 ])
-def test_executor_options_are_validated(options, message):
-    with pytest.raises(CampaignSpecError, match=message):
+def test_executor_options_are_validated(options, message, flags):
+    """The library names its parameters; ``visnav sweep`` shows them as its flags (FLAGS)."""
+    with pytest.raises(CampaignOptionError, match=message) as info:
         with campaign_executor(**options):
             pass
+    assert "--" not in str(info.value)
+    assert re.search(flags, info.value.render(FLAGS))
+
+
+def test_run_campaign_window_is_validated(short_spec):
+    with pytest.raises(CampaignOptionError, match=r"window = 0: expected an integer >= 1"):
+        run_campaign(short_spec, InlineExecutor(), print, window=0)
+
+
+def test_run_campaign_in_index_order(short_spec, short_results):
+    got = []
+    with campaign_executor(workers=2) as backend:
+        run_campaign(short_spec, backend.executor, got.append, window=4, order="index", skip={5})
+    assert got == [r for r in short_results if r.index != 5]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -467,7 +521,8 @@ def test_sigint_flushes_reports_and_resumes(short_toml, reference_run, tmp_path,
     assert proc.returncode == 130 and "Traceback" not in err
     stored = int(re.search(r"interrupted: (\d+) of 60 samples are stored in", err)[1])
     assert "rerun the same command to resume" in err
-    store, report = open_store(results, CampaignSpec(scenario=load_scenario(str(short_toml)), samples=SWEEP_N, seed=4))
+    store, report = open_campaign_store(results, CampaignSpec(scenario=load_scenario(str(short_toml)), samples=SWEEP_N,
+                                                              seed=4))
     with store:
         assert report.bad_lines == () and len(store.done) == stored < SWEEP_N  # flushed, nothing cut
     assert main(sweep_args(short_toml, tmp_path, "--workers", "1")) == 0
@@ -510,6 +565,7 @@ def test_sweep_bad_input_exits_2(short_toml, tmp_path, capsys):
     assert code == 2 and time.perf_counter() - start < 1.0 + 2.0
     err = capsys.readouterr().err
     assert f"--scheduler '{address}': no Dask scheduler answered" in err and "connect timeout of 1 s" in err
+    assert "or raise --connect-timeout" in err and "connect_timeout_s" not in err
     with pytest.raises(SystemExit) as info:
         main(["sweep", "--workers", "2", "--dask-local", "2"])
     assert info.value.code == 2 and "not allowed with argument" in capsys.readouterr().err

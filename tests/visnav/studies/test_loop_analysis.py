@@ -92,14 +92,31 @@ def test_analysis_is_deterministic(paper, result):
 
 
 def test_speeds_and_gains_out_of_range_are_refused(paper):
+    """Hand-built gains go through the scenario rule (visnav.scenario.validate_gains), with its message."""
     import dataclasses
 
+    from visnav.scenario import ScenarioError, validate_gains
+
     fast = dataclasses.replace(paper, gains=dataclasses.replace(paper.gains, v_coll_mps=0.9))
-    with pytest.raises(ValueError, match=r"v_coll_mps = 0.9 exceeds limits.v_max_mps = 0.6.*fix: lower v_coll_mps"):
-        analyse(fast)
     stiff = dataclasses.replace(paper, gains=dataclasses.replace(paper.gains, k_path=5e3))
-    with pytest.raises(ValueError, match=r"k_path = 5000.0 is outside \[0.001, 1000\]"):
-        analyse(stiff)
+    for scenario, message in ((fast, r"gains.v_coll_mps = 0.9: expected at most limits.v_max_mps = 0.6 m/s.*"
+                                     r"fix: lower gains.v_coll_mps"),
+                              (stiff, r"gains.k_path = 5000.0: expected a gain in \[0.001, 1000\] 1/m")):
+        with pytest.raises(ScenarioError, match=r"^scenario 'paper': " + message) as info:
+            analyse(scenario)
+        with pytest.raises(ScenarioError) as same:
+            validate_gains(scenario.gains, scenario.limits, source=scenario.name)
+        assert str(info.value) == str(same.value)
+
+
+def test_the_certified_k_range_is_the_case_models_constant():
+    import inspect
+
+    from visnav.parameters import K_PATH_RANGE
+    from visnav.studies import loop_analysis, path_following
+
+    assert inspect.signature(path_following.admissible_gains).parameters["k_range"].default is K_PATH_RANGE
+    assert loop_analysis.K_PATH_RANGE is K_PATH_RANGE
 
 
 def test_sampled_margins_against_gains_follow_the_closed_form(result, paper):

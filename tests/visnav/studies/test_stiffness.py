@@ -199,6 +199,35 @@ def test_random_scenarios_are_seeded(paper):
     assert low == [o for o in base.obstacles if o.name == "low"][0]  # only occluders move
 
 
+def _random_scenarios_as_first_written(base, count, seed):
+    """The study's draws before they became a visnav.perturbation.Perturbation: the reference they keep."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(count):
+        obstacles = []
+        for o in base.obstacles:
+            if o.occludes(base.robot.camera_height_m):
+                dx, dy = rng.uniform(-0.3, 0.3, size=2)
+                o = dataclasses.replace(o, center_m=(o.center_m[0] + float(dx), o.center_m[1] + float(dy)),
+                                        radius_m=o.radius_m * float(rng.uniform(0.85, 1.25)))
+            obstacles.append(o)
+        start = dataclasses.replace(base.start, y_m=base.start.y_m + float(rng.uniform(-0.3, 0.3)),
+                                    theta_rad=base.start.theta_rad + float(rng.uniform(-0.1, 0.1)))
+        gains = dataclasses.replace(base.gains, lambda_gc=base.gains.lambda_gc * float(rng.uniform(0.75, 1.5)),
+                                    k_path=base.gains.k_path * float(rng.uniform(0.75, 1.25)),
+                                    v_coll_mps=float(rng.uniform(0.15, 0.3)))
+        out.append(dataclasses.replace(base, name=f"{base.name}-random-{seed}-{i}", obstacles=tuple(obstacles),
+                                       start=start, gains=gains))
+    return tuple(out)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 7, 123456])
+def test_random_scenarios_are_exactly_the_studys_draws(paper, seed):
+    """Bit for bit (repr of every float) the scenarios of the study's original formulas."""
+    base = paper[0]
+    assert repr(random_scenarios(base, 6, seed)) == repr(_random_scenarios_as_first_written(base, 6, seed))
+
+
 @pytest.mark.parametrize("changes, message", [
     ({"seed": 1.5}, r"StudySettings.seed = 1.5: expected an integer"),
     ({"random_scenarios": -1}, r"StudySettings.random_scenarios = -1: expected an integer >= 0"),
