@@ -71,7 +71,6 @@ __all__ = [
     "scenario_to_toml",
     "scenario_digest",
     "target_square",
-    "camera_pose",
     "point_in_camera",
 ]
 
@@ -225,14 +224,6 @@ def target_square(
     )
 
 
-def camera_pose(pose: Pose, robot: RobotGeometry) -> tuple[float, float, float]:
-    """Optical centre ``(x, y)`` [m] and heading ``phi`` [rad] of the camera for ``pose``.
-
-    Thin wrapper of :func:`visnav.geometry.camera_pose` (the single definition).
-    """
-    return geometry.camera_pose(pose.x_m, pose.y_m, pose.theta_rad, pose.pan_rad, robot)
-
-
 def point_in_camera(
     point: Sequence[float], pose: Pose, robot: RobotGeometry
 ) -> tuple[float, float, float]:
@@ -242,7 +233,7 @@ def point_in_camera(
     ``x_c = camera_height − height`` points down (the same frame as
     :func:`visnav.geometry.project_point`, which divides by ``z``).
     """
-    cx, cy, phi = camera_pose(pose, robot)
+    cx, cy, phi = geometry.camera_pose(pose.x_m, pose.y_m, pose.theta_rad, pose.pan_rad, robot)
     dx, dy = point[0] - cx, point[1] - cy
     c, s = math.cos(phi), math.sin(phi)
     return (robot.camera_height_m - point[2], -s * dx + c * dy, c * dx + s * dy)

@@ -13,11 +13,11 @@ import tomllib
 import pytest
 
 from visnav import model
+from visnav.geometry import camera_pose
 from visnav.parameters import Pose, RobotGeometry, Scenario
 from visnav.scenario import (
     ScenarioError,
     builtin_scenario_names,
-    camera_pose,
     load_scenario,
     point_in_camera,
     scenario_digest,
@@ -590,7 +590,7 @@ def test_camera_pose_velocity_matches_reduced_jacobian(pan):
         # straight-line motion of M to first order: enough for a central difference at t = 0
         x, y = 1.0 + v * math.cos(theta) * t, 2.0 + v * math.sin(theta) * t
         pose = Pose(x_m=x, y_m=y, theta_rad=th, pan_rad=pan + pan_rate * t)
-        return camera_pose(pose, robot)
+        return camera_pose(pose.x_m, pose.y_m, pose.theta_rad, pose.pan_rad, robot)
 
     (x1, y1, p1), (x0, y0, p0) = at(h), at(-h)
     vx, vy, phi_rate = (x1 - x0) / (2 * h), (y1 - y0) / (2 * h), (p1 - p0) / (2 * h)

@@ -34,7 +34,7 @@ from analysis.margins import frequency_response_data, loop_model, loop_transfer,
 from visnav import model
 from visnav.geometry import proximity
 from visnav.studies.goal_loops import PanTaskModel, VisualServoingModel, goal_loop_findings, pan_task_model, visual_servoing_model
-from visnav.jsonable import jsonable
+from hybrid.jsonable import to_jsonable
 from visnav.parameters import K_PATH_RANGE, Scenario
 from visnav.scenario import validate_gains
 from visnav.studies.path_following import (
@@ -68,7 +68,7 @@ class Analysis:
 
     def as_dict(self) -> dict[str, Any]:
         """The whole analysis as plain JSON types."""
-        return jsonable({"scenario": self.scenario, **self.data})
+        return to_jsonable({"scenario": self.scenario, **self.data})
 
 
 def entry_angles_from_simulation(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:

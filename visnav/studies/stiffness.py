@@ -1,7 +1,7 @@
 """The BDF stiffness study of equation (13): is it stiff here, does the BDF matter, what limits it?
 
 Applies the generic tools of :mod:`analysis.integrators` and
-:mod:`analysis.stability_regions` to the feature/depth reconstruction of a
+:mod:`analysis.integrator_regions` to the feature/depth reconstruction of a
 scenario (``visnav stiffness`` prints it; ``docs/stiffness.md`` discusses it):
 
 1. **Stability regions**: the A(α) angles of BDF1–6 measured on their boundary
@@ -79,8 +79,8 @@ from hybrid import DivergenceError
 from visnav import model
 from visnav.estimator import FeatureEstimator, held_inputs, mean_camera_screw, zoh_period_rk4
 from visnav.geometry import camera_pose, project_points, propagate_pose
-from visnav.jsonable import jsonable
-from visnav.parameters import EstimatorSettings, Obstacle, Pose, RobotGeometry, Scenario
+from hybrid.jsonable import to_jsonable
+from visnav.parameters import EstimatorSettings, RobotGeometry, Scenario
 from visnav.simulation import SimulationResult, simulate
 
 __all__ = [
@@ -932,7 +932,7 @@ class StiffnessStudy:
         out = {"scenario": self.scenario, "settings": dataclasses.asdict(self.settings), **self.data}
         if include_timing:
             out["timing"] = self.timing
-        return jsonable(out)
+        return to_jsonable(out)
 
 
 def _timed(run: Callable[[], IntegrationResult], repeats: int) -> tuple[IntegrationResult, float]:
