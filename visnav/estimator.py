@@ -19,8 +19,12 @@ feeds neither ``Ẏ`` nor ``ż``.  So every point is corrected on its own, Newto
 runs on the 2×2 ``(Y, z)`` system (closed-form solve) and ``X`` follows from the
 scalar linear equation ``X (1 - βh (V_z/z + Y Ω_x)) = r_X``.  The predictor is
 the extrapolation polynomial through the stored history, so one or two Newton
-iterations suffice.  The step uses Python floats and :mod:`math` only (a numpy
-call costs about 1 µs, more than the whole arithmetic of a point).
+iterations suffice.  Equation (13) is not written here: the rates and the
+Jacobian of the ``(Y, z)`` rows come from :func:`visnav.model.yz_rate_and_jacobian`
+(one call per Newton iteration, with the screw scaled by ``βh``), the ``X`` row from
+:func:`visnav.model.x_rate_gain` and the start-up's full rate from
+:func:`visnav.model.feature_depth_rate`.  The step uses Python floats and :mod:`math`
+only (a numpy call costs about 1 µs, more than the whole arithmetic of a point).
 
 Start-up
 --------
@@ -38,7 +42,7 @@ BDF2, ... with the full step; it leaves a permanent error, see
 ``docs/estimator.md``), ``start(require_full_history=True)`` refuses a short history.
 
 Measurements observed after :meth:`FeatureEstimator.stop` replace the whole
-reconstructed history at once (the period records, exact inputs, are kept), so a
+reconstructed history at once (the periods' mean screws, exact inputs, are kept), so a
 later :meth:`FeatureEstimator.start` never mixes reconstructed and measured values.
 
 Examples
@@ -62,7 +66,7 @@ from functools import lru_cache
 
 from analysis.bdf import bdf_coefficients, extrapolation_weights, histopolation_weights, validate_order
 from hybrid.errors import NumericalFailure
-from visnav.model import camera_screw, feature_depth_rate
+from visnav.model import camera_screw, feature_depth_rate, x_rate_gain, yz_rate_and_jacobian
 from visnav.parameters import EstimatorSettings, RobotGeometry
 
 __all__ = [
@@ -78,6 +82,7 @@ __all__ = [
     "mean_camera_screw",
     "held_inputs",
     "zoh_period_rk4",
+    "bdf_stage_residual",
     "FeatureEstimator",
 ]
 
@@ -107,8 +112,9 @@ substeps   ``|ΔX|, |ΔY|``      ``|Δz|/z``
 (8 would give up to 3.7e-9).  On the test motion of ``docs/estimator.md``
 (depths 2.6–5.6 m) a single RK4 step is already within 3e-11 and 16 substeps
 reach round-off (6e-16).  The tests check the step against DOP853 (rtol 1e-12).
-Cost: about 0.13 ms per start-up step (4 points), paid at most ``order - 1``
-times per reconstruction.
+Cost: about 0.13 ms per start-up step (4 points) when measured, 1.5–2× that since
+:func:`visnav.model.feature_depth_rate` is assembled from the single definition of (13);
+paid at most ``order - 1`` times per reconstruction.
 """
 
 PERIOD_RELATIVE_TOLERANCE = 1e-9
@@ -116,6 +122,12 @@ PERIOD_RELATIVE_TOLERANCE = 1e-9
 
 _BDF_NAMES = {q: f"bdf{q}" for q in range(1, 7)}
 _SINC_SERIES_BOUND = 1e-3  # below |x| this, sin(x)/x = 1 - x²/6 + x⁴/120 to 1e-22
+
+_State = tuple[tuple[float, float, float], ...]
+"""One ``ψ``: an ``(X, Y, z)`` triple per point [-, -, m]."""
+
+_HistoryTerms = list[tuple[float, float, float, float, float]]
+"""Per point ``(r_X, r_Y, r_z, p_Y, p_z)``: BDF history term and predictor (:func:`_history_combiner`)."""
 
 
 class EstimatorSettingsError(ValueError):
@@ -218,6 +230,27 @@ def held_inputs(
     pan_start: float, joint_rates: Sequence[float], h: float, geometry: RobotGeometry
 ) -> HeldInputs:
     """Validated :class:`HeldInputs` of one period (computes the exact mean screw)."""
+    pan, v, omega, pan_rate, period = _validated_period(pan_start, joint_rates, h)
+    return HeldInputs(
+        pan_start=pan,
+        v=v,
+        omega=omega,
+        pan_rate=pan_rate,
+        period=period,
+        mean_screw=mean_camera_screw(pan, v, omega, pan_rate, period, geometry),
+    )
+
+
+def _validated_period(
+    pan_start: float, joint_rates: Sequence[float], h: float
+) -> tuple[float, float, float, float, float]:
+    """``(pan_start, v, omega, pan_rate, h)`` of one ZOH period as finite floats, ``h > 0``.
+
+    Raises
+    ------
+    EstimatorInputError
+        A value that is not a number, not finite, or ``h <= 0``.
+    """
     try:
         v, omega, pan_rate = joint_rates
         v, omega, pan_rate = float(v), float(omega), float(pan_rate)
@@ -234,14 +267,7 @@ def held_inputs(
         raise EstimatorInputError(
             f"pan_start = {pan_start!r}, joint_rates = {joint_rates!r}: expected finite values"
         )
-    return HeldInputs(
-        pan_start=pan,
-        v=v,
-        omega=omega,
-        pan_rate=pan_rate,
-        period=period,
-        mean_screw=mean_camera_screw(pan, v, omega, pan_rate, period, geometry),
-    )
+    return (pan, v, omega, pan_rate, period)
 
 
 def zoh_period_rk4(
@@ -312,6 +338,38 @@ def zoh_period_rk4(
     return tuple(out)
 
 
+def bdf_stage_residual(
+    y_img: float, depth: float, r_y: float, r_z: float, s_y: float, s_z: float, s_w: float
+) -> tuple[float, float]:
+    """Residual of one point's implicit BDF stage in ``(Y, z)``: ``G = (Y, z) − βh (Ẏ, ż) − (r_Y, r_z)``.
+
+    ``(Ẏ, ż)`` are the ``(Y, z)`` rows of equation (13), :func:`visnav.model.yz_rate_and_jacobian`;
+    they are linear in the screw, so ``βh (Ẏ, ż)`` is that function of the scaled screw
+    ``S = βh T_rc``.  The translational and rotational parts are subtracted one after the
+    other.  The Newton iteration of :meth:`FeatureEstimator.advance` computes this residual
+    from the same call that gives it the Jacobian, so it writes these two subtractions out
+    (one call per iteration instead of two); ``tests/visnav/test_estimator.py`` checks that
+    a Newton iteration on this function reproduces the estimator's steps bit for bit, and
+    :meth:`FeatureEstimator.advance` reports it when Newton does not converge.
+
+    Parameters
+    ----------
+    y_img, depth : float
+        The iterate ``(Y, z)`` [-, m], ``z > 0``.
+    r_y, r_z : float
+        BDF history term ``sum_j c_j (Y, z)_{k+1-j}`` [-, m].
+    s_y, s_z, s_w : float
+        Scaled screw ``βh (V_y, V_z, Ω_x)`` [m, m, rad] (``β`` of the BDF order, ``h`` the step [s]).
+
+    Returns
+    -------
+    tuple of 2 float
+        ``(G_Y, G_z)`` [-, m]; zero at the solution of the stage.
+    """
+    f_yv, f_zv, f_yw, f_zw = yz_rate_and_jacobian(y_img, depth, s_y, s_z, s_w)[:4]
+    return (y_img - f_yv - f_yw - r_y, depth - f_zv - f_zw - r_z)
+
+
 def _rk4_depth_failure(
     point: int, z: float, substep: int, substeps: int, h: float, xy: tuple[float, float] | None = None
 ) -> NumericalFailure:
@@ -323,34 +381,129 @@ def _rk4_depth_failure(
     )
 
 
+def _combine_1(c: Sequence[float], e: Sequence[float]) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """:func:`_history_combiner` for order 1: BDF coefficients ``c``, predictor weights ``e`` (1 each)."""
+    (c0,), (e0,) = c, e
+
+    def combine(states: Sequence[_State]) -> _HistoryTerms:
+        return [(c0 * x0, c0 * y0, c0 * z0, e0 * y0, e0 * z0) for ((x0, y0, z0),) in zip(*states)]
+
+    return combine
+
+
+def _combine_2(c: Sequence[float], e: Sequence[float]) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """:func:`_history_combiner` for order 2: BDF coefficients ``c``, predictor weights ``e`` (2 each)."""
+    (c0, c1), (e0, e1) = c, e
+
+    def combine(states: Sequence[_State]) -> _HistoryTerms:
+        return [
+            (c0 * x0 + c1 * x1, c0 * y0 + c1 * y1, c0 * z0 + c1 * z1, e0 * y0 + e1 * y1, e0 * z0 + e1 * z1)
+            for (x0, y0, z0), (x1, y1, z1) in zip(*states)
+        ]
+
+    return combine
+
+
+def _combine_3(c: Sequence[float], e: Sequence[float]) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """:func:`_history_combiner` for order 3: BDF coefficients ``c``, predictor weights ``e`` (3 each)."""
+    (c0, c1, c2), (e0, e1, e2) = c, e
+
+    def combine(states: Sequence[_State]) -> _HistoryTerms:
+        return [
+            (
+                c0 * x0 + c1 * x1 + c2 * x2,
+                c0 * y0 + c1 * y1 + c2 * y2,
+                c0 * z0 + c1 * z1 + c2 * z2,
+                e0 * y0 + e1 * y1 + e2 * y2,
+                e0 * z0 + e1 * z1 + e2 * z2,
+            )
+            for (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) in zip(*states)
+        ]
+
+    return combine
+
+
+def _combine_4(c: Sequence[float], e: Sequence[float]) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """:func:`_history_combiner` for order 4: BDF coefficients ``c``, predictor weights ``e`` (4 each)."""
+    (c0, c1, c2, c3), (e0, e1, e2, e3) = c, e
+
+    def combine(states: Sequence[_State]) -> _HistoryTerms:
+        return [
+            (
+                c0 * x0 + c1 * x1 + c2 * x2 + c3 * x3,
+                c0 * y0 + c1 * y1 + c2 * y2 + c3 * y3,
+                c0 * z0 + c1 * z1 + c2 * z2 + c3 * z3,
+                e0 * y0 + e1 * y1 + e2 * y2 + e3 * y3,
+                e0 * z0 + e1 * z1 + e2 * z2 + e3 * z3,
+            )
+            for (x0, y0, z0), (x1, y1, z1), (x2, y2, z2), (x3, y3, z3) in zip(*states)
+        ]
+
+    return combine
+
+
+def _combine_5(c: Sequence[float], e: Sequence[float]) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """:func:`_history_combiner` for order 5: BDF coefficients ``c``, predictor weights ``e`` (5 each)."""
+    (c0, c1, c2, c3, c4), (e0, e1, e2, e3, e4) = c, e
+
+    def combine(states: Sequence[_State]) -> _HistoryTerms:
+        return [
+            (
+                c0 * x0 + c1 * x1 + c2 * x2 + c3 * x3 + c4 * x4,
+                c0 * y0 + c1 * y1 + c2 * y2 + c3 * y3 + c4 * y4,
+                c0 * z0 + c1 * z1 + c2 * z2 + c3 * z3 + c4 * z4,
+                e0 * y0 + e1 * y1 + e2 * y2 + e3 * y3 + e4 * y4,
+                e0 * z0 + e1 * z1 + e2 * z2 + e3 * z3 + e4 * z4,
+            )
+            for (x0, y0, z0), (x1, y1, z1), (x2, y2, z2), (x3, y3, z3), (x4, y4, z4) in zip(*states)
+        ]
+
+    return combine
+
+
+def _combine_6(c: Sequence[float], e: Sequence[float]) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """:func:`_history_combiner` for order 6: BDF coefficients ``c``, predictor weights ``e`` (6 each)."""
+    (c0, c1, c2, c3, c4, c5), (e0, e1, e2, e3, e4, e5) = c, e
+
+    def combine(states: Sequence[_State]) -> _HistoryTerms:
+        return [
+            (
+                c0 * x0 + c1 * x1 + c2 * x2 + c3 * x3 + c4 * x4 + c5 * x5,
+                c0 * y0 + c1 * y1 + c2 * y2 + c3 * y3 + c4 * y4 + c5 * y5,
+                c0 * z0 + c1 * z1 + c2 * z2 + c3 * z3 + c4 * z4 + c5 * z5,
+                e0 * y0 + e1 * y1 + e2 * y2 + e3 * y3 + e4 * y4 + e5 * y5,
+                e0 * z0 + e1 * z1 + e2 * z2 + e3 * z3 + e4 * z4 + e5 * z5,
+            )
+            for (x0, y0, z0), (x1, y1, z1), (x2, y2, z2), (x3, y3, z3), (x4, y4, z4), (x5, y5, z5) in zip(*states)
+        ]
+
+    return combine
+
+
+_COMBINERS = (_combine_1, _combine_2, _combine_3, _combine_4, _combine_5, _combine_6)
+
+
 @lru_cache(maxsize=None)
-def _history_combiner(order: int) -> Callable:
-    """Unrolled ``states -> [(r_X, r_Y, r_z, p_Y, p_z) per point]`` for ``order`` past states.
+def _history_combiner(order: int) -> Callable[[Sequence[_State]], _HistoryTerms]:
+    """``states -> [(r_X, r_Y, r_z, p_Y, p_z) per point]`` for ``order`` past states (1–6).
 
-    ``r = sum_j c_j ψ_{k+1-j}`` (BDF history term) and ``p = sum_j e_j ψ_{k+1-j}``
-    (extrapolation predictor; only ``Y, z`` need one).  Generated once per order
-    because a Python loop over the history costs about 2.5× the unrolled form
-    (the step budget is 20 µs for 4 points).  ``states`` is ``[ψ_k, ψ_{k-1}, ...]``,
-    each a tuple of ``(X, Y, z)`` per point; the source below uses only the
-    numeric coefficients and fixed names.
+    ``r = sum_j c_j ψ_{k+1-j}`` (BDF history term, :func:`analysis.bdf.bdf_coefficients`) and
+    ``p = sum_j e_j ψ_{k+1-j}`` (extrapolation predictor, :func:`analysis.bdf.extrapolation_weights`;
+    only ``Y, z`` need one).  ``states`` is ``[ψ_k, ψ_{k-1}, ...]`` (``order`` of them, newest first).
+
+    Returns a closure over the coefficient tuples (:func:`_combine_1` ... :func:`_combine_6`)
+    with the sums written out for that order: a Python loop over the history costs about
+    twice as much (measured 1.6–1.9× for order 4 and 4 points, some 2 µs of the 20 µs step
+    budget).  The sums run from the newest state to the oldest; ``tests/visnav/test_estimator.py``
+    checks every order bit for bit against a plain loop.
+
+    Raises
+    ------
+    analysis.bdf.BdfOrderError
+        ``order`` outside 1..6.
     """
-    coeffs = bdf_coefficients(order).history
-    weights = extrapolation_weights(order)
-    names = [(f"X{j}", f"Y{j}", f"z{j}") for j in range(order)]
-
-    def combo(ws: Sequence[float], axis: int) -> str:
-        return " + ".join(f"({w!r}) * {names[j][axis]}" for j, w in enumerate(ws))
-
-    targets = ", ".join(f"({x}, {y}, {z})" for x, y, z in names)
-    source = (
-        "def combine(states):\n"
-        f"    return [({combo(coeffs, 0)}, {combo(coeffs, 1)}, {combo(coeffs, 2)},"
-        f" {combo(weights, 1)}, {combo(weights, 2)})\n"
-        f"            for {targets}{',' if order == 1 else ''} in zip(*states)]\n"
-    )
-    namespace: dict = {}
-    exec(compile(source, f"<bdf history combiner, order {order}>", "exec"), namespace)  # noqa: S102
-    return namespace["combine"]
+    validate_order(order)
+    return _COMBINERS[order - 1](bdf_coefficients(order).history, extrapolation_weights(order))
 
 
 def _as_state(psi: object, n_points: int | None) -> tuple[tuple[float, float, float], ...]:
@@ -391,13 +544,14 @@ class FeatureEstimator:
     Phases: *tracking* (initial; :meth:`observe` records measurements) and
     *reconstructing* (after :meth:`start`; :meth:`advance` produces estimates;
     :meth:`stop` returns to tracking).  The ring buffer holds the last ``order``
-    states (measured or reconstructed, the newest first) and the last ``order``
-    period records; they must share one period ``h`` (fixed-step BDF).
+    states (measured or reconstructed, the newest first) and the exact mean screws
+    (:func:`mean_camera_screw`) of the last ``order`` periods, the only part of a period
+    record that a later step uses; they must share one period ``h`` (fixed-step BDF).
     While it holds fewer than ``order`` states, :meth:`advance` uses the RK4
     start-up (:func:`zoh_period_rk4`) unless ``start(startup="ramp")``.
     After :meth:`stop` the buffer keeps the reconstructed values, so that an
     immediate :meth:`start` resumes on them; the first measurement observed after
-    the stop discards them all (it keeps the period records, which are exact
+    the stop discards them all (it keeps the period means, which are exact
     inputs), so the history never mixes reconstructed and measured values and a
     later :meth:`start` with fewer than ``order`` fresh measurements begins with
     start-up steps.
@@ -411,7 +565,7 @@ class FeatureEstimator:
         "_maxiter",
         "_model",
         "_states",
-        "_periods",
+        "_period_means",
         "_period",
         "_n_points",
         "_reconstructing",
@@ -436,9 +590,13 @@ class FeatureEstimator:
         self._model = settings.screw_model
         self._combiners = {q: _history_combiner(q) for q in range(1, self._order + 1)}
         self._betas = {q: bdf_coefficients(q).beta for q in range(1, self._order + 1)}
-        self._hist_weights = {p: histopolation_weights(p) for p in range(1, self._order + 1)}
+        # indexed by the number n of stored period means (0..order): the histopolation weights
+        # (w_0, (w_1, ..., w_{p-1})) over p = min(order, n + 1) means
+        self._hist_weights = tuple(
+            (w[0], w[1:]) for w in (histopolation_weights(min(self._order, n + 1)) for n in range(self._order + 1))
+        )
         self._states: deque = deque(maxlen=self._order)
-        self._periods: deque = deque(maxlen=self._order)
+        self._period_means: deque = deque(maxlen=self._order)
         self._period: float | None = None
         self._n_points: int | None = None
         self._reconstructing = False
@@ -500,7 +658,7 @@ class FeatureEstimator:
     def reset(self) -> None:
         """Forget the history and return to tracking."""
         self._states.clear()
-        self._periods.clear()
+        self._period_means.clear()
         self._period = None
         self._n_points = None
         self._reconstructing = False
@@ -528,7 +686,7 @@ class FeatureEstimator:
             Give all three, or none: without them the history restarts from this
             sample (first sample, or after a gap in the measurements).  The first
             measurement after a reconstruction replaces all the reconstructed
-            states (the period records are kept).
+            states (the periods' mean screws are kept).
 
         Raises
         ------
@@ -552,18 +710,18 @@ class FeatureEstimator:
         state = _as_state(psi, None if restart else self._n_points)
         if restart:
             self._states.clear()
-            self._periods.clear()
+            self._period_means.clear()
             self._period = None
             self._n_points = len(state)
         if all(given):
-            record = held_inputs(pan_start, joint_rates, h, self._geometry)  # type: ignore[arg-type]
-            self._check_period(record.period)
+            pan, v, omega, pan_rate, period = _validated_period(pan_start, joint_rates, h)  # type: ignore[arg-type]
+            self._check_period(period)
             if not restart:
-                self._periods.appendleft(record)
+                self._period_means.appendleft(mean_camera_screw(pan, v, omega, pan_rate, period, self._geometry))
         if self._holds_reconstruction:
             # Reconstructed values and measurements do not lie on one trajectory (they differ by the
             # reconstruction error): a BDF history mixing them would differentiate that jump.  Keep
-            # only measurements; the period records are exact inputs and stay.
+            # only measurements; the period means are exact inputs and stay.
             self._states.clear()
             self._holds_reconstruction = False
         self._states.appendleft(state)
@@ -635,32 +793,33 @@ class FeatureEstimator:
           available)`` period means: the value at ``t_{k+1}`` of the polynomial
           whose cell means are the ``T̄`` (:func:`analysis.bdf.histopolation_weights`).
         """
-        record = held_inputs(pan_start, joint_rates, h, self._geometry)
-        return self._screw(record, self._periods)
+        pan, v, omega, pan_rate, period = _validated_period(pan_start, joint_rates, h)
+        mean = mean_camera_screw(pan, v, omega, pan_rate, period, self._geometry)
+        return self._screw(pan, v, omega, pan_rate, period, mean)
 
-    def _screw(self, record: HeldInputs, previous: deque) -> tuple[float, float, float]:
+    def _screw(
+        self, pan: float, v: float, omega: float, pan_rate: float, h: float, mean: tuple[float, float, float]
+    ) -> tuple[float, float, float]:
+        """The screw of the model for the period ``(pan, v, omega, pan_rate, h)`` with mean screw ``mean``."""
         model = self._model
         if model == "histopolated":
-            p = min(self._order, len(previous) + 1)
-            weights = self._hist_weights[p]
-            w0 = weights[0]
-            vy, vz, wx = record.mean_screw
+            previous = self._period_means
+            w0, weights = self._hist_weights[len(previous)]
+            vy, vz, wx = mean
             vy, vz, wx = w0 * vy, w0 * vz, w0 * wx
-            for w, past in zip(weights[1:], previous):
-                py, pz, px = past.mean_screw
+            for w, (py, pz, px) in zip(weights, previous):
                 vy += w * py
                 vz += w * pz
                 wx += w * px
             return (vy, vz, wx)
         if model == "mean":
-            return record.mean_screw
+            return mean
         geometry = self._geometry
-        pan = record.pan_start + record.pan_rate * record.period if model == "end" else record.pan_start
         return camera_screw(
-            pan,
-            record.v,
-            record.omega,
-            record.pan_rate,
+            pan + pan_rate * h if model == "end" else pan,
+            v,
+            omega,
+            pan_rate,
             geometry.pan_offset_m,
             geometry.camera_forward_m,
             geometry.camera_lateral_m,
@@ -709,13 +868,16 @@ class FeatureEstimator:
         """
         if not self._reconstructing:
             raise EstimatorUsageError("advance() called while tracking measurements: call start() first")
-        record = held_inputs(pan_start, joint_rates, h, self._geometry)
-        self._check_period(record.period)
+        pan, v, omega, pan_rate, period = _validated_period(pan_start, joint_rates, h)
+        if period != self._period:  # the usual case, the same period again, needs no check
+            self._check_period(period)
+        mean = mean_camera_screw(pan, v, omega, pan_rate, period, self._geometry)
         if self._rk4_startup and len(self._states) < self._order:
+            record = HeldInputs(pan_start=pan, v=v, omega=omega, pan_rate=pan_rate, period=period, mean_screw=mean)
             psi = self._startup_step(record)
         else:
-            psi = self._bdf_step(self._screw(record, self._periods), record.period)
-        self._periods.appendleft(record)
+            psi = self._bdf_step(self._screw(pan, v, omega, pan_rate, period, mean), period)
+        self._period_means.appendleft(mean)
         self._holds_reconstruction = True
         return psi
 
@@ -738,7 +900,7 @@ class FeatureEstimator:
     ) -> tuple[tuple[float, float, float], ...]:
         """One BDF step with the camera screw at ``t_{k+1}`` given directly (smooth inputs, tests).
 
-        Bypasses the screw model.  The period records are cleared (the inputs of
+        Bypasses the screw model.  The period means are cleared (the inputs of
         this period are unknown), so a later ``"histopolated"`` :meth:`advance`
         restarts its histopolation from one mean.  Only one screw value is
         known, not the ODE over the period, so with a short history this step
@@ -755,49 +917,61 @@ class FeatureEstimator:
             raise EstimatorInputError(f"h = {h!r}: expected a positive finite sampling period [s]")
         self._check_period(period)
         psi = self._bdf_step((v_y, v_z, omega_x), period)
-        self._periods.clear()
+        self._period_means.clear()
         self._holds_reconstruction = True
         return psi
 
-    def _bdf_step(self, screw: tuple[float, float, float], h: float) -> tuple[tuple[float, float, float], ...]:
-        """Predictor + per-point 2×2 Newton on (Y, z) + linear X; pushes and returns ψ_{k+1}."""
+    def _bdf_step(self, screw: tuple[float, float, float], h: float) -> _State:
+        """Predictor + per-point 2×2 Newton on (Y, z) + linear X; pushes and returns ψ_{k+1}.
+
+        The stage ``G(Y, z) = (Y, z) − βh (Ẏ, ż) − (r_Y, r_z) = 0`` (:func:`bdf_stage_residual`)
+        and its Jacobian ``I − βh ∂(Ẏ, ż)/∂(Y, z)`` both come from one call of
+        :func:`visnav.model.yz_rate_and_jacobian` per iteration, with the screw scaled by ``βh``
+        (the rates are linear in it).  Then ``X (1 − βh k) = r_X`` with ``βh k`` from
+        :func:`visnav.model.x_rate_gain`.
+        """
         states = self._states
         q = len(states)
         bh = self._betas[q] * h
         v_y, v_z, omega_x = screw
-        bh_vy, bh_vz, bh_wx = bh * v_y, bh * v_z, bh * omega_x
-        tol, maxiter = self._tol, self._maxiter
+        s_y, s_z, s_w = bh * v_y, bh * v_z, bh * omega_x
+        tol, iterations = self._tol, range(1, self._maxiter + 1)
+        rate_and_jacobian, gain = yz_rate_and_jacobian, x_rate_gain
         out = []
         worst = 0
         try:
-            for i, (r_x, r_y, r_z, y, z) in enumerate(self._combiners[q](states)):
-                # G(Y, z) = (Y - bh Ẏ - r_Y, z - bh ż - r_z), Ẏ = (Y V_z - V_y)/z + (1 + Y²) Ω_x,
-                # ż = -V_z - z Y Ω_x; A = ∂G/∂(Y, z); update d = A⁻¹ G (Cramer).
-                for iteration in range(1, maxiter + 1):
+            for r_x, r_y, r_z, y, z in self._combiners[q](states):  # point len(out)
+                for iteration in iterations:
                     if z <= 0.0:
-                        raise self._depth_failure(i, z, iteration, h)
-                    inv_z = 1.0 / z
-                    g_y = y - (y * bh_vz - bh_vy) * inv_z - (1.0 + y * y) * bh_wx - r_y
-                    g_z = z + bh_vz + z * y * bh_wx - r_z
-                    a11 = 1.0 - bh_vz * inv_z - 2.0 * y * bh_wx
-                    a12 = (y * bh_vz - bh_vy) * inv_z * inv_z
-                    a21 = z * bh_wx
-                    a22 = 1.0 + y * bh_wx
-                    det = a11 * a22 - a12 * a21
-                    d_y = (a22 * g_y - a12 * g_z) / det
-                    d_z = (a11 * g_z - a21 * g_y) / det
+                        raise self._depth_failure(len(out), z, iteration, h)
+                    # f = βh (Ẏ_v, ż_v, Ẏ_ω, ż_ω) and j = βh ∂(Ẏ, ż)/∂(Y, z) at (Y, z); G is
+                    # bdf_stage_residual(...) written out; A = I − j = [[a11, −j_yz], [−j_zy, a22]];
+                    # update d = A⁻¹ G (Cramer).
+                    f_yv, f_zv, f_yw, f_zw, j_yy_v, j_yy_w, j_yz, j_zy, j_zz = rate_and_jacobian(
+                        y, z, s_y, s_z, s_w
+                    )
+                    g_y = y - f_yv - f_yw - r_y
+                    g_z = z - f_zv - f_zw - r_z
+                    a11 = 1.0 - j_yy_v - j_yy_w
+                    a22 = 1.0 - j_zz
+                    det = a11 * a22 - j_yz * j_zy
+                    d_y = (a22 * g_y + j_yz * g_z) / det
+                    d_z = (a11 * g_z + j_zy * g_y) / det
                     y -= d_y
                     z -= d_z
                     if abs(d_y) <= tol * (1.0 + abs(y)) and abs(d_z) <= tol * (1.0 + abs(z)):
                         break
                 else:
-                    raise self._newton_failure(i, y, z, r_y, r_z, (bh_vy, bh_vz, bh_wx), max(abs(d_y), abs(d_z)), h)
+                    raise self._newton_failure(
+                        len(out), y, z, r_y, r_z, (s_y, s_z, s_w), max(abs(d_y), abs(d_z)), h
+                    )
                 if z <= 0.0:
-                    raise self._depth_failure(i, z, iteration, h)
+                    raise self._depth_failure(len(out), z, iteration, h)
                 if iteration > worst:
                     worst = iteration
-                # X (1 - bh (V_z/z + Y Ω_x)) = r_X: the X row of the block, linear in X.
-                out.append((r_x / (1.0 - bh_vz / z - y * bh_wx), y, z))
+                # X (1 − βh k) = r_X: the X row of the block, linear in X.
+                k_v, k_w = gain(y, z, s_z, s_w)
+                out.append((r_x / (1.0 - k_v - k_w), y, z))
         except ZeroDivisionError as err:
             raise NumericalFailure(
                 f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): singular Newton matrix "
@@ -828,13 +1002,10 @@ class FeatureEstimator:
         update: float,
         h: float,
     ) -> NumericalFailure:
-        bh_vy, bh_vz, bh_wx = scaled_screw
-        residual = max(
-            abs(y - (y * bh_vz - bh_vy) / z - (1.0 + y * y) * bh_wx - r_y),
-            abs(z + bh_vz + z * y * bh_wx - r_z),
-        )
+        g_y, g_z = bdf_stage_residual(y, z, r_y, r_z, *scaled_screw)
         return NumericalFailure(
             f"feature estimator, BDF step {self._steps + 1} (h = {h:g} s): Newton for point {point} did not "
-            f"converge after {self._maxiter} iterations (last update {update:.3e}, residual {residual:.3e}, "
-            f"tolerance {self._tol:.1e} relative); reduce h or raise EstimatorSettings.newton_maxiter"
+            f"converge after {self._maxiter} iterations (last update {update:.3e}, residual "
+            f"{max(abs(g_y), abs(g_z)):.3e}, tolerance {self._tol:.1e} relative); reduce h or raise "
+            f"EstimatorSettings.newton_maxiter"
         )

@@ -35,6 +35,8 @@ __all__ = [
     "interaction_x_row",
     "interaction_y_row",
     "depth_row",
+    "yz_rate_and_jacobian",
+    "x_rate_gain",
     "feature_depth_rate",
     "feature_depth_rate_jacobian",
     "pan_column",
@@ -155,10 +157,91 @@ def depth_row(y_img: Scalar, depth: Scalar) -> tuple[Scalar, Scalar, Scalar]:
     return (0.0, -1.0, -depth * y_img)
 
 
+def yz_rate_and_jacobian(
+    y_img: Scalar, depth: Scalar, v_y: Scalar, v_z: Scalar, omega_x: Scalar
+) -> tuple[Scalar, Scalar, Scalar, Scalar, Scalar, Scalar, Scalar, Scalar, Scalar]:
+    """The ``(Y, z)`` rows of equation (13) and their Jacobian ``∂(Ẏ, ż)/∂(Y, z)``.
+
+    The rows do not involve ``X``: the ``(Y, z)`` subsystem of a point is closed (``X``
+    follows from :func:`x_rate_gain`).  They are returned split into their translational
+    part (from ``V_y, V_z``) and their rotational part (from ``Ω_x``):
+
+    * ``Ẏ = Ẏ_v + Ẏ_ω`` with ``Ẏ_v = (Y V_z − V_y)/z`` and ``Ẏ_ω = (1 + Y²) Ω_x``;
+    * ``ż = ż_v + ż_ω`` with ``ż_v = −V_z`` and ``ż_ω = −z Y Ω_x``;
+    * ``∂Ẏ/∂Y = V_z/z + 2 Y Ω_x`` (the same two parts), ``∂Ẏ/∂z = −(Y V_z − V_y)/z²``,
+      ``∂ż/∂Y = −z Ω_x`` and ``∂ż/∂z = −Y Ω_x``.
+
+    This function is the only place where these rows and their derivatives are written:
+    :func:`feature_depth_rate`, :func:`feature_depth_rate_jacobian` and the Newton iteration of
+    the estimator's BDF stage (:class:`visnav.estimator.FeatureEstimator`) all call it.  One
+    call gives the Newton iteration its residual and its Jacobian (it solves for ``(Y, z)``
+    of each point).  Everything is linear in the screw, so the estimator passes ``βh T_rc``
+    and gets ``βh`` times the rates and derivatives.  The parts are kept apart so that the
+    BDF residual subtracts them one after the other, ``(Y − Ẏ_v) − Ẏ_ω``: the estimator's
+    results then stay identical, to the last bit, to those of its former inline arithmetic.
+
+    Parameters
+    ----------
+    y_img : float
+        Normalised horizontal image coordinate ``Y`` [-].
+    depth : float
+        Depth ``z`` along the optical axis [m], nonzero (positive in use).
+    v_y, v_z, omega_x : float
+        Reduced camera screw ``T_rc`` [m/s, m/s, rad/s], or a multiple of it.
+
+    Returns
+    -------
+    tuple of 9 float
+        ``(Ẏ_v, ż_v, Ẏ_ω, ż_ω)`` [1/s, m/s, 1/s, m/s], then
+        ``(∂Ẏ_v/∂Y, ∂Ẏ_ω/∂Y, ∂Ẏ/∂z, ∂ż/∂Y, ∂ż/∂z)`` [1/s, 1/s, 1/(m s), m/s, 1/s],
+        all times the scale of the screw.
+    """
+    inv_z = 1.0 / depth
+    y_v = (y_img * v_z - v_y) * inv_z
+    minus_omega = -omega_x
+    return (
+        y_v,
+        -v_z,
+        (1.0 + y_img * y_img) * omega_x,
+        depth * y_img * minus_omega,
+        v_z * inv_z,
+        2.0 * y_img * omega_x,
+        -y_v * inv_z,
+        depth * minus_omega,
+        y_img * minus_omega,
+    )
+
+
+def x_rate_gain(y_img: Scalar, depth: Scalar, v_z: Scalar, omega_x: Scalar) -> tuple[Scalar, Scalar]:
+    """The ``X`` row of equation (13), which is linear in ``X``: ``Ẋ = X (k_v + k_ω)``.
+
+    ``k_v = V_z/z`` (translation) and ``k_ω = Y Ω_x`` (rotation); ``k_v + k_ω = ∂Ẋ/∂X``.
+    The estimator solves its BDF stage for ``X`` from ``X (1 − βh k) = r_X`` once ``(Y, z)``
+    has converged (parts subtracted one after the other, as in :func:`yz_rate_and_jacobian`;
+    ``k_v`` is a true division, as in the estimator's former inline arithmetic, so that the
+    results are the same to the last bit).
+
+    Parameters
+    ----------
+    y_img, depth, v_z, omega_x : float
+        As for :func:`yz_rate_and_jacobian` [-, m, m/s, rad/s].
+
+    Returns
+    -------
+    tuple of 2 float
+        ``(k_v, k_ω)`` [1/s] (times the scale of the screw).
+    """
+    return (v_z / depth, y_img * omega_x)
+
+
 def feature_depth_rate(
     x_img: Scalar, y_img: Scalar, depth: Scalar, v_y: Scalar, v_z: Scalar, omega_x: Scalar
 ) -> tuple[Scalar, Scalar, Scalar]:
     """One point's block of equation (13): ``(Ẋ, Ẏ, ż) = (L_X; L_Y; L_z) T_rc``.
+
+    Assembled from :func:`x_rate_gain` and :func:`yz_rate_and_jacobian` (the definition of the
+    rows): ``Ẋ = X (V_z/z + Y Ω_x)``, ``Ẏ = (Y V_z − V_y)/z + (1 + Y²) Ω_x``,
+    ``ż = −V_z − z Y Ω_x``.
 
     Parameters
     ----------
@@ -168,13 +251,15 @@ def feature_depth_rate(
         Depth ``z`` along the optical axis [m], must be positive.
     v_y, v_z, omega_x : float
         Reduced camera screw [m/s, m/s, rad/s].
+
+    Returns
+    -------
+    tuple of 3 float
+        ``(Ẋ, Ẏ, ż)`` [1/s, 1/s, m/s].
     """
-    inv_z = 1.0 / depth
-    return (
-        x_img * (v_z * inv_z + y_img * omega_x),
-        -v_y * inv_z + y_img * v_z * inv_z + (1.0 + y_img * y_img) * omega_x,
-        -v_z - depth * y_img * omega_x,
-    )
+    k_v, k_w = x_rate_gain(y_img, depth, v_z, omega_x)
+    y_v, z_v, y_w, z_w, _, _, _, _, _ = yz_rate_and_jacobian(y_img, depth, v_y, v_z, omega_x)
+    return (x_img * (k_v + k_w), y_v + y_w, z_v + z_w)
 
 
 def feature_depth_rate_jacobian(
@@ -184,15 +269,27 @@ def feature_depth_rate_jacobian(
 
     The full Jacobian of (13) is block diagonal with one such block per point.
     It is lower block-triangular inside the block: ``X`` feeds neither ``Ẏ``
-    nor ``ż``.  Checked against CasADi's automatic differentiation of
+    nor ``ż``.  The ``(Y, z)`` block comes from :func:`yz_rate_and_jacobian`, ``∂Ẋ/∂X``
+    is the gain of :func:`x_rate_gain`; the ``X`` row adds ``∂Ẋ/∂Y = X Ω_x`` and
+    ``∂Ẋ/∂z = −X V_z/z²``.  Checked against CasADi's automatic differentiation of
     :func:`feature_depth_rate` in the tests.
+
+    Parameters
+    ----------
+    x_img, y_img, depth, v_y, v_z, omega_x : float
+        As for :func:`feature_depth_rate` [-, -, m, m/s, m/s, rad/s].
+
+    Returns
+    -------
+    tuple of 3 rows of 3 float
+        Rows ``(Ẋ, Ẏ, ż)``, columns ``(X, Y, z)``.
     """
-    inv_z = 1.0 / depth
-    inv_z2 = inv_z * inv_z
+    k_v, k_w = x_rate_gain(y_img, depth, v_z, omega_x)
+    _, _, _, _, dyy_v, dyy_w, dyz, dzy, dzz = yz_rate_and_jacobian(y_img, depth, v_y, v_z, omega_x)
     return (
-        (v_z * inv_z + y_img * omega_x, x_img * omega_x, -x_img * v_z * inv_z2),
-        (0.0, v_z * inv_z + 2.0 * y_img * omega_x, (v_y - y_img * v_z) * inv_z2),
-        (0.0, -depth * omega_x, -y_img * omega_x),
+        (k_v + k_w, x_img * omega_x, -x_img * k_v / depth),
+        (0.0, dyy_v + dyy_w, dyz),
+        (0.0, dzy, dzz),
     )
 
 

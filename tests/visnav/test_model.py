@@ -230,3 +230,105 @@ def test_feature_depth_rate_jacobian_structure() -> None:
     """X feeds neither Ẏ nor ż (lower block-triangular in (X, (Y, z)))."""
     jac = model.feature_depth_rate_jacobian(0.3, -0.2, 2.0, 0.1, -0.4, 0.7)
     assert jac[1][0] == 0.0 and jac[2][0] == 0.0
+
+
+# --------------------------------------------------------------------------- the (Y, z) rows: rate and Jacobian
+
+
+def _random_points(seed: int, n: int = 200):
+    """(Y, z, V_y, V_z, Omega_x) with |Y| <= 1, z in [0.2, 10] m, |screw| <= 2 (the estimator's range and more)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        y_img = rng.uniform(-1.0, 1.0)
+        z = rng.uniform(0.2, 10.0)
+        yield (y_img, z, *rng.uniform(-2.0, 2.0, size=3))
+
+
+def _yz_jacobian(values: tuple[float, ...]) -> np.ndarray:
+    """The 2×2 ``∂(Ẏ, ż)/∂(Y, z)`` assembled from the entries of :func:`model.yz_rate_and_jacobian`."""
+    dyy_v, dyy_w, dyz, dzy, dzz = values[4:]
+    return np.array([[dyy_v + dyy_w, dyz], [dzy, dzz]])
+
+
+def test_yz_rate_and_jacobian_equals_casadi_ad() -> None:
+    """Each part of the Jacobian is the AD of the matching part of the rate (zeros included)."""
+    syms = [ca.SX.sym(n) for n in ("Y", "z", "vy", "vz", "wx")]
+    yz = ca.vertcat(syms[0], syms[1])
+    out = model.yz_rate_and_jacobian(*syms)
+    translation, rotation = ca.vertcat(out[0], out[1]), ca.vertcat(out[2], out[3])
+    ad = ca.Function("ad", syms, [ca.jacobian(translation, yz), ca.jacobian(rotation, yz)])
+    for args in _random_points(11):
+        jac_v, jac_w = (np.array(m) for m in ad(*args))
+        got = model.yz_rate_and_jacobian(*args)
+        dyy_v, dyy_w, dyz, dzy, dzz = got[4:]
+        # Same arithmetic in another order: a few ulps of entries up to |V|/z² <= 100 (z >= 0.2 m).
+        np.testing.assert_allclose(jac_v, [[dyy_v, dyz], [0.0, 0.0]], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(jac_w, [[dyy_w, 0.0], [dzy, dzz]], rtol=1e-12, atol=1e-12)
+
+
+def test_yz_jacobian_equals_central_differences() -> None:
+    """Independent of CasADi: central differences of the rate (an absolute step in Y, a relative one in z).
+
+    The rates are quadratic in Y, so a step ``h_Y = 1e-5`` has no truncation error, only the
+    rounding error ``eps |f| / h_Y`` <= 2.2e-16 × 14 / 1e-5 = 3e-10 (``|f| <= |V|/z + 2 |Ω| <= 14``).
+    In z the step is relative, ``h_z = 1e-5 z``: the truncation error ``h_z² |∂³f/∂z³| / 6``, with
+    the worst third derivative ``6 |Y V_z − V_y| / z⁴``, is ``1e-10 |Y V_z − V_y| / z² = 1e-10 |∂Ẏ/∂z|``;
+    the rounding error ``eps |f| / h_z`` is below 3e-10 / z <= 1.5e-9 (z >= 0.2 m).  So
+    ``1e-8 (1 + |entry|)`` bounds both with a wide margin (measured over 20000 draws: 1.2 % of it),
+    while halving any one entry moves it by at least 4e-6 (1 + |entry|) in these draws (400 times
+    the tolerance).
+    """
+    for args in _random_points(12):
+        y_img, z = args[:2]
+        screw = args[2:]
+
+        def rate(y_: float, z_: float) -> np.ndarray:
+            y_v, z_v, y_w, z_w = model.yz_rate_and_jacobian(y_, z_, *screw)[:4]
+            return np.array([y_v + y_w, z_v + z_w])
+
+        hy, hz = 1e-5, 1e-5 * z
+        fd = np.column_stack([
+            (rate(y_img + hy, z) - rate(y_img - hy, z)) / (2 * hy),
+            (rate(y_img, z + hz) - rate(y_img, z - hz)) / (2 * hz),
+        ])
+        jac = _yz_jacobian(model.yz_rate_and_jacobian(*args))
+        assert np.all(np.abs(fd - jac) <= 1e-8 * (1.0 + np.abs(jac))), (args, fd, jac)
+
+
+def test_yz_rate_is_equation_13() -> None:
+    """The two parts add up to the rows ``L_Y T`` and ``L_z T`` of (5) (written separately in this module)."""
+    for y_img, z, *screw in _random_points(13):
+        y_v, z_v, y_w, z_w = model.yz_rate_and_jacobian(y_img, z, *screw)[:4]
+        assert y_v + y_w == pytest.approx(np.dot(model.interaction_y_row(y_img, z), screw), rel=1e-13, abs=1e-13)
+        assert z_v + z_w == pytest.approx(np.dot(model.depth_row(y_img, z), screw), rel=1e-13, abs=1e-13)
+        # translation and rotation: the parts are the columns (V_y, V_z) and Omega_x of the rows
+        assert y_w == pytest.approx(model.interaction_y_row(y_img, z)[2] * screw[2], rel=1e-15)
+        assert z_w == pytest.approx(model.depth_row(y_img, z)[2] * screw[2], rel=1e-15)
+
+
+def test_x_rate_gain_is_the_x_row() -> None:
+    """``Ẋ = X (k_v + k_ω)`` is ``L_X T``, and ``k_v + k_ω`` is the AD of Ẋ with respect to X."""
+    x, y, z = ca.SX.sym("X"), ca.SX.sym("Y"), ca.SX.sym("z")
+    vz, wx = ca.SX.sym("vz"), ca.SX.sym("wx")
+    k_v, k_w = model.x_rate_gain(y, z, vz, wx)
+    ad = ca.Function("ad", [x, y, z, vz, wx], [ca.jacobian(x * (k_v + k_w), x)])
+    rng = np.random.default_rng(14)
+    for y_img, depth, v_y, v_z, omega_x in _random_points(14):
+        x_img = rng.uniform(-1.0, 1.0)
+        gain = sum(model.x_rate_gain(y_img, depth, v_z, omega_x))
+        row = np.dot(model.interaction_x_row(x_img, y_img, depth), (v_y, v_z, omega_x))
+        assert x_img * gain == pytest.approx(row, rel=1e-13, abs=1e-13)
+        assert float(ad(x_img, y_img, depth, v_z, omega_x)) == pytest.approx(gain, rel=1e-15, abs=1e-16)
+
+
+def test_feature_depth_rate_is_assembled_from_the_rows() -> None:
+    """The 3-point block and its 3×3 Jacobian are the single definitions, not a second copy."""
+    for y_img, z, v_y, v_z, omega_x in _random_points(15, 50):
+        x_img = 0.5 * y_img - 0.1
+        k_v, k_w = model.x_rate_gain(y_img, z, v_z, omega_x)
+        y_v, z_v, y_w, z_w, *jac = model.yz_rate_and_jacobian(y_img, z, v_y, v_z, omega_x)
+        assert model.feature_depth_rate(x_img, y_img, z, v_y, v_z, omega_x) == (
+            x_img * (k_v + k_w), y_v + y_w, z_v + z_w)
+        block = np.array(model.feature_depth_rate_jacobian(x_img, y_img, z, v_y, v_z, omega_x))
+        np.testing.assert_array_equal(block[1:, 1:], _yz_jacobian((y_v, z_v, y_w, z_w, *jac)))
+        assert block[0, 0] == k_v + k_w
