@@ -51,6 +51,8 @@ from typing import Any
 
 import numpy as np
 
+from hybrid.errors import ParameterError
+
 __all__ = [
     "ORDERS",
     "ORPHAN_POLL_S",
@@ -92,7 +94,7 @@ def _render(template: str, names: Mapping[str, str]) -> str:
     return _PLACEHOLDER.sub(lambda m: names.get(m[1], _DISPLAY_NAMES.get(m[1], m[1])), template)
 
 
-class CampaignOptionError(ValueError):
+class CampaignOptionError(ParameterError):
     """An invalid campaign option (executor choice, worker count, window, indices, ...).
 
     ``expected`` and ``fix`` may mention other parameters as ``{name}``
@@ -109,21 +111,11 @@ class CampaignOptionError(ValueError):
         What a valid value looks like and how to correct it (templates).
     """
 
-    def __init__(self, parameter: str, value: object, expected: str, fix: str) -> None:
-        self.parameter = parameter
-        self.value = value
-        self.expected = expected
-        self.fix = fix
-        super().__init__(self.render())
-
     def render(self, names: Mapping[str, str] | None = None) -> str:
         """The message with parameters named by ``names`` (identifier -> shown name, e.g. CLI flags)."""
         names = {} if names is None else names
         shown = _render(f"{{{self.parameter}}}", names)
         return f"{shown} = {self.value!r}: expected {_render(self.expected, names)}; fix: {_render(self.fix, names)}"
-
-    def __reduce__(self):  # picklable across processes
-        return (CampaignOptionError, (self.parameter, self.value, self.expected, self.fix))
 
 
 class SchedulerUnavailableError(ConnectionError):

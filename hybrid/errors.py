@@ -13,6 +13,7 @@ __all__ = [
     "ZenoError",
     "DivergenceError",
     "NumericalFailure",
+    "ParameterError",
 ]
 
 
@@ -67,3 +68,38 @@ class DivergenceError(ExecutionError):
         self.time = time
         self.mode = mode
         self.cause = cause
+
+
+class ParameterError(ValueError):
+    """A parameter with an invalid value: the one shape of every such error in the toolkit.
+
+    The message is ``"<parameter> = <value>: expected <expected>; fix: <fix>"``.
+    Subclasses name the family (campaign options, perturbations, ...);
+    instances pickle with their fields (they cross process boundaries in
+    campaigns).
+
+    Attributes
+    ----------
+    parameter : str
+        The offending parameter (``"samples"``, ``"Uniform"``, ``"workers"``, ...).
+    value : object
+        The value found.
+    expected : str
+        What a valid value looks like.
+    fix : str
+        How to correct it.
+    """
+
+    def __init__(self, parameter: str, value: object, expected: str, fix: str) -> None:
+        self.parameter = parameter
+        self.value = value
+        self.expected = expected
+        self.fix = fix
+        super().__init__(self.render())
+
+    def render(self) -> str:
+        """The message."""
+        return f"{self.parameter} = {self.value!r}: expected {self.expected}; fix: {self.fix}"
+
+    def __reduce__(self):  # picklable across processes, as its own class
+        return (type(self), (self.parameter, self.value, self.expected, self.fix))

@@ -66,6 +66,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from hybrid.errors import ParameterError
+
 from visnav.parameters import (
     ActuatorLimits,
     CameraModel,
@@ -121,7 +123,7 @@ _TARGET_FIELDS = ("x_m", "y_m", "heading_rad", "normal_rad")
 _OBSTACLE = re.compile(r"^obstacles\[(\d+)\]\.(\w+)$")
 
 
-class PerturbationError(ValueError):
+class PerturbationError(ParameterError):
     """An invalid distribution, move or perturbation, or values that do not fit it.
 
     Attributes
@@ -135,16 +137,6 @@ class PerturbationError(ValueError):
     fix : str
         How to correct it.
     """
-
-    def __init__(self, parameter: str, value: object, expected: str, fix: str) -> None:
-        self.parameter = parameter
-        self.value = value
-        self.expected = expected
-        self.fix = fix
-        super().__init__(f"{parameter} = {value!r}: expected {expected}; fix: {fix}")
-
-    def __reduce__(self):  # picklable across processes
-        return (PerturbationError, (self.parameter, self.value, self.expected, self.fix))
 
 
 def _finite(parameter: str, value: object) -> None:

@@ -43,6 +43,7 @@ import numpy as np
 from analysis.campaigns import InlineExecutor, quantiles, run_tasks, wilson_interval
 from analysis.campaigns import process_pool as _generic_process_pool
 from hybrid import DivergenceError
+from hybrid.errors import ParameterError
 from hybrid.jsonable import canonical_json, to_jsonable
 
 from visnav import simulation
@@ -94,7 +95,7 @@ PRELOAD = ("visnav.studies.campaign", "visnav.simulation", "visnav.scenario")
 """Modules a process pool's forkserver imports before starting campaign workers."""
 
 
-class CampaignSpecError(ValueError):
+class CampaignSpecError(ParameterError):
     """An invalid campaign specification.
 
     Attributes
@@ -109,15 +110,6 @@ class CampaignSpecError(ValueError):
         How to correct it.
     """
 
-    def __init__(self, parameter: str, value: object, expected: str, fix: str) -> None:
-        self.parameter = parameter
-        self.value = value
-        self.expected = expected
-        self.fix = fix
-        super().__init__(f"{parameter} = {value!r}: expected {expected}; fix: {fix}")
-
-    def __reduce__(self):  # picklable across processes
-        return (CampaignSpecError, (self.parameter, self.value, self.expected, self.fix))
 
 
 # ---------------------------------------------------------------------------------------------
