@@ -431,6 +431,12 @@ class _Run:
 
     def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
         self.guard_evaluations += 1
+        try:  # fast path; on any doubt the checked path raises the precise error (guards are pure)
+            g = tr.guard(v, memory)
+            if type(g) is float and g == g:
+                return g
+        except Exception:
+            pass
         what = f"guard of transition {tr.name!r}"
         return _real(self.call(tr.guard, what, tr.source, t, x, v, memory), what, tr.source, t, x)
 
@@ -560,10 +566,14 @@ def _switched_on(watches: Sequence[_Watch], before: Sequence[float], after: Sequ
     out = []
     for k, w in enumerate(watches):
         b, a = before[k], after[k]
-        if w.kind == "crossing":
-            if crossed(1, b, a):
+        kind = w.kind
+        if kind == "level":
+            if a >= 0.0 > b:
                 out.append(k)
-        elif _is_on(w.kind, a) and not _is_on(w.kind, b):
+        elif kind == "strict":
+            if a > 0.0 >= b:
+                out.append(k)
+        elif b <= 0.0 <= a and b < a:  # crossing, the rule of hybrid.model.crossed
             out.append(k)
     return out
 
@@ -616,7 +626,7 @@ def _locate(
     bracket: _Bracket,
     point: Callable[[float], tuple[float, ...]],
     event_tol: float,
-) -> tuple[float, tuple[float, ...], float, int]:
+) -> tuple[_Event, int]:
     """First time in ``bracket`` where one of its candidates is on, to ``event_tol``.
 
     A crossing candidate is on where ``phi >= 0`` (``> 0`` if it started the
@@ -625,41 +635,49 @@ def _locate(
 
     Returns
     -------
-    t_star, x_star, t_left, iterations
-        The event time and state, and the final bracket's left end (where no
-        candidate is on yet: the kernel's "previous" evaluation).
+    event, iterations
+        The event time, state and watch values, and the same at the final
+        bracket's left end (where no candidate is on yet: the kernel's
+        "previous" evaluation).
     """
     cands = bracket.candidates
     kinds = {k: ("strict" if watches[k].kind == "strict"
                  or (watches[k].kind == "crossing" and bracket.phi_lo[k] == 0.0) else "level") for k in cands}
-    cache: dict[float, list[float]] = {}
+    cache: dict[float, list[float]] = {bracket.lo: bracket.phi_lo}  # phi_lo was evaluated at point(lo)
 
     def values_at(tt: float) -> list[float]:
         if tt not in cache:
             cache[tt] = values(tt, point(tt))
         return cache[tt]
 
+    stricts = [(k, kinds[k] == "strict") for k in cands]
+
     def any_on(tt: float) -> bool:
         vals = values_at(tt)
-        return any(_is_on(kinds[k], vals[k]) for k in cands)
+        for k, strict in stricts:
+            if (vals[k] > 0.0) if strict else (vals[k] >= 0.0):
+                return True
+        return False
 
     t_left, t_star, _, _, iterations = locate_crossing(
         lambda tt: max(values_at(tt)[k] for k in cands),
         bracket.lo, bracket.hi, max(bracket.phi_lo[k] for k in cands), max(bracket.phi_hi[k] for k in cands),
         tol=event_tol, holds=any_on,
     )
-    return t_star, point(t_star), t_left, iterations
+    return _Event(time=float(t_star), state=point(t_star), values=values_at(t_star), left_time=t_left,
+                  left_state=point(t_left), left_values=values_at(t_left)), iterations
 
 
 @dataclass(frozen=True, slots=True)
 class _Event:
-    """A located event of one segment: its time and state, which watches are on, the bracket's left end."""
+    """A located event of one segment: time, state and watch values there and at the bracket's left end."""
 
     time: float
     state: tuple[float, ...]
-    on: tuple[int, ...]
+    values: list[float]
     left_time: float
     left_state: tuple[float, ...]
+    left_values: list[float]
 
 
 @dataclass(frozen=True, slots=True)
@@ -681,6 +699,7 @@ class _Options:
 class _SegmentResult:
     segment: FlowSegment
     event: _Event | None
+    on: tuple[int, ...]  # invariant and stop watches on at the event
     watches: tuple[_Watch, ...]
     steps: int
     rhs: int
@@ -696,6 +715,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     times, states, interpolants = [t], [x], []
     steps = rhs = roots = 0
     event: _Event | None = None
+    on: tuple[int, ...] = ()
     failure: str | None = None
 
     def values(tt: float, xx: tuple[float, ...]) -> list[float]:
@@ -730,15 +750,13 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
             if interp is None:
                 interp = solver.dense_output()
             point = point or _point_evaluator(interp)
-            t_star, x_star, t_left, iterations = _locate(values, watches, bracket, point, opts.event_tol)
+            event, iterations = _locate(values, watches, bracket, point, opts.event_tol)
             roots += iterations
-            phi_star = values(t_star, x_star)
-            on = tuple(k for k, w in enumerate(watches) if w.role != "guard" and _is_on(w.kind, phi_star[k])
-                       and k in bracket.candidates)
-            times.append(t_star)
-            states.append(x_star)
+            times.append(event.time)
+            states.append(event.state)
             interpolants.append(interp)
-            event = _Event(time=float(t_star), state=x_star, on=on, left_time=t_left, left_state=point(t_left))
+            on = tuple(k for k in bracket.candidates if watches[k].role != "guard"
+                       and _is_on(watches[k].kind, event.values[k]))
             break
         rhs = int(getattr(solver, "nfev", 0))
     dense_out = OdeSolution(np.array(times), interpolants) if interpolants and opts.dense else None
@@ -747,22 +765,55 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
         states=_readonly(np.array(states).reshape(len(states), -1)), memory=tuple(sorted(seg_memory.items())),
         dense=dense_out,
     )
-    return _SegmentResult(segment=segment, event=event, watches=watches, steps=steps, rhs=rhs, roots=roots,
+    return _SegmentResult(segment=segment, event=event, on=on, watches=watches, steps=steps, rhs=rhs, roots=roots,
                           failure=failure)
 
 
 def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
-             previous: Sequence[float] | None, max_jumps: int) -> Instant:
-    """The instant at ``t``: :func:`hybrid.instant.settle_instant` on the system's output, guards and jump maps."""
+             max_jumps: int, located: _SegmentResult | None = None) -> Instant:
+    """The instant at ``t``: :func:`hybrid.instant.settle_instant` on the system's output, guards and jump maps.
+
+    At a located event (``located``) the kernel's first round reuses the guard
+    values the search computed at the event and at the bracket's left end
+    (the "previous" evaluation of crossing guards) instead of calling the
+    guards again; later rounds evaluate them at the post-jump states.
+    """
+    known: dict[int, float] = {}
+    v_now: tuple[float, ...] | None = None
+    v_left: tuple[float, ...] | None = None
+    previous = None
+    if located is not None and located.event is not None:
+        event = located.event
+        v_now = run.signals(mode, t, x)
+        guards = [(k, w.transition) for k, w in enumerate(located.watches) if w.role == "guard"]
+        if any(tr.direction != 0 for _, tr in guards):  # type: ignore[union-attr]
+            v_left = previous = run.signals(mode, event.left_time, event.left_state)
+        for k, tr in guards:
+            sign = -1.0 if tr.direction < 0 else 1.0  # type: ignore[union-attr]
+            known[id(tr)] = sign * event.values[k]
+            known[-id(tr) - 1] = sign * event.left_values[k]
+
+    first_round = [True]
+    jump = run.fire(t)
 
     def signals(q: str, state: tuple[float, ...]) -> tuple[float, ...]:
-        return run.signals(q, t, state)
+        return v_now if (first_round[0] and v_now is not None) else run.signals(q, t, state)
 
     def guard(tr: Transition, v: Sequence[float], m: Mapping[str, float]) -> float:
+        if known and first_round[0]:
+            if v is v_now and id(tr) in known:
+                return known[id(tr)]
+            if v is v_left and v_left is not None and -id(tr) - 1 in known:
+                return known[-id(tr) - 1]
         return run.guard(tr, v, m, t, x)
 
+    def fire(tr: Transition, state: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]
+             ) -> tuple[tuple[float, ...], dict[str, float]]:
+        first_round[0] = False
+        return jump(tr, state, v, m)
+
     return settle_instant(run.outgoing, mode, x, memory, signals=signals, previous=previous, guard=guard,
-                          fire=run.fire(t), ties="raise", max_jumps=max_jumps, time=t,
+                          fire=fire, ties="raise", max_jumps=max_jumps, time=t,
                           where=lambda state: f"x = {_fmt(state)}")
 
 
@@ -882,7 +933,7 @@ def _event_outcome(run: _Run, result: _SegmentResult, mode: str) -> tuple[str, s
     """A termination decided by the event itself (a stop function reached zero), or ``None``."""
     event = result.event
     assert event is not None
-    stops = [result.watches[k].name for k in event.on if result.watches[k].role == "stop"]
+    stops = [result.watches[k].name for k in result.on if result.watches[k].role == "stop"]
     if stops:
         return f"stop:{stops[0]}", f"stop function {stops[0]!r} reached zero at t = {event.time:.17g} s in mode {mode!r}"
     return None
@@ -891,7 +942,7 @@ def _event_outcome(run: _Run, result: _SegmentResult, mode: str) -> tuple[str, s
 def _deadlock_detail(run: _Run, result: _SegmentResult, mode: str) -> str:
     event = result.event
     assert event is not None
-    names = [result.watches[k].name for k in event.on if result.watches[k].role == "invariant"]
+    names = [result.watches[k].name for k in result.on if result.watches[k].role == "invariant"]
     text = run.automaton.mode(mode).invariant_text or (names[0] if names else mode)
     return (f"the flow leaves the invariant of mode {mode!r} ({text}) at t = {event.time:.17g} s, "
             f"x = {_fmt(event.state)}, and no transition is enabled there (deadlock)")
@@ -1001,7 +1052,7 @@ def simulate_continuous(
     run = _Run(system, dict(stops or {}), invariant_tol)
     book = _Book(zeno_interval if zeno_interval is not None else 1e-6 * float(duration))
     t = float(t0)
-    instant = _resolve(run, mode, t, x, memory, None, max_jumps_per_instant)
+    instant = _resolve(run, mode, t, x, memory, max_jumps_per_instant)
     after_event = False
     while True:
         book.record(t, instant)
@@ -1036,8 +1087,7 @@ def simulate_continuous(
             book.end(*outcome)
             break
         x = result.event.state
-        previous = run.signals(mode, result.event.left_time, result.event.left_state)
-        instant = _resolve(run, mode, t, x, memory, previous, max_jumps_per_instant)
+        instant = _resolve(run, mode, t, x, memory, max_jumps_per_instant, located=result)
         after_event = True
         if not instant.jumps:
             book.end("invariant_violated", _deadlock_detail(run, result, mode))
