@@ -223,7 +223,8 @@ def settle_instant(
         Every mode's outgoing transitions in priority order
         (:meth:`~hybrid.model.HybridAutomaton.outgoing`).
     mode, state, memory
-        Discrete state and continuous state before the instant.
+        Discrete state and continuous state before the instant (a read-only
+        ``memory`` is used as it is, any other mapping is copied).
     signals : callable or None
         ``signals(mode, state) -> v``; ``None`` when the state *is* the
         signal vector (an automaton driven by signals).
@@ -259,7 +260,7 @@ def settle_instant(
         raise ExecutionError(f"settle_instant: ties = {ties!r}; expected one of {TIE_POLICIES}")
     if isinstance(max_jumps, bool) or not isinstance(max_jumps, int) or max_jumps < 1:
         raise ExecutionError(f"settle_instant: max_jumps = {max_jumps!r}; expected an int >= 1")
-    frozen = MappingProxyType(dict(memory))
+    frozen = memory if type(memory) is MappingProxyType else MappingProxyType(dict(memory))
     jumps: list[InstantJump] = []
     while True:
         v = state if signals is None else signals(mode, state)

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .errors import DivergenceError, ExecutionError, NumericalFailure, ZenoError
-from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
+from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
 from .model import HybridAutomaton
 
 __all__ = [
@@ -271,20 +271,32 @@ def settle(
         A transition still enabled after ``max_jumps`` jumps.
     """
     table = outgoing if outgoing is not None else {name: automaton.outgoing(name) for name in automaton.mode_names}
+    instant = _sample_instant(table, mode, memory, v, previous, time, max_jumps)
+    return instant.mode, dict(instant.memory), _events(instant, time, sample, jump)
+
+
+def _sample_instant(
+    outgoing: Mapping[str, tuple[Any, ...]], mode: str, memory: Mapping[str, float], v: Sequence[float],
+    previous: Sequence[float] | None, time: float, max_jumps: int,
+) -> Instant:
+    """The kernel at one sample: errors carry the time and mode, Zeno raises."""
     try:
-        instant = settle_instant(table, mode, v, memory, previous=previous, max_jumps=max_jumps, time=time)
+        instant = settle_instant(outgoing, mode, v, memory, previous=previous, max_jumps=max_jumps, time=time)
     except ExecutionError as err:
         raise ExecutionError(f"at t = {time:.6g} s in mode {mode!r}: {err}") from err
     if instant.zeno is not None:
         raise ZenoError(f"{instant.zeno} (simulate_sampled: max_jumps_per_sample)")
-    events = [
+    return instant
+
+
+def _events(instant: Instant, time: float, sample: int, jump: int) -> list[SampledEvent]:
+    return [
         SampledEvent(
             time=time, jump=jump + n, sample=sample, transition=step.transition.name, source=step.source,
             target=step.target, outranked=step.outranked, memory=tuple(sorted(step.memory_after.items())),
         )
         for n, step in enumerate(instant.jumps, start=1)
     ]
-    return instant.mode, dict(instant.memory), events
 
 
 def simulate_sampled(
@@ -392,13 +404,12 @@ def simulate_sampled(
             if bad is not None:
                 raise NumericalFailure(f"signal {bad!r} is NaN")
             # --- discrete jumps at this instant -------------------------------------
-            mode, memory, fired = settle(
-                automaton, mode, memory, v, previous, time=t, sample=k, jump=j,
-                max_jumps=max_jumps_per_sample, outgoing=outgoing,
-            )
-            if fired:
+            instant = _sample_instant(outgoing, mode, memory, v, previous, t, max_jumps_per_sample)
+            if instant.jumps:
+                fired = _events(instant, t, k, j)
                 events.extend(fired)
                 j = fired[-1].jump
+            mode, memory = instant.mode, instant.memory
             # --- control --------------------------------------------------------------
             u, c, row = controller.control(t, x, c, v, mode, memory)
             bad = _first_nan(u, plant.input_names)
