@@ -142,7 +142,7 @@ class FlowSegment:
     times: np.ndarray
     states: np.ndarray
     memory: tuple[tuple[str, float], ...]
-    dense: OdeSolution | None = field(default=None, repr=False, compare=False)
+    dense: Callable[[float | np.ndarray], np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def __call__(self, t: float | np.ndarray) -> np.ndarray:
         """Dense output: state at ``t`` in ``[t_start, t_end]``, shape ``(n,)`` or ``(n, len(t))``."""
@@ -304,6 +304,30 @@ class HybridTrajectory:
             "chatter": [c.as_dict() for c in self.chatter],
             "stats": self.stats.as_dict(),
         }
+
+
+class _LazySolution:
+    """A segment's dense output: scipy's :class:`~scipy.integrate.OdeSolution`, built on first use.
+
+    Most segments of a long run are never evaluated between their steps; building
+    the ``OdeSolution`` of each costs more than integrating a short segment.
+    """
+
+    __slots__ = ("_times", "_interpolants", "_solution")
+
+    def __init__(self, times: list[float], interpolants: list[Any]) -> None:
+        self._times, self._interpolants = times, interpolants
+        self._solution: OdeSolution | None = None
+
+    @property
+    def solution(self) -> OdeSolution:
+        """The :class:`~scipy.integrate.OdeSolution` over the segment's steps."""
+        if self._solution is None:
+            self._solution = OdeSolution(np.array(self._times), self._interpolants)
+        return self._solution
+
+    def __call__(self, t: float | np.ndarray) -> np.ndarray:
+        return self.solution(t)
 
 
 # ---------------------------------------------------------------------- root finding
@@ -759,7 +783,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
                        and _is_on(watches[k].kind, event.values[k]))
             break
         rhs = int(getattr(solver, "nfev", 0))
-    dense_out = OdeSolution(np.array(times), interpolants) if interpolants and opts.dense else None
+    dense_out = _LazySolution(times, interpolants) if interpolants and opts.dense else None
     segment = FlowSegment(
         mode=mode, jump=jump, t_start=times[0], t_end=times[-1], times=_readonly(np.array(times)),
         states=_readonly(np.array(states).reshape(len(states), -1)), memory=tuple(sorted(seg_memory.items())),
