@@ -133,6 +133,9 @@ class FlowSegment:
         States at ``times`` (read-only).
     memory : tuple of (str, float)
         Memory during the segment.
+    dense : callable or None
+        The dense output ``x(t)`` over the segment (scipy's ``OdeSolution``,
+        built on first use); ``None`` when run with ``dense=False``.
     """
 
     mode: str
