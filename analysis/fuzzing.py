@@ -37,17 +37,18 @@ Examples
 >>> from hypothesis import strategies as st
 >>> ch = (Channel(name="x", low=0.0, high=1.0, max_step=0.1, landmarks=(0.5,)),)
 >>> def check(seq, observe):
-...     if any(s[0] > 0.9 for s in seq):
-...         raise PropertyViolation("below", "x went above 0.9")
+...     if any(s[0] > 0.7 for s in seq):
+...         raise PropertyViolation("below", "x went above 0.7")
 ...     return len(seq)
 >>> run = run_property("below", check, bounded_rate_sequences(ch, max_length=20), max_examples=50)
->>> run.passed, run.failure.message
-(False, 'x went above 0.9')
+>>> run.passed, run.failure.message, run.failure.example
+(False, 'x went above 0.7', ((1.0,), (1.0,)))
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -156,8 +157,12 @@ class Channel:
         return tuple(out)
 
 
+@functools.lru_cache(maxsize=1024)
 def _value_strategy(channel: Channel, adversarial: bool) -> st.SearchStrategy[float]:
-    """A waypoint: a landmark (or beside one), any value of the range, or (adversarial) a special."""
+    """A waypoint: a landmark (or beside one), any value of the range, or (adversarial) a special.
+
+    Built once per channel (the sequence strategies ask for it at every segment of every example).
+    """
     if channel.choices:
         return st.sampled_from(channel.choices)
     options = []
@@ -205,10 +210,15 @@ def follow_waypoints(start: Sample, segments: Sequence[Segment]) -> tuple[Sample
     values = list(start)
     samples: list[Sample] = [tuple(values)]
     for seg in segments:
-        for _ in range(seg.duration):
-            for i, (goal, speed) in enumerate(zip(seg.targets, seg.speeds)):
+        # the channels that move in this leg; one that reached its waypoint holds it for the rest of the leg
+        moving = [(i, goal, speed) for i, (goal, speed) in enumerate(zip(seg.targets, seg.speeds))
+                  if goal is not None and not speed <= 0.0]
+        remaining = seg.duration
+        while remaining > 0 and moving:
+            still = []
+            for i, goal, speed in moving:
                 now = values[i]
-                if goal is None or now == goal or speed <= 0.0:
+                if now == goal:
                     continue
                 if speed == math.inf or not (math.isfinite(now) and math.isfinite(goal)):
                     values[i] = goal
@@ -216,7 +226,12 @@ def follow_waypoints(start: Sample, segments: Sequence[Segment]) -> tuple[Sample
                     values[i] = min(goal, now + speed)
                 else:
                     values[i] = max(goal, now - speed)
+                still.append((i, goal, speed))
             samples.append(tuple(values))
+            moving = still
+            remaining -= 1
+        if remaining > 0:  # every channel holds: the same sample to the end of the leg
+            samples.extend([tuple(values)] * remaining)
     return tuple(samples)
 
 

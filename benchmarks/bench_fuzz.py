@@ -5,7 +5,7 @@ Usage::
     python benchmarks/bench_fuzz.py [--rounds N] [--examples N] [--skip-budget]
 
 1. **Steps per second.**  Every signal-sequence property of
-   :mod:`visnav.fuzzing.core` runs ``--examples`` examples on the resolved automaton,
+   :mod:`visnav.fuzzing` runs ``--examples`` examples on the resolved automaton,
    ``--rounds`` times (interleaved); each round's rate is the supervisor
    steps checked divided by the wall time of the whole hypothesis run
    (generation, the supervisor, the checks, hypothesis' own bookkeeping).
@@ -26,7 +26,7 @@ import statistics
 import sys
 import time
 
-from visnav.fuzzing.core import PROPERTIES, budget, fuzz, fuzz_property, property_names
+from visnav.fuzzing import PROPERTIES, budget, fuzz, fuzz_property, property_names
 
 MIN_STEPS_PER_S = 2000.0
 MAX_CI_BUDGET_S = 180.0

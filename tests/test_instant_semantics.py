@@ -223,3 +223,26 @@ def test_structural_checks_follow_the_same_instant(case):
         assert retriggers and retriggers[0].transitions[0] == retriggers[0].transitions[-1]
     else:
         assert not retriggers
+
+
+@pytest.mark.parametrize("case", CASES, ids=IDS)
+def test_the_fuzzing_sequence_runner_agrees(case):
+    """``analysis.sequences`` (what the fuzz runs use): ties and Zeno are recorded, jump maps applied."""
+    from analysis.sequences import SequenceRunner
+
+    runner = SequenceRunner(case.automaton(), jump_maps=case.jumps)
+    if case.previous is not None:
+        runner.previous = (case.previous,)
+    step = runner.step((case.x0,))
+    assert tuple(j.transition for j in step.jumps) == case.fired and step.mode == case.mode
+    assert (step.zeno is not None) == case.zeno
+    assert bool(step.jumps and step.jumps[0].tied) == case.tie
+
+
+def test_without_the_jump_map_a_clock_reset_looks_like_zeno():
+    """Why the runner takes the jump maps: the clock reset ``τ := 0`` is what ends the instant."""
+    from analysis.sequences import SequenceRunner
+
+    case = next(c for c in CASES if c.name == "clock_reset")
+    step = SequenceRunner(case.automaton()).step((case.x0,))
+    assert step.zeno is not None

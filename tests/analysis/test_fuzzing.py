@@ -202,7 +202,7 @@ def test_draws_do_not_depend_on_which_project_modules_are_imported(tmp_path):
     code = (
         "import sys; sys.path.insert(0, {path!r})\n"
         "{extra}\n"
-        "from visnav.fuzzing.core import counterexample_to_json, fuzz_property\n"
+        "from visnav.fuzzing import counterexample_to_json, fuzz_property\n"
         "r = fuzz_property('leave_release', variant='paper', seed=3, examples=150)\n"
         "print(counterexample_to_json(r.counterexample) if r.counterexample else 'held')\n"
     )

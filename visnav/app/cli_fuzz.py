@@ -1,7 +1,7 @@
 """The ``visnav fuzz`` and ``visnav replay`` subcommands.
 
 ``visnav fuzz [--property NAME]... [--variant NAME] [--examples N] [--seed S] [--out DIR] [--json] [--progress]``
-runs the properties of :mod:`visnav.fuzzing.core` (all by default, each with its CI
+runs the properties of :mod:`visnav.fuzzing` (all by default, each with its CI
 budget of examples), writes the shrunk counterexample of every failed
 property to ``DIR/<variant>.<property>.json`` (atomically) and exits 1 if a
 property failed, 0 if all held.  A progress bar goes to standard error when
@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from visnav.app.cli_types import positive_int
+from hybrid.jsonable import to_jsonable
+
+from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED, positive_int
 
 __all__ = ["add_parser", "cmd_fuzz", "cmd_replay", "DEFAULT_OUT"]
 
@@ -35,15 +36,11 @@ TRACE_CONTEXT = 3
 
 
 def _exit_codes() -> tuple[int, int, int]:
-    from visnav.app.cli import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED
-
     return EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT
 
 
-
-
 def _property_name(text: str) -> str:
-    from visnav.fuzzing.core import PROPERTIES
+    from visnav.fuzzing import PROPERTIES
 
     if text not in PROPERTIES:
         raise argparse.ArgumentTypeError(f"unknown property {text!r}; known properties: {', '.join(PROPERTIES)}")
@@ -51,7 +48,7 @@ def _property_name(text: str) -> str:
 
 
 def _variant_name(text: str) -> str:
-    from visnav.fuzzing.core import VARIANTS
+    from visnav.fuzzing import VARIANTS
 
     if text not in VARIANTS:
         raise argparse.ArgumentTypeError(f"unknown variant {text!r}; known variants: {', '.join(VARIANTS)}")
@@ -123,7 +120,7 @@ class _Progress:
 
 def cmd_fuzz(args: argparse.Namespace) -> int:
     """``visnav fuzz``: run the properties, write the counterexamples, report."""
-    from visnav.fuzzing.core import PROPERTIES, budget, counterexample_to_json, fuzz
+    from visnav.fuzzing import PROPERTIES, budget, counterexample_to_json, fuzz
     from visnav.app.files import prepare_output_dir, write_text_atomic
 
     exit_ok, exit_failed, _ = _exit_codes()
@@ -186,17 +183,6 @@ def _fuzz_human(report: Any, written: dict[str, list[str]], wall: float) -> str:
     return "\n".join(lines)
 
 
-def _plain(value: Any) -> Any:
-    """JSON-ready trace values (non-finite floats as strings)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan" if value != value else ("inf" if value > 0 else "-inf")
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    return value
-
-
 def _fmt(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.6g}"
@@ -216,7 +202,7 @@ def _shown_rows(trace: tuple[Any, ...], sample: int | None) -> list[int]:
 
 
 def _replay_human(path: str, result: Any, show_all: bool) -> str:
-    from visnav.fuzzing.core import PROPERTIES
+    from visnav.fuzzing import PROPERTIES
 
     cx = result.counterexample
     prop = PROPERTIES[cx.property]
@@ -253,7 +239,7 @@ def _replay_human(path: str, result: Any, show_all: bool) -> str:
 
 def cmd_replay(args: argparse.Namespace) -> int:
     """``visnav replay FILE``: run a counterexample again, show its trace and the violated property."""
-    from visnav.fuzzing.core import CounterexampleError, counterexample_from_json, replay
+    from visnav.fuzzing import CounterexampleError, counterexample_from_json, replay
 
     exit_ok, exit_failed, exit_bad = _exit_codes()
     path = Path(args.file)
@@ -282,7 +268,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             "message": result.message,
             "sample": result.sample,
             "recorded_message": cx.message,
-            "trace": [_plain(dict(row)) for row in result.trace],
+            "trace": [to_jsonable(dict(row), nonfinite="string") for row in result.trace],
         }
         print(json.dumps(out, sort_keys=True))
     else:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any
 
-from visnav.jsonable import jsonable
+from hybrid.jsonable import to_jsonable
 from visnav.parameters import Scenario
 
 __all__ = [
@@ -338,7 +338,7 @@ def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict
 
 
 def _fuzzing_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
-    from visnav.fuzzing.core import PAPER, PROPERTIES, RESOLVED, counterexample_to_json, fuzz_property
+    from visnav.fuzzing import PAPER, PROPERTIES, RESOLVED, counterexample_to_json, fuzz_property
 
     # the quick report leaves out the closed-loop (scenario) properties: one example is a whole simulation
     names = [n for n, p in PROPERTIES.items() if not (options.quick and p.kind == "scenario")]
@@ -449,4 +449,4 @@ def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
     data["meta"]["automaton_digest"] = data["model"]["automaton"]["digest"]  # computed once, by the model section
     data["claims"] = [c.as_dict() for c in claims]
     data["claim_counts"] = {s: sum(c.status == s for c in claims) for s in CLAIM_STATUSES}
-    return Report(data=jsonable(data), figures=figures, timings_s=timings)
+    return Report(data=to_jsonable(data), figures=figures, timings_s=timings)
