@@ -283,6 +283,8 @@ def _sample_instant(
     try:
         instant = settle_instant(outgoing, mode, v, memory, previous=previous, max_jumps=max_jumps, time=time)
     except ExecutionError as err:
+        if str(err).startswith("non-determinism at t ="):  # the kernel's message already names both
+            raise
         raise ExecutionError(f"at t = {time:.6g} s in mode {mode!r}: {err}") from err
     if instant.zeno is not None:
         raise ZenoError(f"{instant.zeno} (simulate_sampled: max_jumps_per_sample)")
