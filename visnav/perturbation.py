@@ -126,16 +126,7 @@ _OBSTACLE = re.compile(r"^obstacles\[(\d+)\]\.(\w+)$")
 class PerturbationError(ParameterError):
     """An invalid distribution, move or perturbation, or values that do not fit it.
 
-    Attributes
-    ----------
-    parameter : str
-        The offending parameter (``"Uniform"``, ``"Move.field"``, ``"values"``, ...).
-    value : object
-        The value found.
-    expected : str
-        What a valid value looks like.
-    fix : str
-        How to correct it.
+    ``parameter``, ``value``, ``expected`` and ``fix`` as in :class:`hybrid.errors.ParameterError`.
     """
 
 

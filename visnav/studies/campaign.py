@@ -98,16 +98,7 @@ PRELOAD = ("visnav.studies.campaign", "visnav.simulation", "visnav.scenario")
 class CampaignSpecError(ParameterError):
     """An invalid campaign specification.
 
-    Attributes
-    ----------
-    parameter : str
-        The offending parameter (``"samples"``, ``"obstacle_height_m"``, ``"index"``, ...).
-    value : object
-        The value found.
-    expected : str
-        What a valid value looks like.
-    fix : str
-        How to correct it.
+    ``parameter``, ``value``, ``expected`` and ``fix`` as in :class:`hybrid.errors.ParameterError`.
     """
 
 
