@@ -71,6 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     from visnav.app.cli_sweep import add_parser as _add_sweep; _add_sweep(sub)
     from visnav.app.cli_stiffness import add_parser as _add_stiffness; _add_stiffness(sub)
     from visnav.app.cli_fuzz import add_parser as _add_fuzz; _add_fuzz(sub)
+    from visnav.app.cli_verify import add_parser as _add_verify; _add_verify(sub)
     return parser
 
 

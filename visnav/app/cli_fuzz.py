@@ -252,6 +252,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
     except (OSError, UnicodeDecodeError) as err:
         print(f"visnav: error: replay {args.file!r}: cannot read the file ({err})", file=sys.stderr)
         return exit_bad
+    from visnav.app.cli_verify import is_verification_counterexample, replay_verification
+
+    if is_verification_counterexample(text):
+        return replay_verification(text, args.file, args.json)
     try:
         cx = counterexample_from_json(text, args.file)
     except CounterexampleError as err:

@@ -1,0 +1,470 @@
+"""Falsification: search a verification problem's box for the point that makes a requirement's robustness negative.
+
+The budget is counted in simulations: every distinct point simulated costs
+one, whichever requirement it was simulated for (one simulation evaluates
+every requirement), and a point met again is taken from the cache.
+
+Methods (:data:`METHODS`)
+    ``"guided"`` (the default)
+        1. the nominal point;
+        2. hypothesis, one ``target()`` per requirement (its negated
+           robustness), in rounds: a round ends when a requirement not yet
+           falsified is violated, and hypothesis then *shrinks* that failure
+           (towards the nominal point: unit coordinate 0, and simple values);
+           the next round goes on for the requirements left;
+        3. a local polish (scipy's bounded Nelder–Mead) of each requirement
+           still holding, from the lowest point seen;
+        4. a shrink of counterexamples found outside a hypothesis failure
+           (each coordinate set back to nominal where the violation persists).
+        Shares of the budget: :data:`GUIDED_SHARES`.
+    ``"monte-carlo"``
+        Independent draws from the parameters' distributions (point ``i``
+        depends only on ``(seed, i)``): the baseline, and the one method that
+        the campaign executors (process pool, Dask) run in parallel.
+    ``"dual-annealing"``
+        :func:`scipy.optimize.dual_annealing` on the lowest robustness over the
+        requirements not yet falsified (a comparison, ``benchmarks/bench_falsification.py``).
+
+Nothing here prints or writes: :func:`falsify` calls ``on_evaluation`` with every
+new :class:`Evaluation` (the application appends them to a journal) and takes
+the evaluations of an interrupted run as ``cache`` (resuming replays the same
+deterministic search, each point already simulated read from the cache).
+"""
+
+from __future__ import annotations
+
+import math
+import traceback
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hybrid.jsonable import float_from_json, to_jsonable
+from hybrid.errors import DivergenceError, ExecutionError, NumericalFailure, ParameterError, ZenoError
+
+from analysis.stl import TraceError
+from analysis.verification import InvalidPoint, VerificationProblem
+
+__all__ = [
+    "METHODS",
+    "Runner",
+    "GUIDED_SHARES",
+    "STATUSES",
+    "FalsificationError",
+    "SimulationFailed",
+    "Outcome",
+    "Evaluation",
+    "evaluate",
+    "monte_carlo_unit",
+    "Search",
+    "falsify",
+]
+
+METHODS = ("guided", "monte-carlo", "dual-annealing")
+GUIDED_SHARES = (0.65, 0.25)
+"""Shares of the budget for the hypothesis search and the polish; the rest shrinks."""
+STATUSES = ("ok", "invalid", "diverged", "zeno")
+"""``ok``: simulated and evaluated; ``invalid``: outside the problem's hypotheses (skipped);
+``diverged``: the numerics broke down (time, mode, cause in ``detail``); ``zeno``: too many
+jumps at one instant."""
+
+_FINITE = 1e300
+
+Runner = Callable[[list[tuple[int, tuple[float, ...]]]], Mapping[int, "Outcome"]]
+"""Evaluates Monte-Carlo draws ``(index, unit)`` (in parallel) and returns their outcomes by index."""
+
+
+class FalsificationError(ParameterError):
+    """Bad options of a search (budget, method, seed)."""
+
+
+class SimulationFailed(RuntimeError):
+    """The user's simulator raised an unexpected exception; ``traceback`` is its own traceback text."""
+
+    def __init__(self, point: Mapping[str, float], error: BaseException) -> None:
+        self.point = dict(point)
+        self.traceback = "".join(traceback.format_exception(type(error), error, error.__traceback__))
+        super().__init__(f"the simulator failed at {self.point}: {type(error).__name__}: {error}")
+
+    def __reduce__(self):
+        return (_failed, (self.point, str(self), self.traceback))
+
+
+def _failed(point: Mapping[str, float], message: str, text: str) -> SimulationFailed:
+    error = SimulationFailed.__new__(SimulationFailed)
+    RuntimeError.__init__(error, message)
+    error.point, error.traceback = dict(point), text
+    return error
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Outcome:
+    """What one simulation gave: a status and, when ``ok``, every requirement's robustness and truth value."""
+
+    status: str
+    robustness: tuple[float, ...] = ()
+    satisfied: tuple[bool, ...] = ()
+    detail: str = ""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Evaluation:
+    """One simulated point of a search.
+
+    Attributes
+    ----------
+    index : int
+        Order of simulation (0 is the first); the budget is ``index < budget``.
+    phase : str
+        ``"nominal"``, ``"search"``, ``"polish"``, ``"shrink"``, ``"monte-carlo"``, ``"dual-annealing"``.
+    unit : tuple of float
+        Unit coordinates in ``[-1, 1]`` (:meth:`analysis.verification.Parameter.at`).
+    outcome : Outcome
+    """
+
+    index: int
+    phase: str
+    unit: tuple[float, ...]
+    outcome: Outcome
+
+    def violates(self, r: int) -> bool:
+        """Whether requirement ``r`` is violated here (boolean semantics)."""
+        return self.outcome.status == "ok" and not self.outcome.satisfied[r]
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready (infinite robustness as ``"inf"``/``"-inf"``, read back by :meth:`from_dict`)."""
+        o = self.outcome
+        return to_jsonable({"index": self.index, "phase": self.phase, "unit": list(self.unit), "status": o.status,
+                            "robustness": list(o.robustness), "satisfied": list(o.satisfied), "detail": o.detail},
+                           nonfinite="string")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Evaluation:
+        """Inverse of :meth:`as_dict` (values as :func:`hybrid.jsonable.float_from_json` reads them)."""
+        outcome = Outcome(status=str(data["status"]),
+                          robustness=tuple(float_from_json(v, where="robustness") for v in data["robustness"]),
+                          satisfied=tuple(bool(v) for v in data["satisfied"]), detail=str(data["detail"]))
+        return cls(index=int(data["index"]), phase=str(data["phase"]),
+                   unit=tuple(float(v) for v in data["unit"]), outcome=outcome)
+
+
+def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
+    """Simulate ``problem`` at unit coordinates ``unit`` and evaluate every requirement.
+
+    Raises
+    ------
+    SimulationFailed
+        The simulator raised something else than :class:`InvalidPoint`, a divergence or a Zeno error.
+    """
+    point = problem.point(unit)
+    try:
+        trace = problem.simulate(point)
+    except InvalidPoint as error:
+        return Outcome(status="invalid", detail=str(error))
+    except ZenoError as error:
+        return Outcome(status="zeno", detail=str(error))
+    except (DivergenceError, NumericalFailure) as error:
+        return Outcome(status="diverged", detail=str(error))
+    except ExecutionError as error:
+        return Outcome(status="diverged", detail=f"{type(error).__name__}: {error}")
+    except Exception as error:  # the user's own code: their traceback is reported
+        raise SimulationFailed(point, error) from error
+    try:
+        rho = tuple(float(r.formula.robustness(trace)) for r in problem.parsed)
+        sat = tuple(bool(r.formula.satisfied(trace)) for r in problem.parsed)
+    except TraceError as error:
+        raise SimulationFailed(point, error) from error
+    return Outcome(status="ok", robustness=rho, satisfied=sat)
+
+
+def monte_carlo_unit(problem: VerificationProblem, seed: int, index: int) -> tuple[float, ...]:
+    """Unit coordinates of Monte-Carlo draw ``index`` (depends only on ``(seed, index)``)."""
+    rng = np.random.default_rng([int(seed), int(index)])
+    return tuple(float(p.draw(rng)) for p in problem.parameters)
+
+
+def _key(unit: Iterable[float]) -> tuple[float, ...]:
+    return tuple(0.0 if u == 0 else float(u) for u in unit)
+
+
+class _Exhausted(Exception):
+    """The phase's budget is spent."""
+
+
+class _Violated(Exception):
+    """Raised inside the hypothesis test when a requirement still to falsify is violated."""
+
+    def __init__(self, unit: tuple[float, ...]) -> None:
+        super().__init__(unit)
+        self.unit = unit
+
+
+@dataclass
+class Search:
+    """The book of one search: budget, cache, evaluations in order (mutable, owned by one :func:`falsify`)."""
+
+    problem: VerificationProblem
+    budget: int
+    cache: dict[tuple[float, ...], Outcome] = field(default_factory=dict)
+    on_evaluation: Callable[[Evaluation], None] | None = None
+    evaluations: list[Evaluation] = field(default_factory=list)
+    seen: dict[tuple[float, ...], int] = field(default_factory=dict)
+
+    @property
+    def used(self) -> int:
+        return len(self.evaluations)
+
+    def run(self, unit: Sequence[float], phase: str, limit: int | None = None) -> Evaluation:
+        """Evaluate ``unit`` (from the cache when known); :class:`_Exhausted` past ``limit`` simulations."""
+        key = _key(unit)
+        if key in self.seen:
+            return self.evaluations[self.seen[key]]
+        if self.used >= min(self.budget, self.budget if limit is None else limit):
+            raise _Exhausted
+        outcome = self.cache.get(key)
+        if outcome is None:
+            outcome = evaluate(self.problem, key)
+        evaluation = Evaluation(index=self.used, phase=phase, unit=key, outcome=outcome)
+        self.seen[key] = evaluation.index
+        self.evaluations.append(evaluation)
+        if self.on_evaluation is not None:
+            self.on_evaluation(evaluation)
+        return evaluation
+
+    def violated(self, r: int) -> list[Evaluation]:
+        return [e for e in self.evaluations if e.violates(r)]
+
+    def lowest(self, r: int) -> Evaluation | None:
+        """The evaluation with the lowest robustness of requirement ``r`` (first on ties)."""
+        best = None
+        for e in self.evaluations:
+            if e.outcome.status == "ok" and (best is None or e.outcome.robustness[r] < best.outcome.robustness[r]):
+                best = e
+        return best
+
+
+def _finite(value: float) -> float:
+    return max(-_FINITE, min(_FINITE, value)) if not math.isnan(value) else _FINITE
+
+
+def _hypothesis_round(search: Search, open_: Sequence[int], seed: int, limit: int) -> tuple[float, ...] | None:
+    """One hypothesis run: targets on every requirement; the shrunk unit point of a violation, if any."""
+    from hypothesis import HealthCheck, Phase, Verbosity, given, settings, target
+    from hypothesis import seed as hseed
+    from hypothesis import strategies as st
+
+    names = search.problem.requirement_names
+    k = search.problem.dimension
+
+    @hseed(seed)
+    @settings(max_examples=limit - search.used + 20, database=None, deadline=None, verbosity=Verbosity.quiet,
+              suppress_health_check=list(HealthCheck), phases=[Phase.generate, Phase.target, Phase.shrink],
+              derandomize=False, report_multiple_bugs=False)
+    @given(st.tuples(*(st.floats(-1.0, 1.0) for _ in range(k))))
+    def test(unit: tuple[float, ...]) -> None:
+        try:
+            e = search.run(unit, "search", limit)
+        except _Exhausted:
+            return
+        if e.outcome.status != "ok":
+            return
+        for r, name in enumerate(names):
+            target(-_finite(e.outcome.robustness[r]), label=name)
+        if any(e.violates(r) for r in open_):
+            raise _Violated(e.unit)
+
+    try:
+        test()
+    except _Violated as found:
+        return found.unit
+    return None
+
+
+def _guided_search(search: Search, seed: int, falsified: dict[int, tuple[tuple[float, ...], str]],
+                   limit: int) -> None:
+    """Hypothesis rounds until ``limit`` simulations, every requirement falsified, or a round adds none."""
+    problem = search.problem
+    n_req = len(problem.requirements)
+    round_seed = seed
+    while search.used < limit and problem.dimension > 0:
+        open_ = [r for r in range(n_req) if r not in falsified]
+        if not open_:
+            break
+        before = search.used
+        found = _hypothesis_round(search, open_, round_seed, limit)
+        round_seed += 1
+        if found is not None:
+            e = search.evaluations[search.seen[_key(found)]]
+            for r in open_:
+                if e.violates(r):
+                    falsified[r] = (e.unit, "hypothesis")
+        elif search.used == before:
+            break
+
+
+def _polish(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]]) -> None:
+    from scipy.optimize import minimize
+
+    problem = search.problem
+    k = problem.dimension
+    if k == 0:
+        return
+    limit = search.used + round(GUIDED_SHARES[1] * search.budget)
+    open_ = [r for r in range(len(problem.requirements)) if r not in falsified]
+    starts = [(search.lowest(r), r) for r in open_]
+    starts = sorted(((e.outcome.robustness[r], r, e) for e, r in starts if e is not None), key=lambda s: s[:2])
+    for _, r, start in starts:
+        if r in falsified or search.used >= limit:
+            continue
+        x0 = np.array(start.unit, dtype=float)
+        simplex = np.vstack([x0] + [_vertex(x0, i) for i in range(k)])
+
+        def objective(u: np.ndarray, r: int = r) -> float:
+            e = search.run(np.clip(u, -1.0, 1.0), "polish", limit)
+            if e.violates(r):
+                raise _Violated(e.unit)
+            return _finite(e.outcome.robustness[r]) if e.outcome.status == "ok" else _FINITE
+
+        try:
+            minimize(objective, x0, method="Nelder-Mead", bounds=[(-1.0, 1.0)] * k,
+                     options={"initial_simplex": simplex, "maxfev": limit, "xatol": 1e-6, "fatol": 1e-12})
+        except _Exhausted:
+            break
+        except _Violated:
+            pass
+        _record_violations(search, falsified, "polish")
+
+
+def _vertex(x0: np.ndarray, i: int, step: float = 0.25) -> np.ndarray:
+    v = x0.copy()
+    v[i] = v[i] + step if v[i] + step <= 1.0 else v[i] - step
+    return v
+
+
+def _record_violations(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]], how: str) -> None:
+    for r in range(len(search.problem.requirements)):
+        if r not in falsified:
+            hits = search.violated(r)
+            if hits:
+                worst = min(hits, key=lambda e: e.outcome.robustness[r])
+                falsified[r] = (worst.unit, how)
+
+
+def _shrink(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]]) -> None:
+    """Set each coordinate of an unshrunk counterexample back to nominal where the violation persists."""
+    for r, (unit, how) in sorted(falsified.items()):
+        if how == "hypothesis" or not any(unit):
+            continue
+        current = list(unit)
+        try:
+            for i in range(len(current)):
+                if current[i] == 0.0:
+                    continue
+                trial = current.copy()
+                trial[i] = 0.0
+                if search.run(trial, "shrink").violates(r):
+                    current = trial
+        except _Exhausted:
+            pass
+        falsified[r] = (tuple(current), f"{how}, then coordinates reset to nominal")
+
+
+def _monte_carlo(search: Search, seed: int, runner: Runner | None) -> None:
+    units = [monte_carlo_unit(search.problem, seed, i) for i in range(search.budget)]
+    if runner is not None:
+        pending = [(i, u) for i, u in enumerate(units) if _key(u) not in search.cache]
+        for i, outcome in runner(pending).items():
+            search.cache[_key(units[i])] = outcome
+    for u in units:
+        try:
+            search.run(u, "monte-carlo")
+        except _Exhausted:
+            break
+
+
+def _dual_annealing(search: Search, seed: int, falsified: Mapping[int, Any]) -> None:
+    from scipy.optimize import dual_annealing
+
+    problem = search.problem
+    open_ = [r for r in range(len(problem.requirements)) if r not in falsified]
+
+    def objective(u: np.ndarray) -> float:
+        e = search.run(np.clip(u, -1.0, 1.0), "dual-annealing")
+        if e.outcome.status != "ok":
+            return _FINITE
+        return min(_finite(e.outcome.robustness[r]) for r in open_)
+
+    try:
+        dual_annealing(objective, [(-1.0, 1.0)] * problem.dimension, maxfun=search.budget, seed=seed,
+                       no_local_search=False)
+    except _Exhausted:
+        pass
+
+
+def _check_options(budget: object, method: object, seed: object) -> None:
+    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
+        raise FalsificationError("budget", budget, "a positive number of simulations", "give --budget 200")
+    if method not in METHODS:
+        raise FalsificationError("method", method, f"one of {', '.join(METHODS)}", "use --method guided")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise FalsificationError("seed", seed, "a non-negative integer", "give --seed 0")
+
+
+def falsify(
+    problem: VerificationProblem,
+    *,
+    budget: int,
+    seed: int = 0,
+    method: str = "guided",
+    cache: Mapping[tuple[float, ...], Outcome] | None = None,
+    on_evaluation: Callable[[Evaluation], None] | None = None,
+    runner: Runner | None = None,
+) -> tuple[Search, dict[int, tuple[tuple[float, ...], str]]]:
+    """Search ``problem``'s box with ``budget`` simulations.
+
+    Parameters
+    ----------
+    budget : int
+        Simulations allowed (``>= 1``); the nominal point is the first.
+    seed : int
+        Seeds hypothesis, Monte-Carlo and dual annealing: the same seed, the same evaluations.
+    method : str
+        One of :data:`METHODS`.
+    cache : Mapping or None
+        Outcomes of points already simulated (a resumed run), keyed by unit coordinates.
+    on_evaluation : callable or None
+        Receives every new :class:`Evaluation`, in order.
+    runner : callable or None
+        Evaluates Monte-Carlo draws in parallel (:data:`Runner`), e.g. on a campaign executor;
+        draw ``i`` becomes evaluation ``i``.
+
+    Returns
+    -------
+    search : Search
+        Every evaluation, in order.
+    falsified : dict
+        Requirement index -> (unit point of its counterexample, how it was found and shrunk).
+    """
+    _check_options(budget, method, seed)
+    search = Search(problem=problem, budget=budget, cache=dict(cache or {}), on_evaluation=on_evaluation)
+    falsified: dict[int, tuple[tuple[float, ...], str]] = {}
+    if method == "monte-carlo":
+        _monte_carlo(search, seed, runner)
+        _record_violations(search, falsified, "monte-carlo")
+        return search, falsified
+    search.run((0.0,) * problem.dimension, "nominal")
+    _record_violations(search, falsified, "nominal")
+    if method == "dual-annealing":
+        _dual_annealing(search, seed, falsified)
+        _record_violations(search, falsified, "dual-annealing")
+        return search, falsified
+    _guided_search(search, seed, falsified, 1 + round(GUIDED_SHARES[0] * (budget - 1)))
+    _record_violations(search, falsified, "hypothesis search (unshrunk)")
+    _polish(search, falsified)
+    _shrink(search, falsified)
+    if search.used < budget:  # what the polish and the shrink left: more search
+        _guided_search(search, seed + 1000, falsified, budget)
+        _record_violations(search, falsified, "hypothesis search (unshrunk)")
+    return search, falsified

@@ -1,0 +1,168 @@
+"""Load a user's verification problem from their own code: ``package.module:OBJECT`` or ``path/to/file.py:OBJECT``.
+
+The object is a :class:`~analysis.verification.VerificationProblem`, or a
+function taking keyword options and returning one (``OBJECT`` then receives
+the options the caller passes, e.g. ``variant="paper"``).  A module that does
+not import is reported with the user's own traceback (it is their code); a
+missing object names the module's public names; an object of the wrong type
+says what was found.
+
+Examples
+--------
+>>> split_spec("examples/thermostat.py:problem")
+('examples/thermostat.py', 'problem')
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import os
+import sys
+import traceback
+from collections.abc import Mapping
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from hybrid.errors import ParameterError
+
+from analysis.verification import VerificationProblem
+
+__all__ = ["ProblemLoadError", "split_spec", "load_problem"]
+
+
+class ProblemLoadError(ParameterError):
+    """A problem specification that does not give a verification problem.
+
+    ``user_traceback`` is the traceback of the user's own code when importing
+    or calling it failed (empty otherwise).
+    """
+
+    def __init__(self, parameter: str, value: object, expected: str, fix: str, user_traceback: str = "") -> None:
+        self.user_traceback = user_traceback
+        super().__init__(parameter, value, expected, fix)
+
+    def __reduce__(self):
+        return (type(self), (self.parameter, self.value, self.expected, self.fix, self.user_traceback))
+
+
+def split_spec(spec: str) -> tuple[str, str]:
+    """``(module or file, object)`` of ``"MODULE:OBJECT"``; the object defaults to ``problem``.
+
+    A Windows drive (``C:\\x.py:problem``) is not taken for the separator.
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise ProblemLoadError("problem", spec, "MODULE:OBJECT or path/to/file.py:OBJECT",
+                               "write e.g. visnav verify examples/thermostat.py:problem")
+    head, sep, tail = spec.rpartition(":")
+    if not sep or not head or "/" in tail or "\\" in tail or (len(head) == 1 and head.isalpha()):
+        return spec, "problem"
+    return head, tail
+
+
+def _user_traceback(error: BaseException, skip_own: bool = True) -> str:
+    frames = traceback.extract_tb(error.__traceback__)
+    root = Path(__file__).resolve().parent.parent
+    own = tuple(str(root / package) + os.sep for package in ("analysis", "hybrid", "visnav"))
+    kept = [f for f in frames if not (skip_own and f.filename.startswith(own))
+            and "importlib" not in f.filename and "<frozen" not in f.filename] or frames
+    lines = ["Traceback (most recent call last):\n", *traceback.format_list(kept),
+             *traceback.format_exception_only(type(error), error)]
+    return "".join(lines)
+
+
+def _module_from_file(path: Path) -> ModuleType:
+    name = "visnav_user_" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ProblemLoadError("problem file", str(path), "a Python source file", "give a .py file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    folder = str(path.parent)
+    added = folder not in sys.path
+    if added:
+        sys.path.insert(0, folder)  # the user's sibling modules import as in their own scripts
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    finally:
+        if added:
+            sys.path.remove(folder)
+    return module
+
+
+def _import(where: str) -> ModuleType:
+    is_file = where.endswith(".py") or os.sep in where or "/" in where
+    try:
+        if is_file:
+            path = Path(where).expanduser().resolve()
+            if not path.is_file():
+                raise ProblemLoadError("problem file", where, "an existing .py file",
+                                       "check the path (relative to the current folder)")
+            return _module_from_file(path)
+        return importlib.import_module(where)
+    except (ProblemLoadError, ParameterError):
+        raise  # the toolkit's own validation of what the module builds: its message says what to fix
+    except ModuleNotFoundError as error:
+        if not is_file and error.name and (error.name == where or where.startswith(error.name + ".")):
+            raise ProblemLoadError("problem module", where, "an importable module",
+                                   "install it, or give its file: path/to/file.py:OBJECT") from None
+        raise ProblemLoadError("problem module", where, "a module that imports", "fix the error in your code",
+                               _user_traceback(error)) from None
+    except BaseException as error:  # the user's code failed while importing: show them their traceback
+        if isinstance(error, KeyboardInterrupt):
+            raise
+        raise ProblemLoadError("problem module", where, "a module that imports", "fix the error in your code",
+                               _user_traceback(error)) from None
+
+
+def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> VerificationProblem:
+    """The verification problem ``spec`` names (see the module docstring).
+
+    Parameters
+    ----------
+    spec : str
+        ``"package.module:OBJECT"`` or ``"path/to/file.py:OBJECT"`` (``OBJECT`` defaults to ``problem``).
+    options : Mapping or None
+        Keyword arguments for an ``OBJECT`` that is a function; refused for a problem object.
+
+    Raises
+    ------
+    ProblemLoadError
+        The module does not import (with the user's traceback), has no such
+        object, the object is not a problem (nor a function returning one), or
+        calling it failed.
+    """
+    where, name = split_spec(spec)
+    module = _import(where)
+    if not hasattr(module, name):
+        public = sorted(n for n in vars(module) if not n.startswith("_"))
+        raise ProblemLoadError("problem object", f"{where}:{name}", f"a name defined in {where}",
+                               f"choose one of {public[:20]}")
+    obj = getattr(module, name)
+    if callable(obj) and not isinstance(obj, VerificationProblem):
+        try:
+            obj = obj(**dict(options or {}))
+        except ProblemLoadError:
+            raise
+        except ParameterError:
+            raise
+        except Exception as error:
+            raise ProblemLoadError("problem object", f"{where}:{name}", "a function returning a VerificationProblem",
+                                   "fix the error in your code", _user_traceback(error)) from None
+    elif options:
+        raise ProblemLoadError("problem options", dict(options), f"no options ({where}:{name} is not a function)",
+                               "drop the options, or make OBJECT a function taking them")
+    if not isinstance(obj, VerificationProblem):
+        raise ProblemLoadError("problem object", f"{where}:{name}",
+                               f"an analysis.verification.VerificationProblem (found {type(obj).__name__})",
+                               "build it with analysis.problems.hybrid_problem(...) or sampled_problem(...)")
+    if not obj.source:
+        object.__setattr__(obj, "source", spec)
+    return obj

@@ -1,0 +1,370 @@
+"""Verification problems for the two kinds of system the toolkit executes, and their traces as STL signals.
+
+:func:`trace_from_trajectory`
+    A continuous-time execution (:class:`hybrid.HybridTrajectory`) as a
+    :class:`analysis.stl.SignalTrace`: every accepted step point (or a uniform
+    grid), both sides of every jump as samples (same time, successive jump
+    counts), the states, the automaton's variables, the memory and the mode.
+:func:`trace_from_sampled`
+    A sampled-data run (:class:`hybrid.SampledTrace`): one sample per period,
+    and before a sample whose instant had jumps one pre-jump sample per jump.
+    Zero-order-hold semantics: at the pre-jump samples the plant's states and
+    the measured signals are those of the instant (they are continuous), the
+    inputs and the controller's recorded values are the ones held over the
+    period that ends there, and the mode is the mode before that jump.
+:func:`hybrid_problem`, :func:`sampled_problem`
+    A :class:`~analysis.verification.VerificationProblem` from a system (or a
+    function building it from the parameters), the box of initial states and
+    parameters, a horizon and requirements.  Their simulators are picklable
+    module-level objects when the user's functions are.
+
+Examples
+--------
+>>> from hybrid.examples import thermostat
+>>> from analysis.requirements import Requirement
+>>> room = thermostat().system
+>>> problem = hybrid_problem(
+...     name="room", system=room, initial={"T": Parameter(name="T0", low=19.5, high=20.5)},
+...     horizon=60.0, requirements=(Requirement(name="comfort", formula="always[0, 60] (abs(T - 20) <= 1.5)"),))
+>>> trace = problem.simulate(problem.nominal())
+>>> float(problem.parsed[0].formula.robustness(trace)) > 0
+True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hybrid import HybridSystem
+from hybrid.continuous import HybridTrajectory, simulate_continuous
+from hybrid.sampled import Plant, SampledTrace, simulate_sampled
+
+from analysis.requirements import Requirement
+from analysis.stl import SignalTrace
+from analysis.verification import Parameter, Proof, ProblemError, VerificationProblem
+
+__all__ = [
+    "trace_from_trajectory",
+    "trace_from_sampled",
+    "HybridSimulation",
+    "SampledSimulation",
+    "hybrid_problem",
+    "sampled_problem",
+]
+
+
+def _grid(t_start: float, t_end: float, step_times: np.ndarray, period: float | None) -> np.ndarray:
+    if period is None or t_end <= t_start:
+        return step_times
+    inner = t_start + period * np.arange(1, int(math.floor((t_end - t_start) / period)) + 1)
+    inner = inner[inner < t_end]
+    return np.concatenate(([t_start], inner, [t_end]))
+
+
+def trace_from_trajectory(
+    trajectory: HybridTrajectory,
+    *,
+    system: HybridSystem | None = None,
+    sample_period: float | None = None,
+) -> SignalTrace:
+    """The STL trace of a continuous-time execution.
+
+    Parameters
+    ----------
+    trajectory : HybridTrajectory
+        The result of :func:`hybrid.simulate_continuous` (dense output needed for ``sample_period``).
+    system : HybridSystem or None
+        Adds the automaton's variables (its output map ``v = h(t, x)``) as signals.
+    sample_period : float or None
+        A uniform grid inside every flow segment [s] instead of the solver's step points
+        (each segment's two ends are always samples: the two sides of its jumps).
+
+    Returns
+    -------
+    SignalTrace
+        Signals: the state names, the memory names (constant on a segment), the
+        system's variables (when given and not states); label ``mode``.
+    """
+    times: list[np.ndarray] = []
+    states: list[np.ndarray] = []
+    modes: list[str] = []
+    jumps: list[np.ndarray] = []
+
+    memory_chunks: list[Mapping[str, float] | None] = []
+
+    def add(t: np.ndarray, x: np.ndarray, mode: str, jump: int, mem: Sequence[tuple[str, float]] | None) -> None:
+        times.append(t)
+        states.append(x)
+        modes.extend([mode] * t.size)
+        jumps.append(np.full(t.size, jump, dtype=int))
+        memory_chunks.append(None if mem is None else dict(mem))
+
+    covered = {seg.jump for seg in trajectory.segments}
+    events = sorted(trajectory.events, key=lambda e: e.jump)
+    if events and events[0].jump - 1 not in covered:  # jumps at the start: the initial state is a sample too
+        first = events[0]
+        add(np.array([first.time]), np.array([first.state_before], dtype=float), first.source, first.jump - 1, None)
+    pending = 0
+    for seg in trajectory.segments:
+        while pending < len(events) and events[pending].jump < seg.jump:  # jumps with no flow in between
+            e = events[pending]
+            if e.jump not in covered:
+                add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
+            pending += 1
+        t = _grid(seg.t_start, seg.t_end, seg.times, sample_period)
+        x = seg.states if t is seg.times else np.asarray(seg(t)).T.reshape(t.size, -1)
+        add(t, x, seg.mode, seg.jump, seg.memory)
+    for e in events[pending:]:
+        if e.jump not in covered:
+            add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
+    t_all = np.concatenate(times)
+    x_all = np.concatenate(states)
+    signals = {name: x_all[:, i] for i, name in enumerate(trajectory.state_names)}
+    signals.update(_memory_signals(memory_chunks, [t.size for t in times], exclude=signals))
+    if system is not None and system.output is not None:
+        values = np.array([system.output(float(ti), tuple(xi)) for ti, xi in zip(t_all, x_all)], dtype=float)
+        for i, name in enumerate(system.automaton.variables):
+            if name not in signals:
+                signals[name] = values[:, i]
+    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=np.concatenate(jumps))
+
+
+def _memory_signals(chunks: Sequence[Mapping[str, float] | None], sizes: Sequence[int],
+                    exclude: Collection[str]) -> dict[str, np.ndarray]:
+    """Memory values per sample; a chunk without its own (the state before jumps at the start) takes the next one's."""
+    known = [c for c in chunks if c is not None]
+    names = [n for n in (known[0] if known else {}) if n not in exclude]
+    filled: list[Mapping[str, float]] = []
+    following: Mapping[str, float] = known[0] if known else {}
+    for chunk in reversed(chunks):
+        following = chunk if chunk is not None else following
+        filled.append(following)
+    filled.reverse()
+    return {n: np.concatenate([np.full(size, float(c.get(n, math.nan))) for c, size in zip(filled, sizes)])
+            for n in names}
+
+
+def _sampled_columns(trace: SampledTrace) -> dict[str, tuple[np.ndarray, bool]]:
+    """Name -> (column, held): held columns are chosen by the controller and kept over a period."""
+    columns: dict[str, tuple[np.ndarray, bool]] = {}
+    groups = (
+        (trace.state_names, trace.states, False),
+        (trace.variable_names, trace.signals, False),
+        (trace.input_names, trace.inputs, True),
+        (trace.record_names, trace.records, True),
+    )
+    for names, values, held in groups:
+        for i, name in enumerate(names):
+            if name in columns:
+                raise ProblemError(
+                    "sampled trace signal", name, "names distinct across states, signals, inputs and records",
+                    f"rename one of the two {name!r} (the STL trace needs one signal per name)",
+                )
+            columns[name] = (np.asarray(values[:, i], dtype=float), held)
+    return columns
+
+
+def trace_from_sampled(trace: SampledTrace) -> SignalTrace:
+    """The STL trace of a sampled-data run on the hybrid time domain (see the module docstring)."""
+    n = trace.times.size
+    before: dict[int, list[Any]] = {}
+    for e in trace.events:
+        before.setdefault(e.sample, []).append(e)
+    rows: list[int] = []
+    held_rows: list[int] = []
+    modes: list[str] = []
+    jumps: list[int] = []
+    for k in range(n):
+        events = before.get(k, ())
+        for i, e in enumerate(events):
+            rows.append(k)
+            held_rows.append(max(k - 1, 0))
+            modes.append(e.source)
+            jumps.append(int(trace.jumps[k]) - (len(events) - i))
+        rows.append(k)
+        held_rows.append(k)
+        modes.append(trace.mode_names[int(trace.modes[k])])
+        jumps.append(int(trace.jumps[k]))
+    index = np.asarray(rows, dtype=int)
+    held_index = np.asarray(held_rows, dtype=int)
+    signals = {
+        name: (column[held_index] if held else column[index])
+        for name, (column, held) in _sampled_columns(trace).items()
+    }
+    return SignalTrace(times=trace.times[index], signals=signals, labels={"mode": tuple(modes)},
+                       jumps=np.asarray(jumps, dtype=int))
+
+
+def _point_values(point: Mapping[str, float], spec: Mapping[str, Parameter | float]) -> dict[str, float]:
+    return {name: (point[v.name] if isinstance(v, Parameter) else float(v)) for name, v in spec.items()}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class HybridSimulation:
+    """The simulator of :func:`hybrid_problem` (picklable when ``build`` is)."""
+
+    build: Callable[[Mapping[str, float]], HybridSystem]
+    initial: Mapping[str, Parameter | float]
+    state_names: tuple[str, ...]
+    horizon: float
+    initial_mode: str | Callable[[Mapping[str, float]], str] | None = None
+    sample_period: float | None = None
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __call__(self, point: Mapping[str, float]) -> SignalTrace:
+        system = self.build(point)
+        x0 = _point_values(point, self.initial)
+        mode = self.initial_mode(point) if callable(self.initial_mode) else self.initial_mode
+        trajectory = simulate_continuous(
+            system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode,
+            **dict(self.options),
+        )
+        return trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period)
+
+
+@dataclass(frozen=True, slots=True)
+class _Fixed:
+    system: Any
+
+    def __call__(self, point: Mapping[str, float]) -> Any:
+        return self.system
+
+
+def _box(initial: Mapping[str, Parameter | float], parameters: Sequence[Parameter], states: Sequence[str],
+         where: str) -> tuple[Parameter, ...]:
+    unknown = sorted(set(initial) - set(states))
+    missing = [s for s in states if s not in initial]
+    if unknown or missing:
+        raise ProblemError(
+            f"{where}: initial", dict(initial), f"one entry per state {list(states)}",
+            f"give initial={{state: Parameter(...) or a number}}; unknown: {unknown}, missing: {missing}",
+        )
+    for name, v in initial.items():
+        if not isinstance(v, Parameter) and not (isinstance(v, (int, float)) and math.isfinite(v)):
+            raise ProblemError(f"{where}: initial[{name!r}]", v, "a Parameter or a finite number",
+                               "write Parameter(name=..., low=..., high=...) for a range")
+    return (*(v for v in initial.values() if isinstance(v, Parameter)), *parameters)
+
+
+def _builder(system: Any, kind: type, where: str) -> Callable[[Mapping[str, float]], Any]:
+    if isinstance(system, kind):
+        return _Fixed(system)
+    if callable(system):
+        return system
+    raise ProblemError(f"{where}: system", system, f"a {kind.__name__} or a function point -> {kind.__name__}",
+                       "pass the system, or a function building it from the parameters")
+
+
+def hybrid_problem(
+    *,
+    name: str,
+    system: HybridSystem | Callable[[Mapping[str, float]], HybridSystem],
+    initial: Mapping[str, Parameter | float],
+    horizon: float,
+    requirements: Sequence[Requirement],
+    parameters: Sequence[Parameter] = (),
+    initial_mode: str | Callable[[Mapping[str, float]], str] | None = None,
+    sample_period: float | None = None,
+    options: Mapping[str, Any] | None = None,
+    description: str = "",
+    proofs: Mapping[str, Callable[[], Proof]] | None = None,
+    structural: Callable[[], Any] | None = None,
+    source: str = "",
+) -> VerificationProblem:
+    """A verification problem for a continuous-time hybrid system.
+
+    Parameters
+    ----------
+    system : HybridSystem or callable
+        The system, or ``build(point) -> HybridSystem`` when parameters change it.
+    initial : Mapping[str, Parameter or float]
+        Every state name -> a :class:`Parameter` (a range searched) or a fixed value.
+    parameters : sequence of Parameter
+        The model parameters passed to ``build`` (in the point, by name).
+    initial_mode : str, callable or None
+        The initial mode (``None``: the automaton's), or ``mode(point)``.
+    sample_period : float or None
+        Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).
+    options : Mapping or None
+        Keyword arguments of :func:`hybrid.simulate_continuous` (``rtol``, ``max_step``, ...).
+    """
+    build = _builder(system, HybridSystem, f"problem {name!r}")
+    probe = build({p.name: p.at(0.0) for p in _box(initial, parameters, list(initial), name)})
+    if not isinstance(probe, HybridSystem):
+        raise ProblemError(f"problem {name!r}: system(point)", probe, "a HybridSystem",
+                           "make the builder return hybrid.HybridSystem(...)")
+    box = _box(initial, parameters, probe.state_names, f"problem {name!r}")
+    a = probe.automaton
+    memory = tuple(m.name for m in a.memory)
+    variables = tuple(v for v in a.variables if v not in probe.state_names) if probe.output is not None else ()
+    simulate = HybridSimulation(build=build, initial=dict(initial), state_names=probe.state_names,
+                                horizon=float(horizon), initial_mode=initial_mode, sample_period=sample_period,
+                                options=dict(options or {}))
+    return VerificationProblem(
+        name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
+        signals=(*probe.state_names, *memory, *variables), labels={"mode": a.mode_names},
+        description=description, proofs=dict(proofs or {}), structural=structural, source=source,
+    )
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SampledSimulation:
+    """The simulator of :func:`sampled_problem` (picklable when ``build`` is)."""
+
+    build: Callable[[Mapping[str, float]], tuple[Any, Plant, Any]]
+    initial: Mapping[str, Parameter | float]
+    state_names: tuple[str, ...]
+    period: float
+    horizon: float
+    initial_mode: str | None = None
+
+    def __call__(self, point: Mapping[str, float]) -> SignalTrace:
+        automaton, plant, controller = self.build(point)
+        x0 = _point_values(point, self.initial)
+        trace = simulate_sampled(automaton, plant, controller, tuple(x0[s] for s in self.state_names),
+                                 period=self.period, duration=self.horizon, initial_mode=self.initial_mode)
+        return trace_from_sampled(trace)
+
+
+def sampled_problem(
+    *,
+    name: str,
+    build: Callable[[Mapping[str, float]], tuple[Any, Plant, Any]],
+    initial: Mapping[str, Parameter | float],
+    period: float,
+    horizon: float,
+    requirements: Sequence[Requirement],
+    parameters: Sequence[Parameter] = (),
+    initial_mode: str | None = None,
+    description: str = "",
+    proofs: Mapping[str, Callable[[], Proof]] | None = None,
+    structural: Callable[[], Any] | None = None,
+    source: str = "",
+) -> VerificationProblem:
+    """A verification problem for a sampled-data closed loop (automaton + plant + controller).
+
+    Parameters
+    ----------
+    build : callable
+        ``build(point) -> (automaton, plant, controller)`` (:func:`hybrid.simulate_sampled`'s arguments).
+    initial : Mapping[str, Parameter or float]
+        Every plant state name -> a range or a fixed value.
+    period : float
+        Sampling period [s].
+    """
+    box0 = _box(initial, parameters, list(initial), f"problem {name!r}")
+    automaton, plant, controller = build({p.name: p.at(0.0) for p in box0})
+    box = _box(initial, parameters, plant.state_names, f"problem {name!r}")
+    names = (*plant.state_names, *automaton.variables, *plant.input_names, *controller.record_names)
+    simulate = SampledSimulation(build=build, initial=dict(initial), state_names=tuple(plant.state_names),
+                                 period=float(period), horizon=float(horizon), initial_mode=initial_mode)
+    return VerificationProblem(
+        name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
+        signals=tuple(dict.fromkeys(names)), labels={"mode": automaton.mode_names}, description=description,
+        proofs=dict(proofs or {}), structural=structural, source=source,
+    )

@@ -1,0 +1,270 @@
+"""Verdicts of a verification problem: proven, falsified or not falsified, per requirement and overall.
+
+:func:`verify` tries each requirement's proof (a certificate re-checked
+outside the tool that produced it gives ``proven``), then searches the box
+(:func:`analysis.falsification.falsify`) for the others and gives
+
+``falsified``
+    a point where the requirement is violated (boolean semantics: robustness
+    < 0, or 0 on a strict comparison), with its shrunk counterexample;
+``not_falsified``
+    none found: how many simulations, the lowest robustness seen and where,
+    and how the box was covered (per parameter, the share of ten equal bins
+    that a simulated point fell in);
+``proven``
+    a proof holds over the whole box (the search still runs as a cross-check
+    and a violation found would be reported as a contradiction, never hidden).
+
+The overall verdict (:data:`OVERALL`) is ``falsified`` when one requirement
+is, else ``diverged`` when a simulation diverged or cycled at one instant,
+else ``proven`` when every requirement is proven, else ``not_falsified``;
+:attr:`VerificationResult.exit_code` maps them to 1, 3, 0, 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hybrid.jsonable import to_jsonable
+
+from analysis.falsification import Evaluation, Outcome, Runner, Search, falsify
+from analysis.verification import Proof, VerificationProblem
+
+__all__ = ["VERDICTS", "OVERALL", "EXIT_CODES", "Counterexample", "Coverage", "RequirementVerdict",
+           "VerificationResult", "verify", "coverage_of"]
+
+VERDICTS = ("proven", "falsified", "not_falsified")
+OVERALL = ("proven", "not_falsified", "falsified", "diverged")
+EXIT_CODES = {"proven": 0, "not_falsified": 0, "falsified": 1, "diverged": 3}
+COVERAGE_BINS = 10
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Counterexample:
+    """A point violating one requirement.
+
+    Attributes
+    ----------
+    unit : tuple of float
+        Unit coordinates (0 nominal, ±1 the box's ends).
+    point : Mapping[str, float]
+        Parameter values.
+    robustness : float
+    evaluation : int
+        Index of the simulation that found it.
+    how : str
+        How it was found and shrunk.
+    time : float
+        Where the robustness is decided (:meth:`analysis.stl.Formula.explain`) [s].
+    atom : str
+        The atomic comparison that decides it there.
+    atom_value : float
+        That atom's robustness at that instant.
+    """
+
+    unit: tuple[float, ...]
+    point: Mapping[str, float]
+    robustness: float
+    evaluation: int
+    how: str
+    time: float
+    atom: str
+    atom_value: float
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Coverage:
+    """How a search covered the box: per parameter, the range simulated and the bins hit."""
+
+    parameters: tuple[str, ...]
+    lows: tuple[float, ...]
+    highs: tuple[float, ...]
+    bins_hit: tuple[float, ...]
+    points: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"points": self.points, "bins": COVERAGE_BINS, "parameters": [
+            {"name": n, "low_seen": lo, "high_seen": hi, "bins_hit": b}
+            for n, lo, hi, b in zip(self.parameters, self.lows, self.highs, self.bins_hit)]}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class RequirementVerdict:
+    """The verdict on one requirement."""
+
+    name: str
+    formula: str
+    description: str
+    verdict: str
+    robustness: float | None
+    nominal_robustness: float | None
+    simulations: int
+    lowest_at: Mapping[str, float] | None
+    counterexample: Counterexample | None
+    proof: Proof | None
+    history: tuple[float, ...]
+
+    def as_dict(self) -> dict[str, Any]:
+        return to_jsonable({
+            "name": self.name, "formula": self.formula, "description": self.description, "verdict": self.verdict,
+            "robustness": self.robustness, "nominal_robustness": self.nominal_robustness,
+            "simulations": self.simulations, "lowest_at": self.lowest_at,
+            "counterexample": None if self.counterexample is None else self.counterexample,
+            "proof": self.proof,
+        }, nonfinite="string")
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class VerificationResult:
+    """Everything :func:`verify` found; ``as_dict`` is the ``--json`` object.
+
+    Robustness can be infinite (a label atom, ``true``): JSON writes it as the
+    strings ``"inf"`` / ``"-inf"`` (:mod:`hybrid.jsonable`'s policy for values read back).
+    """
+
+    problem: str
+    source: str
+    method: str
+    seed: int
+    budget: int
+    verdict: str
+    requirements: tuple[RequirementVerdict, ...]
+    simulations: int
+    invalid: int
+    invalid_reasons: tuple[str, ...]
+    diverged: tuple[Mapping[str, Any], ...]
+    coverage: Coverage
+    evaluations: tuple[Evaluation, ...]
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES[self.verdict]
+
+    def requirement(self, name: str) -> RequirementVerdict:
+        for r in self.requirements:
+            if r.name == name:
+                return r
+        raise KeyError(f"no requirement {name!r}; known: {[r.name for r in self.requirements]}")
+
+    def as_dict(self, *, evaluations: bool = False) -> dict[str, Any]:
+        out = {
+            "problem": self.problem, "source": self.source, "verdict": self.verdict, "method": self.method,
+            "seed": self.seed, "budget": self.budget, "simulations": self.simulations,
+            "invalid": self.invalid, "invalid_reasons": list(self.invalid_reasons),
+            "diverged": [dict(d) for d in self.diverged], "coverage": self.coverage.as_dict(),
+            "requirements": [r.as_dict() for r in self.requirements],
+        }
+        if evaluations:
+            out["evaluations"] = [e.as_dict() for e in self.evaluations]
+        return to_jsonable(out, nonfinite="string")
+
+
+def coverage_of(problem: VerificationProblem, evaluations: Sequence[Evaluation]) -> Coverage:
+    """Per parameter: the lowest and highest value simulated and the share of :data:`COVERAGE_BINS` bins hit."""
+    simulated = [e for e in evaluations if e.outcome.status != "invalid"]
+    lows, highs, hits = [], [], []
+    for i, p in enumerate(problem.parameters):
+        values = np.array([p.at(e.unit[i]) for e in simulated]) if simulated else np.empty(0)
+        lows.append(float(values.min()) if values.size else float("nan"))
+        highs.append(float(values.max()) if values.size else float("nan"))
+        if p.high == p.low or not values.size:
+            hits.append(1.0 if values.size else 0.0)
+            continue
+        bins = np.clip(((values - p.low) / (p.high - p.low) * COVERAGE_BINS).astype(int), 0, COVERAGE_BINS - 1)
+        hits.append(len(set(bins.tolist())) / COVERAGE_BINS)
+    return Coverage(parameters=tuple(p.name for p in problem.parameters), lows=tuple(lows), highs=tuple(highs),
+                    bins_hit=tuple(hits), points=len(simulated))
+
+
+def _running_min(evaluations: Sequence[Evaluation], r: int) -> tuple[float, ...]:
+    best = float("inf")
+    out = []
+    for e in evaluations:
+        if e.outcome.status == "ok":
+            best = min(best, e.outcome.robustness[r])
+        out.append(best)
+    return tuple(out)
+
+
+def _counterexample(problem: VerificationProblem, search: Search, r: int, unit: tuple[float, ...],
+                    how: str) -> Counterexample:
+    e = search.evaluations[search.seen[unit]]
+    trace = problem.simulate(problem.point(unit))
+    why = problem.parsed[r].formula.explain(trace)
+    return Counterexample(unit=unit, point=problem.point(unit), robustness=e.outcome.robustness[r],
+                          evaluation=e.index, how=how, time=float(why.time), atom=str(why.atom),
+                          atom_value=float(why.value))
+
+
+def _proofs(problem: VerificationProblem) -> dict[str, Proof]:
+    return {name: make() for name, make in problem.proofs.items()}
+
+
+def _verdict(problem: VerificationProblem, search: Search, r: int, falsified: Mapping[int, Any],
+             proof: Proof | None) -> RequirementVerdict:
+    req = problem.requirements[r]
+    ok = [e for e in search.evaluations if e.outcome.status == "ok"]
+    lowest = search.lowest(r)
+    nominal = search.evaluations[0] if search.evaluations and search.evaluations[0].phase == "nominal" else None
+    counterexample = _counterexample(problem, search, r, *falsified[r]) if r in falsified else None
+    if counterexample is not None:
+        verdict = "falsified"
+    elif proof is not None and proof.proven:
+        verdict = "proven"
+    else:
+        verdict = "not_falsified"
+    return RequirementVerdict(
+        name=req.name, formula=req.formula, description=req.description, verdict=verdict,
+        robustness=None if lowest is None else lowest.outcome.robustness[r],
+        nominal_robustness=None if nominal is None or nominal.outcome.status != "ok"
+        else nominal.outcome.robustness[r],
+        simulations=len(ok), lowest_at=None if lowest is None else problem.point(lowest.unit),
+        counterexample=counterexample, proof=proof, history=_running_min(search.evaluations, r),
+    )
+
+
+def _overall(verdicts: Sequence[RequirementVerdict], diverged: Sequence[Any]) -> str:
+    if any(v.verdict == "falsified" for v in verdicts):
+        return "falsified"
+    if diverged:
+        return "diverged"
+    if all(v.verdict == "proven" for v in verdicts):
+        return "proven"
+    return "not_falsified"
+
+
+def verify(
+    problem: VerificationProblem,
+    *,
+    budget: int,
+    seed: int = 0,
+    method: str = "guided",
+    cache: Mapping[tuple[float, ...], Outcome] | None = None,
+    on_evaluation: Callable[[Evaluation], None] | None = None,
+    runner: Runner | None = None,
+) -> VerificationResult:
+    """Prove what can be proven, falsify what can be falsified, within ``budget`` simulations.
+
+    Parameters are those of :func:`analysis.falsification.falsify`.
+    """
+    proofs = _proofs(problem)
+    search, falsified = falsify(problem, budget=budget, seed=seed, method=method, cache=cache,
+                                on_evaluation=on_evaluation, runner=runner)
+    verdicts = tuple(_verdict(problem, search, r, falsified, proofs.get(req.name))
+                     for r, req in enumerate(problem.requirements))
+    invalid = [e for e in search.evaluations if e.outcome.status == "invalid"]
+    diverged = tuple({"point": problem.point(e.unit), "status": e.outcome.status, "detail": e.outcome.detail,
+                      "evaluation": e.index}
+                     for e in search.evaluations if e.outcome.status in ("diverged", "zeno"))
+    return VerificationResult(
+        problem=problem.name, source=problem.source, method=method, seed=seed, budget=budget,
+        verdict=_overall(verdicts, diverged), requirements=verdicts,
+        simulations=search.used, invalid=len(invalid),
+        invalid_reasons=tuple(dict.fromkeys(e.outcome.detail for e in invalid))[:5],
+        diverged=diverged, coverage=coverage_of(problem, search.evaluations),
+        evaluations=tuple(search.evaluations),
+    )

@@ -1,0 +1,109 @@
+"""Worked example: verify a thermostat with hysteresis (docs/verify.md walks through it).
+
+A room heated by an on/off thermostat. In mode ``off`` the room cools towards
+the outside temperature, in mode ``on`` it heats towards the heater's; the
+thermostat switches on at ``setpoint - band/2`` and off at ``setpoint + band/2``.
+
+Two requirements:
+
+``comfort``
+    the temperature stays within 1.5 °C of the setpoint;
+``min_dwell``
+    once the heater switches on it stays on for at least 0.25 s, and once off,
+    off for at least 0.25 s (the relay's wear limit).
+
+Verify it with::
+
+    visnav verify examples/thermostat.py:problem      # band 1 °C: not falsified (exit 0)
+    visnav verify examples/thermostat.py:zero_band    # band 0: min_dwell falsified (exit 1)
+
+With a zero band both switching guards hold at the setpoint: the thermostat
+switches on and off again at the same instant (an instantaneous, Zeno,
+cycle); the executor stops the run there and ``min_dwell`` is violated at
+that instant.
+"""
+
+from __future__ import annotations
+
+from analysis.problems import hybrid_problem
+from analysis.requirements import Requirement
+from analysis.verification import Parameter, VerificationProblem
+from hybrid import HybridAutomaton, HybridSystem, Mode, Transition
+
+OUTSIDE_C = 10.0
+HEATER_C = 30.0
+SETPOINT_C = 20.0
+HORIZON_S = 120.0
+
+REQUIREMENTS = (
+    Requirement(name="comfort", formula=f"always[0, {HORIZON_S:g}] (abs(T - {SETPOINT_C:g}) <= 1.5)",
+                description="the room stays within 1.5 °C of the setpoint"),
+    Requirement(
+        name="min_dwell",
+        formula=f"""always[0, {HORIZON_S - 1:g}] (
+                      ((jumps > prev(jumps) and mode == "on") implies always[0, 0.25] (mode == "on"))
+                  and ((jumps > prev(jumps) and mode == "off") implies always[0, 0.25] (mode == "off")))""",
+        description="the heater stays on (off) for at least 0.25 s after switching (a trace that ends sooner "
+                    "is judged on what it has)"),
+)
+
+
+def thermostat_system(band: float, rate: float) -> HybridSystem:
+    """The room and its thermostat: state ``T`` [°C], modes ``off`` and ``on``.
+
+    Parameters
+    ----------
+    band : float
+        Hysteresis band [°C], ``>= 0``.
+    rate : float
+        Inverse time constant of the room [1/s].
+    """
+    low, high = SETPOINT_C - band / 2, SETPOINT_C + band / 2
+    automaton = HybridAutomaton(
+        name="thermostat",
+        modes=(Mode(name="off", invariant=lambda v, m: v[0] - low, invariant_text=f"T >= {low:g}"),
+               Mode(name="on", invariant=lambda v, m: high - v[0], invariant_text=f"T <= {high:g}")),
+        transitions=(
+            Transition(name="heat_on", source="off", target="on", guard=lambda v, m: low - v[0],
+                       guard_text=f"T <= {low:g}"),
+            Transition(name="heat_off", source="on", target="off", guard=lambda v, m: v[0] - high,
+                       guard_text=f"T >= {high:g}"),
+        ),
+        variables=("T",),
+        initial_mode="off",
+    )
+    return HybridSystem(
+        automaton=automaton, state_names=("T",),
+        flows={"off": lambda t, x, m: (-rate * (x[0] - OUTSIDE_C),),
+               "on": lambda t, x, m: (-rate * (x[0] - HEATER_C),)},
+    )
+
+
+def _builder(band: float):
+    def build(point):
+        return thermostat_system(band, point["rate"])
+    return build
+
+
+def _initial_mode(point) -> str:
+    return "off" if point["T0"] >= SETPOINT_C else "on"
+
+
+def thermostat_problem(band: float = 1.0) -> VerificationProblem:
+    """The verification problem: initial temperature and room rate in a box, 120 s, both requirements."""
+    return hybrid_problem(
+        name=f"thermostat-band-{band:g}",
+        system=_builder(band),
+        initial={"T": Parameter(name="T0", low=SETPOINT_C - band / 2, high=SETPOINT_C + band / 2,
+                                nominal=SETPOINT_C, unit="°C")},
+        parameters=(Parameter(name="rate", low=0.05, high=0.2, nominal=0.1, unit="1/s"),),
+        initial_mode=_initial_mode,
+        horizon=HORIZON_S,
+        sample_period=0.25,
+        requirements=REQUIREMENTS,
+        description=f"on/off thermostat, hysteresis band {band:g} °C around {SETPOINT_C:g} °C",
+    )
+
+
+problem = thermostat_problem(1.0)
+zero_band = thermostat_problem(0.0)
