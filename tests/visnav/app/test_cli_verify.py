@@ -1,0 +1,107 @@
+"""``visnav verify`` on a user's own problem: exit codes and the messages of every bad input."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import pytest
+
+from visnav.app.cli import main
+
+MODULE = '''
+import numpy as np
+from analysis.requirements import Requirement
+from analysis.stl import SignalTrace
+from analysis.verification import Parameter, VerificationProblem
+
+def simulate(p):
+    t = np.linspace(0.0, 2.0, 41)
+    if p["x0"] > 1e9:
+        raise RuntimeError("user bug")
+    return SignalTrace(times=t, signals={"x": p["x0"] * np.exp(-t)}, labels={"mode": ("run",) * 41})
+
+problem = VerificationProblem(name="decay", simulate=simulate,
+    parameters=(Parameter(name="x0", low=0.5, high=2.0),), horizon=2.0, signals=("x",), labels={"mode": ("run",)},
+    requirements=(Requirement(name="positive", formula=FORMULA),))
+'''
+
+
+def _module(tmp_path, formula="always[0, 2] (x > 0)", extra=""):
+    path = tmp_path / "user_sys.py"
+    path.write_text(textwrap.dedent(MODULE.replace("FORMULA", repr(formula))) + extra)
+    return path
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_a_users_system_outside_the_repository_is_verified_end_to_end(tmp_path, capsys):
+    path = _module(tmp_path)
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "8", "--out", str(tmp_path / "o"), "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["verdict"] == "not_falsified" and data["simulations"] == 8
+    r = data["requirements"][0]
+    # min over t of x0 exp(-t) is x0 exp(-2): between the box's lowest value 0.5 and the nominal 1.25
+    assert 0.5 * 2.718281828459045 ** -2 <= r["robustness"] < 1.25 * 2.718281828459045 ** -2
+    assert r["nominal_robustness"] == pytest.approx(1.25 * 2.718281828459045 ** -2, rel=1e-12)
+
+
+def test_a_falsified_requirement_exits_1_with_its_counterexample(tmp_path, capsys):
+    path = _module(tmp_path, "always[0, 2] (x > 0.1)")
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "20", "--out", str(tmp_path / "o"))
+    assert code == 1, err
+    assert "FALSIFIED" in out and "visnav replay" in out
+
+
+@pytest.mark.parametrize("formula, needles", [
+    ("always[0, 2] (x > )", ["column", "^"]),
+    ("always[0, 2] (y > 0)", ["'y'", "x"]),
+    ("always[2, 1] (x > 0)", ["^"]),
+    ("always[-1, 1] (x > 0)", ["^"]),
+    ("always[0, 3] (x > 0)", ["horizon"]),
+    ('always[0, 2] (mode == "stop")', ["stop"]),
+])
+def test_bad_formulas_exit_2_with_a_position_and_no_traceback(tmp_path, capsys, formula, needles):
+    path = _module(tmp_path, formula)
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "3", "--out", str(tmp_path / "o"))
+    assert code == 2
+    assert "Traceback" not in err
+    for needle in needles:
+        assert needle in err
+
+
+def test_a_module_that_fails_to_import_shows_the_users_own_traceback(tmp_path, capsys):
+    path = _module(tmp_path, extra="\nraise ValueError('my own mistake')\n")
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--out", str(tmp_path / "o"))
+    assert code == 2
+    assert "my own mistake" in err and "user_sys.py" in err and "a module that imports" in err
+
+
+def test_an_object_of_the_wrong_type_and_a_missing_object_exit_2(tmp_path, capsys):
+    path = _module(tmp_path, extra="\nsomething = 42\n")
+    code, _, err = _run(capsys, "verify", f"{path}:something", "--out", str(tmp_path / "o"))
+    assert code == 2 and "found int" in err
+    code, _, err = _run(capsys, "verify", f"{path}:nothing", "--out", str(tmp_path / "o"))
+    assert code == 2 and "problem" in err
+
+
+def test_a_non_positive_budget_is_refused_by_the_option_parser(tmp_path, capsys):
+    path = _module(tmp_path)
+    with pytest.raises(SystemExit) as info:
+        main(["verify", f"{path}:problem", "--budget", "0"])
+    assert info.value.code == 2
+    assert "budget" in capsys.readouterr().err
+
+
+def test_a_crash_in_the_users_simulator_exits_2_with_their_traceback(tmp_path, capsys):
+    path = _module(tmp_path)
+    text = path.read_text().replace('if p["x0"] > 1e9:', 'if p["x0"] > 0:')
+    path.write_text(text)
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    assert code == 2
+    assert "user bug" in err and "user_sys.py" in err
