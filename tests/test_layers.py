@@ -2,8 +2,10 @@
 
 Layers, lowest first: ``hybrid`` (hybrid automata), ``analysis`` (generic
 verification tools), ``visnav`` (the case model), ``visnav.studies`` and
-``visnav.fuzzing`` (studies and fuzzing of the case), ``visnav.app`` (the
-application: the only code that prints, writes files or imports matplotlib).
+``visnav.fuzzing`` (studies and fuzzing of the case), ``visnav.verification``
+(the case as a verification problem: its box comes from the campaign study, its
+supervisor variants from the fuzzing), ``visnav.app`` (the application: the only
+code that prints, writes files or imports matplotlib).
 A module may import its own layer and the layers below, never above; the
 project's import graph (module-level and function-level imports alike) has no
 circle.
@@ -28,7 +30,8 @@ LAYERS = {
     "visnav": 2,
     "visnav.studies": 3,
     "visnav.fuzzing": 3,
-    "visnav.app": 4,
+    "visnav.verification": 4,
+    "visnav.app": 5,
 }
 """Rank of each layer; a module imports only modules of a lower rank or of its own layer."""
 

@@ -1,0 +1,562 @@
+"""Signal Temporal Logic: robustness, boolean semantics and explanations over a :class:`SignalTrace`.
+
+Discrete-time semantics over the samples, with windows measured in *time*.
+At sample ``i`` (``t_i``; index order breaks ties between the two sides of a jump):
+
+* ``always[a,b] phi``       min of ``rho_phi(k)`` over ``k >= i`` with ``t_k - t_i`` in ``[a, b]``;
+* ``eventually[a,b] phi``   the max over the same window;
+* ``historically[a,b] phi`` min over ``k <= i`` with ``t_i - t_k`` in ``[a, b]`` (no interval: the whole past);
+* ``once[a,b] phi``         the max over the same window;
+* ``phi until[a,b] psi``    max over the future window of ``min(rho_psi(k), min of rho_phi on [i, k))``;
+* ``phi since[a,b] psi``    max over the past window of ``min(rho_psi(k), min of rho_phi on (k, i])``;
+* ``rise(phi)``             ``min(rho(i), -rho(i-1))``, ``fall(phi)`` ``min(-rho(i), rho(i-1))``; at ``i = 0``
+  ``rise = rho(0)`` and ``fall = -rho(0)`` (as if ``phi`` were false, resp. true, before the trace);
+* ``prev(e)``               ``e`` at sample ``i - 1``; ``e`` at sample 0 itself at ``i = 0``.
+
+A window is truncated to the samples present; an empty window gives ``+inf``
+for always/historically and ``-inf`` for eventually/once/until/since.  Window
+bounds are compared with a slack of :data:`TIME_RESOLUTION` times
+``max(1, |t|)`` seconds, so that sampled times with rounding drift (``k * 0.05``
+accumulated) land in the windows their bounds mean.  This matches rtamt's
+discrete-time offline monitor sample for sample on uniformly sampled traces
+(``tests/analysis/stl/test_rtamt_oracle.py``); ``docs/stl.md`` has the full
+statement.
+
+Windowed min/max over non-uniform windows: the bounds come from
+:func:`numpy.searchsorted`, the reduction decomposes every window into
+``O(log w)`` power-of-two blocks, one level at a time (``O(n log w)`` time,
+``O(n)`` memory); ``until``/``since`` use the same decomposition with the
+monoid ``(min phi over the block, until-value of the block)``.
+
+The boolean semantics (:meth:`Formula.satisfied`) is a separate evaluation on
+booleans (strict comparisons, all/any over windows), not a threshold of the
+robustness.
+
+Examples
+--------
+>>> trace = SignalTrace(times=[0.0, 0.5, 1.0, 1.5], signals={"x": [3.0, 1.0, 2.0, -1.0]})
+>>> f = parse_formula("always[0, 1] x > 0")
+>>> f.robustness_signal(trace).tolist()
+[1.0, -1.0, -1.0, -1.0]
+>>> f.satisfied(trace), f.explain(trace).index, f.explain(trace).atom
+(True, 1, '(x > 0)')
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from analysis.stl.syntax import (
+    And,
+    BinOp,
+    Compare,
+    Const,
+    Edge,
+    Func,
+    Implies,
+    LabelIs,
+    Neg,
+    Node,
+    Not,
+    Num,
+    Or,
+    Temporal,
+    Until,
+    Var,
+    canonical,
+    future_horizon,
+    label_pattern,
+    labels_of,
+    parse_tree,
+    past_horizon,
+    signals_of,
+)
+from analysis.stl.trace import SignalTrace, TraceError
+
+__all__ = [
+    "TIME_RESOLUTION",
+    "Explanation",
+    "Formula",
+    "parse_formula",
+    "window_bounds",
+    "window_reduce",
+    "until_values",
+]
+
+TIME_RESOLUTION = 1e-9
+"""Relative slack of window bounds: instants closer than ``TIME_RESOLUTION * max(1, |t|)`` s compare equal."""
+
+_FORMULA_NODES = (Const, Compare, LabelIs, Not, And, Or, Implies, Temporal, Until, Edge)
+_MIN_OPS = ("always", "historically")
+_PAST_OPS = ("historically", "once", "since")
+
+
+# --------------------------------------------------------------------------- windows
+
+
+def window_bounds(times: np.ndarray, interval: tuple[float, float] | None, *, past: bool) -> tuple[np.ndarray,
+                                                                                                    np.ndarray]:
+    """First and last sample index of the window of every sample.
+
+    Parameters
+    ----------
+    times : ndarray, shape (n,)
+        Non-decreasing sample times [s].
+    interval : (a, b) or None
+        Window [s]; ``None`` is ``[0, inf)`` (the whole past).
+    past : bool
+        ``False``: samples ``k >= i`` with ``t_k - t_i`` in ``[a, b]``; ``True``: ``k <= i`` with
+        ``t_i - t_k`` in ``[a, b]``.
+
+    Returns
+    -------
+    lo, hi : ndarray of int, shape (n,)
+        The window of sample ``i`` is ``lo[i] .. hi[i]`` (inclusive), empty when ``lo[i] > hi[i]``.
+    """
+    a, b = (0.0, math.inf) if interval is None else interval
+    eps = TIME_RESOLUTION * max(1.0, abs(float(times[0])), abs(float(times[-1])))
+    index = np.arange(times.size)
+    if past:
+        lo = np.searchsorted(times, times - b - eps, side="left")
+        hi = np.minimum(index, np.searchsorted(times, times - a + eps, side="right") - 1)
+    else:
+        lo = np.maximum(index, np.searchsorted(times, times + a - eps, side="left"))
+        hi = np.searchsorted(times, times + b + eps, side="right") - 1
+    return lo, hi
+
+
+def window_reduce(values: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Callable, identity: object) -> np.ndarray:
+    """``op``-reduction (``np.minimum`` or ``np.maximum``) of ``values[lo[i] : hi[i] + 1]`` for every ``i``.
+
+    Each window is split into power-of-two blocks, smallest first; level ``b``
+    holds the reduction of every block of length ``2**b``.  ``O(n log w)``
+    time for windows of at most ``w`` samples, ``O(n)`` memory.  An empty
+    window gives ``identity``.  Works on floats and on booleans.
+    """
+    length = np.maximum(hi - lo + 1, 0)
+    out = np.full(values.shape, identity, dtype=values.dtype)
+    pos = lo.copy()
+    level, width = values, 1
+    longest = int(length.max(initial=0))
+    while width <= longest:
+        if width > 1:
+            half = width // 2
+            level = op(level[:-half], level[half:])
+        take = np.flatnonzero(length & width)
+        if take.size:
+            out[take] = op(out[take], level[pos[take]])
+            pos[take] += width
+        width *= 2
+    return out
+
+
+def until_values(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray, top: object,
+                 bottom: object) -> np.ndarray:
+    """``max over k in [lo[i], hi[i]] of min(psi[k], min of phi over [i, k))`` for every ``i`` (``lo >= i``).
+
+    ``top``/``bottom`` are the identities of min and max (``+inf``/``-inf``, or ``True``/``False``).  The
+    block of ``[p, p + 2**b)`` carries ``m`` (min of ``phi``) and ``u`` (the value above restricted to the
+    block, counted from ``p``); blocks combine as ``m = min(m1, m2)``, ``u = max(u1, min(m1, u2))``.
+    """
+    index = np.arange(phi.size)
+    before = window_reduce(phi, index, lo - 1, np.minimum, top)  # phi on [i, lo): must hold before the window
+    length = np.maximum(hi - lo + 1, 0)
+    held = np.full(phi.shape, top, dtype=phi.dtype)
+    reached = np.full(phi.shape, bottom, dtype=phi.dtype)
+    pos = lo.copy()
+    m_level, u_level, width = phi, psi, 1
+    longest = int(length.max(initial=0))
+    while width <= longest:
+        if width > 1:
+            half = width // 2
+            u_level = np.maximum(u_level[:-half], np.minimum(m_level[:-half], u_level[half:]))
+            m_level = np.minimum(m_level[:-half], m_level[half:])
+        take = np.flatnonzero(length & width)
+        if take.size:
+            p = pos[take]
+            reached[take] = np.maximum(reached[take], np.minimum(held[take], u_level[p]))
+            held[take] = np.minimum(held[take], m_level[p])
+            pos[take] += width
+        width *= 2
+    out = np.minimum(before, reached)
+    out[length == 0] = bottom
+    return out
+
+
+def _since_values(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray, top: object,
+                  bottom: object) -> np.ndarray:
+    """Past mirror of :func:`until_values`: ``phi`` on ``(k, i]``; computed on the reversed samples."""
+    last = phi.size - 1
+    out = until_values(phi[::-1], psi[::-1], last - hi[::-1], last - lo[::-1], top, bottom)
+    return out[::-1].copy()
+
+
+# --------------------------------------------------------------------------- evaluators
+
+
+def _where(trace: SignalTrace, k: int) -> str:
+    return f"sample {k} (t = {float(trace.times[k]):.9g} s)"
+
+
+class _Evaluator:
+    """Values of every subformula at every sample, memoised per node; subclasses give the atoms' meaning."""
+
+    top: object
+    bottom: object
+
+    def __init__(self, trace: SignalTrace) -> None:
+        self.trace = trace
+        self.values: dict[int, np.ndarray] = {}
+        self.nodes: list[object] = []  # keeps the ids of self.values alive
+        self.windows: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def window(self, interval: tuple[float, float] | None, past: bool) -> tuple[np.ndarray, np.ndarray]:
+        key = (interval, past)
+        if key not in self.windows:
+            self.windows[key] = window_bounds(self.trace.times, interval, past=past)
+        return self.windows[key]
+
+    def value(self, node: object) -> np.ndarray:
+        """Values of ``node`` at every sample, shape (n,)."""
+        found = self.values.get(id(node))
+        if found is None:
+            found = self.compute(node)
+            self.values[id(node)] = found
+            self.nodes.append(node)
+        return found
+
+    def compute(self, node: object) -> np.ndarray:
+        n = self.trace.n
+        match node:
+            case Const(value):
+                return np.full(n, self.top if value else self.bottom)
+            case Compare(op, left, right):
+                return self.compare(op, self.expression(left), self.expression(right), node)
+            case LabelIs(label, op, pattern):
+                return self.label(self.matches(label, pattern) if op == "==" else ~self.matches(label, pattern))
+            case Not(arg):
+                return self.negate(self.value(arg))
+            case And(left, right):
+                return np.minimum(self.value(left), self.value(right))
+            case Or(left, right):
+                return np.maximum(self.value(left), self.value(right))
+            case Implies(left, right):
+                return np.maximum(self.negate(self.value(left)), self.value(right))
+            case Temporal(op, interval, arg):
+                lo, hi = self.window(interval, op in _PAST_OPS)
+                if op in _MIN_OPS:
+                    return window_reduce(self.value(arg), lo, hi, np.minimum, self.top)
+                return window_reduce(self.value(arg), lo, hi, np.maximum, self.bottom)
+            case Until(op, interval, left, right):
+                lo, hi = self.window(interval, op in _PAST_OPS)
+                run = _since_values if op == "since" else until_values
+                return run(self.value(left), self.value(right), lo, hi, self.top, self.bottom)
+            case Edge(op, arg):
+                x = self.value(arg)
+                before = np.concatenate(([self.bottom if op == "rise" else self.top], x[:-1])).astype(x.dtype)
+                if op == "rise":
+                    return np.minimum(x, self.negate(before))
+                return np.minimum(self.negate(x), before)
+        raise TypeError(f"not a formula node: {node!r}")
+
+    def expression(self, expr: object) -> np.ndarray:
+        """Float values of an arithmetic expression, shape (n,); a non-finite value is a :class:`TraceError`."""
+        with np.errstate(all="ignore"):
+            x = self._arithmetic(expr)
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            k = int(bad[0])
+            raise TraceError(f"expression {canonical(expr)} at {_where(self.trace, k)}", float(x[k]),
+                             "a finite number", "avoid divisions by zero and overflows in the formula "
+                             f"({bad.size} of {x.size} samples are not finite)")
+        return x
+
+    def _arithmetic(self, expr: object) -> np.ndarray:
+        match expr:
+            case Num(value):
+                return np.full(self.trace.n, value)
+            case Var(name):
+                return self.trace.signal(name)
+            case Neg(arg):
+                return -self._arithmetic(arg)
+            case BinOp(op, left, right):
+                a, b = self._arithmetic(left), self._arithmetic(right)
+                return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide}[op](a, b)
+            case Func("abs", (arg,)):
+                return np.abs(self._arithmetic(arg))
+            case Func("prev", (arg,)):
+                x = self._arithmetic(arg)
+                return np.concatenate((x[:1], x[:-1]))
+            case Func(name, (left, right)):
+                return (np.minimum if name == "min" else np.maximum)(self._arithmetic(left), self._arithmetic(right))
+        raise TypeError(f"not an expression node: {expr!r}")
+
+    def matches(self, label: str, pattern: str) -> np.ndarray:
+        """Boolean mask, shape (n,): the label's value at each sample matches the wildcard pattern."""
+        values = self.trace.label(label)
+        distinct, inverse = np.unique(np.array(values, dtype=object).astype(str), return_inverse=True)
+        regex = label_pattern(pattern)
+        hit = np.array([regex.fullmatch(str(v)) is not None for v in distinct], dtype=bool)
+        return hit[inverse.reshape(-1)]
+
+    def compare(self, op: str, left: np.ndarray, right: np.ndarray, node: object) -> np.ndarray:
+        raise NotImplementedError
+
+    def label(self, mask: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def negate(self, x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class _Robustness(_Evaluator):
+    """Space robustness: distances to the comparisons' thresholds, +-inf for label atoms and constants."""
+
+    top, bottom = math.inf, -math.inf
+
+    def compare(self, op: str, left: np.ndarray, right: np.ndarray, node: object) -> np.ndarray:
+        if op in (">", ">="):
+            return left - right
+        if op in ("<", "<="):
+            return right - left
+        gap = np.abs(left - right)
+        return -gap if op == "==" else gap
+
+    def label(self, mask: np.ndarray) -> np.ndarray:
+        return np.where(mask, math.inf, -math.inf)
+
+    def negate(self, x: np.ndarray) -> np.ndarray:
+        return -x
+
+
+_STRICT = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal, "==": np.equal,
+           "!=": np.not_equal}
+
+
+class _Boolean(_Evaluator):
+    """Boolean semantics: the comparisons as written (``>`` is false at equality), all/any over windows."""
+
+    top, bottom = True, False
+
+    def compare(self, op: str, left: np.ndarray, right: np.ndarray, node: object) -> np.ndarray:
+        return _STRICT[op](left, right)
+
+    def label(self, mask: np.ndarray) -> np.ndarray:
+        return mask
+
+    def negate(self, x: np.ndarray) -> np.ndarray:
+        return ~x
+
+
+# --------------------------------------------------------------------------- explanations
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """The atom whose value decides a formula's robustness at a sample.
+
+    Attributes
+    ----------
+    index : int
+        Sample where the deciding atom is read.
+    time : float
+        Its time [s].
+    atom : str
+        Canonical text of the deciding atom (a comparison, a label atom, ``true`` or ``false``), or of the
+        temporal subformula whose window is empty (then ``value`` is ``+-inf``).
+    value : float
+        Robustness of ``atom`` at ``index``.
+    signals : frozenset of str
+        Numeric signals and labels ``atom`` reads.
+    """
+
+    index: int
+    time: float
+    atom: str
+    value: float
+    signals: frozenset[str]
+
+
+def _step(ev: _Robustness, node: object, i: int) -> tuple[object, int] | None:
+    """The child and the sample that decide ``node`` at ``i`` (first one on ties), ``None`` at a leaf."""
+    v = ev.value
+    match node:
+        case Not(arg):
+            return arg, i
+        case And(left, right):
+            return (left, i) if v(left)[i] <= v(right)[i] else (right, i)
+        case Or(left, right):
+            return (left, i) if v(left)[i] >= v(right)[i] else (right, i)
+        case Implies(left, right):
+            return (left, i) if -v(left)[i] >= v(right)[i] else (right, i)
+        case Temporal(op, interval, arg):
+            lo, hi = (int(w[i]) for w in ev.window(interval, op in _PAST_OPS))
+            if lo > hi:
+                return None
+            segment = v(arg)[lo:hi + 1]
+            return arg, lo + int(np.argmin(segment) if op in _MIN_OPS else np.argmax(segment))
+        case Until(op, interval, left, right):
+            lo, hi = (int(w[i]) for w in ev.window(interval, op in _PAST_OPS))
+            return None if lo > hi else _until_step(v(left), v(right), op, i, lo, hi, left, right)
+        case Edge(op, arg):
+            x = v(arg)
+            if i == 0:
+                return arg, 0
+            now = x[i] if op == "rise" else -x[i]
+            before = -x[i - 1] if op == "rise" else x[i - 1]
+            return (arg, i) if now <= before else (arg, i - 1)
+    return None
+
+
+def _until_step(phi: np.ndarray, psi: np.ndarray, op: str, i: int, lo: int, hi: int, left: object,
+                right: object) -> tuple[object, int]:
+    ks = np.arange(lo, hi + 1)
+    if op == "until":  # phi must hold on [i, k)
+        run = np.concatenate(([math.inf], np.minimum.accumulate(phi[i:hi])))
+        held = run[ks - i]
+    else:  # since: phi must hold on (k, i]
+        run = np.concatenate((np.minimum.accumulate(phi[lo + 1:i + 1][::-1])[::-1], [math.inf]))
+        held = run[ks - lo]
+    best = int(np.argmax(np.minimum(psi[ks], held)))
+    k = int(ks[best])
+    if psi[k] <= held[best]:
+        return right, k
+    if op == "until":
+        return left, i + int(np.argmin(phi[i:k]))
+    return left, k + 1 + int(np.argmin(phi[k + 1:i + 1]))
+
+
+# --------------------------------------------------------------------------- formulas
+
+
+@dataclass(frozen=True)
+class Formula:
+    """A parsed STL formula: immutable, hashable, picklable; equal when the syntax trees are equal.
+
+    Build it with :func:`parse_formula`.
+
+    Attributes
+    ----------
+    tree : Node
+        The syntax tree (:mod:`analysis.stl.syntax`).
+    text : str
+        The source text (not compared); the canonical text when not given.
+    """
+
+    tree: Node
+    text: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.tree, _FORMULA_NODES):
+            raise TypeError(f"Formula(tree=...) takes a formula node of analysis.stl.syntax, not {self.tree!r}; "
+                            f"build formulas with parse_formula(text)")
+        if not self.text:
+            object.__setattr__(self, "text", canonical(self.tree))
+
+    @cached_property
+    def canonical(self) -> str:
+        """Fully parenthesised text; ``parse_formula(f.canonical) == f``."""
+        return canonical(self.tree)
+
+    @cached_property
+    def signals(self) -> frozenset[str]:
+        """Numeric signals read (``time``, ``jumps`` included when read)."""
+        return signals_of(self.tree)
+
+    @cached_property
+    def labels(self) -> frozenset[str]:
+        """Labels read."""
+        return labels_of(self.tree)
+
+    @cached_property
+    def horizon(self) -> float:
+        """How far ahead [s] the value at a sample looks (sum of nested future upper bounds; 0 for atoms)."""
+        return future_horizon(self.tree)
+
+    @cached_property
+    def past_horizon(self) -> float:
+        """How far back [s] past operators look (``inf`` for an untimed one); prev/rise/fall add one sample."""
+        return past_horizon(self.tree)
+
+    def check_trace(self, trace: SignalTrace) -> None:
+        """Refuse a trace that lacks a signal or a label the formula reads.
+
+        Raises
+        ------
+        TraceError
+            Naming the missing names and the available ones.
+        """
+        if not isinstance(trace, SignalTrace):
+            raise TraceError("trace", type(trace).__name__, "a SignalTrace", "build one with SignalTrace(times=...)")
+        missing = sorted(self.signals - set(trace.names))
+        if missing:
+            raise TraceError("signals read by the formula", missing, f"signals of the trace: {', '.join(trace.names)}",
+                             f"add them to the trace or fix the formula {self.text or self.canonical!r}")
+        missing = sorted(self.labels - set(trace.label_names))
+        if missing:
+            raise TraceError("labels read by the formula", missing,
+                             f"labels of the trace: {', '.join(trace.label_names) or '(none)'}",
+                             f"add them to the trace (labels=...) or fix the formula {self.text or self.canonical!r}")
+
+    def robustness_signal(self, trace: SignalTrace) -> np.ndarray:
+        """Robustness at every sample, shape (n,), in the units of the atoms (``+-inf`` allowed)."""
+        self.check_trace(trace)
+        return _Robustness(trace).value(self.tree).astype(float, copy=True)
+
+    def robustness(self, trace: SignalTrace) -> float:
+        """Robustness at the first sample."""
+        return float(self.robustness_signal(trace)[0])
+
+    def satisfied_signal(self, trace: SignalTrace) -> np.ndarray:
+        """Boolean semantics at every sample, shape (n,), bool."""
+        self.check_trace(trace)
+        return _Boolean(trace).value(self.tree).astype(bool, copy=True)
+
+    def satisfied(self, trace: SignalTrace) -> bool:
+        """Boolean semantics at the first sample (a separate evaluation, not ``robustness > 0``)."""
+        return bool(self.satisfied_signal(trace)[0])
+
+    def explain(self, trace: SignalTrace, index: int = 0) -> Explanation:
+        """Follow the arg-min/arg-max from the root at sample ``index`` down to the deciding atom."""
+        self.check_trace(trace)
+        if not 0 <= index < trace.n:
+            raise TraceError("index", index, f"a sample index in [0, {trace.n - 1}]", "explain an existing sample")
+        ev = _Robustness(trace)
+        node, i = self.tree, int(index)
+        ev.value(node)
+        while (step := _step(ev, node, i)) is not None:
+            node, i = step
+        return Explanation(index=i, time=float(trace.times[i]), atom=canonical(node), value=float(ev.value(node)[i]),
+                           signals=signals_of(node) | labels_of(node))
+
+
+def parse_formula(text: str, *, signals: Collection[str] | None = None,
+                  labels: Mapping[str, Collection[str]] | None = None, horizon: float | None = None) -> Formula:
+    """Parse an STL formula.
+
+    Parameters
+    ----------
+    text : str
+        The formula (grammar in ``docs/stl.md``).
+    signals : collection of str, optional
+        Known numeric signals; an unknown one is refused (``time`` and ``jumps`` are always known).
+    labels : mapping of str to collection of str, optional
+        Known labels and their values; an unknown label, or a pattern matching no value, is refused.
+    horizon : float, optional
+        Largest future extent [s] accepted (see :attr:`Formula.horizon`).
+
+    Returns
+    -------
+    Formula
+
+    Raises
+    ------
+    FormulaError
+        With line, column, caret and reason.
+    """
+    return Formula(parse_tree(text, signals=signals, labels=labels, horizon=horizon), text)
