@@ -53,6 +53,7 @@ __all__ = [
     "trace_from_sampled",
     "HybridSimulation",
     "SampledSimulation",
+    "StructuralChecks",
     "hybrid_problem",
     "sampled_problem",
 ]
@@ -228,6 +229,21 @@ class HybridSimulation:
 
 
 @dataclass(frozen=True, slots=True)
+class StructuralChecks:
+    """``() -> hybrid.check.CheckReport`` of a system over a box (graph checks only without one); picklable."""
+
+    model: Any
+    box: Any = None
+    samples: int = 300
+    seed: int = 0
+
+    def __call__(self) -> Any:
+        from hybrid.check import check
+
+        return check(self.model, self.box, samples=self.samples, seed=self.seed)
+
+
+@dataclass(frozen=True, slots=True)
 class _Fixed:
     system: Any
 
@@ -274,6 +290,7 @@ def hybrid_problem(
     description: str = "",
     proofs: Mapping[str, Callable[[], Proof]] | None = None,
     structural: Callable[[], Any] | None = None,
+    check_box: Any = None,
     source: str = "",
 ) -> VerificationProblem:
     """A verification problem for a continuous-time hybrid system.
@@ -292,6 +309,10 @@ def hybrid_problem(
         Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).
     options : Mapping or None
         Keyword arguments of :func:`hybrid.simulate_continuous` (``rtol``, ``max_step``, ...).
+    structural, check_box :
+        The structural checks: a callable, or by default :func:`hybrid.check` of the
+        nominal system over ``check_box`` (a :class:`hybrid.Box` of the states, or one per
+        mode; ``None``: the graph checks only).
     """
     build = _builder(system, HybridSystem, f"problem {name!r}")
     probe = build({p.name: p.at(0.0) for p in _box(initial, parameters, list(initial), name)})
@@ -308,7 +329,8 @@ def hybrid_problem(
     return VerificationProblem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=(*probe.state_names, *memory, *variables), labels={"mode": a.mode_names},
-        description=description, proofs=dict(proofs or {}), structural=structural, source=source,
+        description=description, proofs=dict(proofs or {}),
+        structural=structural or StructuralChecks(model=probe, box=check_box), source=source, automaton=a,
     )
 
 
@@ -366,5 +388,6 @@ def sampled_problem(
     return VerificationProblem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=tuple(dict.fromkeys(names)), labels={"mode": automaton.mode_names}, description=description,
-        proofs=dict(proofs or {}), structural=structural, source=source,
+        proofs=dict(proofs or {}), structural=structural or StructuralChecks(model=automaton), source=source,
+        automaton=automaton,
     )

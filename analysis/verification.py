@@ -227,6 +227,8 @@ class VerificationProblem:
     structural : callable or None
         ``() -> hybrid.check.CheckReport`` (or any object with ``findings``): the
         structural checks of the automaton, summarised in reports.
+    automaton : hybrid.HybridAutomaton or None
+        The switching logic (``visnav mode-graph``); ``None`` when the simulator hides it.
     source : str
         How to load the problem again (``"pkg.mod:problem"``, ``"file.py:problem"``,
         ``"paper"``); written into counterexample files for ``replay``.
@@ -243,6 +245,7 @@ class VerificationProblem:
     proofs: Mapping[str, Callable[[], Proof]] = field(default_factory=dict)
     structural: Callable[[], Any] | None = None
     source: str = ""
+    automaton: Any = None
     parsed: tuple[ParsedRequirement, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -309,5 +312,5 @@ class VerificationProblem:
             name=self.name, simulate=self.simulate, parameters=self.parameters, horizon=self.horizon,
             requirements=tuple(requirements), signals=self.signals, labels=self.labels,
             description=self.description, proofs={k: v for k, v in self.proofs.items() if k in names},
-            structural=self.structural, source=self.source,
+            structural=self.structural, source=self.source, automaton=self.automaton,
         )

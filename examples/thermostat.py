@@ -28,7 +28,7 @@ from __future__ import annotations
 from analysis.problems import hybrid_problem
 from analysis.requirements import Requirement
 from analysis.verification import Parameter, VerificationProblem
-from hybrid import HybridAutomaton, HybridSystem, Mode, Transition
+from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition
 
 OUTSIDE_C = 10.0
 HEATER_C = 30.0
@@ -101,6 +101,7 @@ def thermostat_problem(band: float = 1.0) -> VerificationProblem:
         horizon=HORIZON_S,
         sample_period=0.25,
         requirements=REQUIREMENTS,
+        check_box=Box(bounds={"T": (15.0, 25.0)}),
         description=f"on/off thermostat, hysteresis band {band:g} °C around {SETPOINT_C:g} °C",
     )
 
