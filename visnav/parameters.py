@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from analysis.requirements import Requirement
+
 __all__ = [
     "K_PATH_RANGE",
     "RobotGeometry",
@@ -217,6 +219,9 @@ class Scenario:
         Simulated time limit [s].
     success_tolerance_px : float
         The task succeeds when ``max_i |s_i - s*_i|·f`` falls below this.
+    requirements : tuple of analysis.requirements.Requirement
+        STL requirements on the run's signals (``docs/requirements.md``), checked
+        against :func:`visnav.requirements.signal_catalogue` when the scenario is loaded.
     """
 
     name: str
@@ -235,6 +240,7 @@ class Scenario:
     sampling_period_s: float = 0.05
     duration_s: float = 120.0
     success_tolerance_px: float = 1.0
+    requirements: tuple[Requirement, ...] = ()
 
     def __post_init__(self) -> None:
         if not (self.sampling_period_s > 0 and math.isfinite(self.sampling_period_s)):

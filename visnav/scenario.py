@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import hashlib
 import importlib.resources
 import math
@@ -40,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.bdf import MAX_ORDER, MIN_ORDER, BdfOrderError
+from analysis.requirements import Requirement, RequirementError, parse_requirements, requirement_from_mapping
 
 from visnav import geometry
 from visnav.estimator import SCREW_MODELS, EstimatorSettingsError, validate_settings
@@ -95,9 +97,10 @@ _SECTIONS: dict[str, type] = {
 }
 _POSES = ("start", "goal")
 _TOP_SCALARS = ("name", "description", "sampling_period_s", "duration_s", "success_tolerance_px")
-_TOP_KEYS = (*_TOP_SCALARS, *_SECTIONS, *_POSES, "target", "obstacles")
+_TOP_KEYS = (*_TOP_SCALARS, *_SECTIONS, *_POSES, "target", "obstacles", "requirements")
 _REQUIRED_TOP = ("name", "target", "start", "goal")
 _OBSTACLE_KEYS = ("name", "center_m", "radius_m", "height_m")
+_REQUIREMENT_KEYS = ("name", "formula", "description")
 _TARGET_POINTS_KEYS = ("points_m",)
 _TARGET_SQUARE_KEYS = ("center_m", "normal_rad", "side_m", "n_points")
 _TARGET_KEYS = (*_TARGET_POINTS_KEYS, *_TARGET_SQUARE_KEYS)
@@ -574,9 +577,77 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     target_table = check.table("target", data["target"], required=True)
     target = _target(check, target_table, robot, records["camera"], poses)
 
-    return Scenario(
+    scenario = Scenario(
         **top, **records, obstacles=obstacles, target=target, start=poses["start"], goal=poses["goal"]
     )
+    requirements = _requirements(check, data.get("requirements", _MISSING), scenario)
+    return dataclasses.replace(scenario, requirements=requirements) if requirements else scenario
+
+
+def _requirement_key(i: int, error: RequirementError) -> str:
+    """The dotted key of a :class:`RequirementError` raised for ``requirements[i]``."""
+    for key in ("formula", "description", "name"):
+        if error.parameter.endswith(key):
+            return f"requirements[{i}].{key}"
+    return f"requirements[{i}]"
+
+
+@functools.lru_cache(maxsize=1024)
+def _check_formula(
+    requirement: Requirement, signals: tuple[str, ...], labels: tuple[tuple[str, tuple[str, ...]], ...], horizon: float
+) -> None:
+    """:func:`analysis.requirements.parse_requirements` of one requirement (cached: every perturbed copy of a
+    scenario is validated again, with the same formulas, catalogue and horizon)."""
+    parse_requirements((requirement,), signals=signals, labels=dict(labels), horizon=horizon)
+
+
+def _requirements(check: _Checker, raw: object, scenario: Scenario) -> tuple[Requirement, ...]:
+    """The ``[[requirements]]`` tables: each parsed against the signal catalogue and ``duration_s``.
+
+    Rule 24 of ``docs/scenarios.md``: keys ``name`` (an identifier, unique), ``formula``
+    (STL over :func:`visnav.requirements.signal_catalogue`, no window beyond ``duration_s``)
+    and ``description``.
+    """
+    from visnav.requirements import signal_catalogue
+
+    if raw is _MISSING:
+        return ()
+    if not isinstance(raw, list) or not all(isinstance(item, Mapping) for item in raw):
+        check.fail("requirements", raw, "an array of tables [[requirements]]",
+                   "write each requirement under its own [[requirements]] header")
+    signals, labels = signal_catalogue(scenario)
+    out: list[Requirement] = []
+    seen: dict[str, int] = {}
+    for i, table in enumerate(raw):
+        prefix = f"requirements[{i}]"
+        check.unknown_keys(prefix, table, _REQUIREMENT_KEYS)
+        for key in ("name", "formula"):
+            if key not in table:
+                check.fail(f"{prefix}.{key}", _MISSING, "name and formula for every requirement",
+                           f'add {key} = "..." to the requirement (see docs/requirements.md)')
+        for key in _REQUIREMENT_KEYS:
+            if key in table:
+                check.string(f"{prefix}.{key}", table[key])
+        try:
+            requirement = requirement_from_mapping(table, f"{check.source}: {prefix}")
+        except RequirementError as err:
+            check.fail(_requirement_key(i, err), err.value, err.expected, err.fix)
+        if requirement.name in seen:
+            check.fail(f"{prefix}.name", requirement.name,
+                       f"a unique name (requirements[{seen[requirement.name]}] is also {requirement.name!r})",
+                       "rename one of the requirements")
+        seen[requirement.name] = i
+        try:
+            _check_formula(requirement, signals, tuple(labels.items()), scenario.duration_s)
+        except RequirementError as err:
+            check.fail(
+                f"{prefix}.formula", requirement.formula,
+                f"a valid STL formula over the signals of docs/requirements.md with no window beyond "
+                f"duration_s = {scenario.duration_s!r} s",
+                f"correct the formula of {requirement.name!r}:{err.fix}",
+            )
+        out.append(requirement)
+    return tuple(out)
 
 
 def _gains_and_limits(check: _Checker, gains: Gains, limits: ActuatorLimits) -> None:
@@ -908,6 +979,9 @@ def scenario_to_toml(scenario: Scenario) -> str:
     lines.append("]")
     for obstacle in scenario.obstacles:
         lines += ["", "[[obstacles]]", *_toml_table(obstacle)]
+    for requirement in scenario.requirements:
+        lines += ["", "[[requirements]]"]
+        lines += [f"{key} = {_toml_string(getattr(requirement, key))}" for key in _REQUIREMENT_KEYS]
     return "\n".join(lines) + "\n"
 
 

@@ -1,8 +1,9 @@
 """The built-in verification problem: the paper's scenario, its perturbation box and its requirements.
 
 ``visnav verify paper`` loads :func:`paper_problem`: the box is the Monte-Carlo
-campaign's (start pose, obstacle centres, radii and heights, target pose,
-gain factors; :meth:`visnav.studies.campaign.CampaignSpec.perturbation`), the
+campaign's perturbation of the situation (start pose, obstacle centres, radii and
+heights, target pose; :meth:`visnav.studies.campaign.CampaignSpec.perturbation`
+without its gain factors: the gains are the design's), the
 nominal point is the scenario as written, the requirements are the scenario
 TOML's ``[[requirements]]`` (``docs/requirements.md``), evaluated on the
 closed loop's trace on the hybrid time domain
@@ -28,10 +29,16 @@ __all__ = ["paper_problem", "paper_box", "PaperSimulation"]
 
 
 def paper_box(scenario: Scenario) -> tuple[Perturbation, tuple[Parameter, ...]]:
-    """The campaign's perturbation of ``scenario`` and its parameters (nominal: no change)."""
+    """The campaign's perturbation of the situation (start pose, obstacles, target), and its parameters.
+
+    The gains are the design's and stay fixed: the requirements are claims about the
+    controller as designed over the situations the paper's hypotheses admit (the
+    campaign, ``visnav sweep``, also varies the gains).  Nominal: no change.
+    """
     from visnav.studies.campaign import CampaignSpec
 
-    perturbation = CampaignSpec(scenario=scenario, samples=1, seed=0).perturbation()
+    campaign = CampaignSpec(scenario=scenario, samples=1, seed=0).perturbation()
+    perturbation = Perturbation(moves=tuple(m for m in campaign.moves if not m.field.startswith("gains.")))
     params = []
     for move in perturbation.moves:
         low, high = move.draw.bounds
@@ -52,14 +59,17 @@ class PaperSimulation:
 
     def __call__(self, point: Mapping[str, float]) -> SignalTrace:
         from visnav.fuzzing.closed_loop import simulate_variant
+        from visnav.fuzzing.variants import make_variant
         from visnav.requirements import run_trace
 
         values = [point[label] for label in self.labels]
         drawn = apply_perturbation(self.scenario, self.perturbation, values, source=f"{self.scenario.name}+box")
         if drawn.scenario is None:
             raise InvalidPoint(str(drawn.error))
-        run = simulate_variant(drawn.scenario, self.variant)
-        return run_trace(drawn.scenario, run.trace, self.variant)
+        scenario = drawn.scenario
+        run = simulate_variant(scenario, self.variant)
+        model = make_variant(self.variant, scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+        return run_trace(scenario, run.trace, model)
 
 
 def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved") -> VerificationProblem:
@@ -74,14 +84,13 @@ def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved")
     """
     from analysis.verification import ProblemError
 
-    from visnav.fuzzing.closed_loop import closed_loop_variants
+    from visnav.fuzzing.variants import VARIANTS
     from visnav.requirements import signal_catalogue
     from visnav.scenario import load_scenario
 
     base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    known = closed_loop_variants()
-    if variant not in known:
-        raise ProblemError("--variant", variant, f"one of {', '.join(known)}", "use --variant resolved")
+    if variant not in VARIANTS:
+        raise ProblemError("--variant", variant, f"one of {', '.join(VARIANTS)}", "use --variant resolved")
     perturbation, params = paper_box(base)
     signals, labels = signal_catalogue(base)
     suffix = "" if variant == "resolved" else f"~{variant}"

@@ -118,7 +118,7 @@ def test_offsets_factors_and_values_change_only_their_fields(paper):
     p = Perturbation(moves=(move("start.y_m"), move("gains.k_path", "factor"), move("gains.v_coll_mps", "value"),
                             move("obstacles[1].x_m"), move("obstacles[0].height_m"), move("limits.v_max_mps", "value"),
                             move("duration_s", "value")))
-    drawn = apply_perturbation(paper, p, [0.05, 1.25, 0.25, -0.1, 0.02, 0.5, 60.0])
+    drawn = apply_perturbation(paper, p, [0.05, 1.25, 0.25, -0.1, 0.02, 0.5, 100.0])
     s = drawn.scenario
     assert drawn.valid and drawn.error is None and s == drawn.candidate
     assert s.start == dataclasses.replace(paper.start, y_m=paper.start.y_m + 0.05)
@@ -126,10 +126,10 @@ def test_offsets_factors_and_values_change_only_their_fields(paper):
     assert s.obstacles[1] == dataclasses.replace(paper.obstacles[1], center_m=(paper.obstacles[1].center_m[0] - 0.1,
                                                                                paper.obstacles[1].center_m[1]))
     assert s.obstacles[0].height_m == paper.obstacles[0].height_m + 0.02 and s.limits.v_max_mps == 0.5
-    assert s.duration_s == 60.0 and s.goal == paper.goal and s.target == paper.target and s.camera == paper.camera
+    assert s.duration_s == 100.0 and s.goal == paper.goal and s.target == paper.target and s.camera == paper.camera
     assert dict(drawn.parameters) == {"start.dy_m": 0.05, "gains.k_path": paper.gains.k_path * 1.25,
                                       "gains.v_coll_mps": 0.25, "obstacles[1].dx_m": -0.1,
-                                      "obstacles[0].dheight_m": 0.02, "limits.v_max_mps": 0.5, "duration_s": 60.0}
+                                      "obstacles[0].dheight_m": 0.02, "limits.v_max_mps": 0.5, "duration_s": 100.0}
     assert [k for k, _ in drawn.parameters] == sorted(k for k, _ in drawn.parameters)
 
 

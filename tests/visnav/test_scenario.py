@@ -722,3 +722,107 @@ def test_every_command_refuses_the_same_scenario_with_the_same_message(tmp_path,
     assert errors[0] == errors[1] == errors[2]
     assert errors[0].startswith(f"visnav: error: scenario {str(bad)!r}: {message}") and "; fix: " in errors[0]
     assert not (tmp_path / "r").exists()  # refused before any output
+
+
+# ---------------------------------------------------------------------------------------------
+# [[requirements]]: STL formulas over the signal catalogue, parsed at load (rule 24)
+# ---------------------------------------------------------------------------------------------
+
+
+def _with_requirements(paper: dict, *tables: dict) -> dict:
+    paper["requirements"] = [dict(t) for t in tables]
+    return paper
+
+
+def _formula_error(data: dict, index: int) -> ScenarioError:
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_mapping(data, SOURCE)
+    err = info.value
+    assert err.key == f"requirements[{index}].formula" and err.source == SOURCE
+    assert str(err).startswith(f"scenario {SOURCE!r}: requirements[{index}].formula = ")
+    return err
+
+
+def test_the_paper_requirements_load_and_round_trip():
+    from analysis.requirements import Requirement
+
+    scenario = load_scenario("paper")
+    assert scenario.requirements and all(isinstance(r, Requirement) for r in scenario.requirements)
+    assert len({r.name for r in scenario.requirements}) == len(scenario.requirements)
+    text = scenario_to_toml(scenario)
+    assert text.count("[[requirements]]") == len(scenario.requirements)
+    assert scenario_from_toml(text, "copy") == scenario
+    # multi-line formulas with quotes and comments survive the canonical text
+    assert any("\n" in r.formula and '"' in r.formula for r in scenario.requirements)
+
+
+def test_a_scenario_without_requirements_writes_none(paper):
+    del paper["requirements"]
+    scenario = scenario_from_mapping(paper, SOURCE)
+    assert scenario.requirements == () and "requirements" not in scenario_to_toml(scenario)
+    assert scenario_from_toml(scenario_to_toml(scenario), "copy") == scenario
+
+
+def test_requirements_change_the_digest(paper):
+    a = scenario_from_mapping(paper, SOURCE)
+    b = dataclasses.replace(a, requirements=a.requirements[:1])
+    assert scenario_digest(a) != scenario_digest(b)
+
+
+def test_requirement_with_an_unknown_signal(paper):
+    data = _with_requirements(paper, {"name": "safe", "formula": "always[0, 10] (clearence_m > 0)"})
+    err = _formula_error(data, 0)
+    assert "unknown signal 'clearence_m' (did you mean 'clearance_m'?)" in str(err)
+    assert err.value == "always[0, 10] (clearence_m > 0)"
+    # the caret stands under the name, on the line after the formula
+    lines = str(err).splitlines()
+    assert lines[-2].strip() == "always[0, 10] (clearence_m > 0)"
+    assert lines[-1].index("^") == lines[-2].index("clearence_m")
+
+
+def test_requirement_with_a_syntax_error_shows_the_caret(paper):
+    ok = {"name": "safe", "formula": "always[0, 10] (clearance_m > 0)"}
+    data = _with_requirements(paper, ok, {"name": "broken", "formula": "always[0, 10] (clearance_m > 0"})
+    err = _formula_error(data, 1)
+    assert "formula error at line 1, column " in str(err) and "expected ')'" in str(err)
+    assert str(err).splitlines()[-1].strip() == "^"
+    assert "correct the formula of 'broken'" in err.fix
+
+
+def test_requirement_with_a_duplicate_name(paper):
+    table = {"name": "safe", "formula": "always[0, 10] (clearance_m > 0)"}
+    data = _with_requirements(paper, table, {**table, "formula": "always[0, 10] (mu_coll <= 1)"})
+    rejects(data, "requirements[1].name", "rename one of the requirements", "a unique name (requirements[0] is also")
+
+
+def test_requirement_window_longer_than_the_duration(paper):
+    paper["duration_s"] = 60.0
+    data = _with_requirements(paper, {"name": "late", "formula": "always[0, 50] eventually[0, 20] (mu_coll <= 1)"})
+    err = _formula_error(data, 0)
+    assert "70 s ahead, more than the horizon 60 s" in str(err)
+    assert "no window beyond duration_s = 60.0 s" in err.expected
+    paper["duration_s"] = 70.0  # exactly the horizon is accepted
+    assert scenario_from_mapping(data, SOURCE).requirements[0].name == "late"
+
+
+def test_requirement_with_an_unknown_mode_pattern(paper):
+    data = _with_requirements(paper, {"name": "m", "formula": 'always[0, 1] (mode == "AVIOD|*" implies mu_coll > 0)'})
+    err = _formula_error(data, 0)
+    assert 'label pattern "AVIOD|*" matches no value' in str(err)
+
+
+@pytest.mark.parametrize(("table", "key", "fix"), [
+    ({"name": "x", "formula": "time >= 0", "descripton": ""}, "requirements[0].descripton", "did you mean 'description'?"),
+    ({"name": "x"}, "requirements[0].formula", 'add formula = "..."'),
+    ({"formula": "time >= 0"}, "requirements[0].name", 'add name = "..."'),
+    ({"name": "x", "formula": 3}, "requirements[0].formula", "write the text in double quotes"),
+    ({"name": "no spaces allowed", "formula": "time >= 0"}, "requirements[0].name", "rename the requirement"),
+    ({"name": "x", "formula": "   "}, "requirements[0].formula", "write e.g. formula ="),
+])
+def test_requirement_table_errors(paper, table, key, fix):
+    rejects(_with_requirements(paper, table), key, fix)
+
+
+def test_requirements_must_be_an_array_of_tables(paper):
+    paper["requirements"] = {"name": "x", "formula": "time >= 0"}
+    rejects(paper, "requirements", "write each requirement under its own [[requirements]] header")

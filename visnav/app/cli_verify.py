@@ -29,7 +29,7 @@ __all__ = ["add_parser", "load_verification_problem", "counterexample_text", "JO
 
 JOURNAL_FORMAT = "visnav-verification-journal"
 COUNTEREXAMPLE_FORMAT = "visnav-verification-counterexample"
-DEFAULT_BUDGET = 200
+DEFAULT_BUDGET = 120
 """Default simulations per run (the paper's problem: about 40 s on one core)."""
 
 

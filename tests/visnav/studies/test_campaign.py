@@ -55,6 +55,8 @@ PAPER_TOML = Path(__file__).parents[3] / "visnav" / "scenarios" / "paper.toml"
 def short_toml(tmp_path_factory):
     text, count = re.subn(r"(?m)^duration_s = 120\.0.*$", "duration_s = 6.0", PAPER_TOML.read_text())
     assert count == 1
+    # the paper's requirements look 90 s ahead, beyond a 6 s run: a campaign does not read them
+    text = text[:text.index("[[requirements]]")] if "[[requirements]]" in text else text
     path = tmp_path_factory.mktemp("scenario") / "short.toml"
     path.write_text(text)
     return path
