@@ -2,8 +2,10 @@
 
 Subcommands print a human summary, or with ``--json`` one JSON object on
 standard output.  Exit codes: 0 success, 1 the run finished but the task
-failed (collision, timeout), 2 bad input (scenario, options, output folder),
-3 the simulation diverged.
+failed (collision, timeout; for ``verify`` and ``report``: a requirement is
+falsified), 2 bad input (scenario, problem, options, output folder), 3 the
+simulation diverged (for ``verify`` and ``report``: a simulation of the
+verification diverged and nothing was falsified).
 """
 
 from __future__ import annotations
@@ -51,14 +53,20 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument("--out", default=None, help="folder for analysis.json and the figures (Bode, Nyquist, "
                                                  "margins and eigenvalues against the gains)")
     ana.set_defaults(func=_cmd_analyse)
-    rep = sub.add_parser("report", help="the verification report of a scenario: report.md, report.html, "
-                                        "report.json and the figures")
-    rep.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
-    rep.add_argument("--out", default=None, help="output folder (default: reports/<scenario>)")
-    rep.add_argument("--quick", action="store_true", help="smaller budgets (structural samples, fuzzing, "
-                                                          "campaign, stiffness grid): under 20 s")
+    rep = sub.add_parser("report", help="the verification report of a scenario or of any verification problem: "
+                                        "report.md, report.html, report.json, the figures and the counterexamples")
+    rep.add_argument("--scenario", default=None, help="built-in scenario name or path to a TOML file (default: "
+                                                      "paper); with --problem paper: the scenario verified")
+    rep.add_argument("--problem", default=None, metavar="SPEC",
+                     help="report a verification problem instead: paper, package.module:OBJECT or "
+                          "path/to/file.py:OBJECT (the verification and the structural checks only)")
+    rep.add_argument("--out", default=None, help="output folder (default: reports/<scenario or problem>)")
+    rep.add_argument("--quick", action="store_true", help="smaller budgets (verification, structural samples, "
+                                                          "fuzzing, campaign, stiffness grid): about a minute")
     rep.add_argument("--seed", type=non_negative_int, default=0, help="seed of every random study (default: 0)")
-    rep.add_argument("--json", action="store_true", help="print report.json's claims summary as JSON")
+    rep.add_argument("--budget", type=positive_int, default=None,
+                     help="simulations of the verification (default: 120, with --quick 16)")
+    rep.add_argument("--json", action="store_true", help="print report.json's verdict and claims summary as JSON")
     rep.set_defaults(func=_cmd_report)
     chk = sub.add_parser("check-model", help="structural checks of the supervisor automaton (hybrid.check)")
     chk.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
@@ -79,35 +87,89 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 
+def _build_problem_report(args: argparse.Namespace, options: Any, progress: Any) -> Any:
+    """``visnav report --problem SPEC``: load the problem and build its generic report."""
+    from visnav.app.cli_verify import load_verification_problem
+    from visnav.app.files import prepare_output_dir
+    from visnav.app.verification_report import build_problem_report
+
+    loading = {} if args.scenario is None else {"scenario": args.scenario}
+    problem = load_verification_problem(args.problem, loading, None)
+    folder = prepare_output_dir(args.out or f"reports/{problem.name}")
+    report = build_problem_report(problem, spec=args.problem, options=loading, seed=options.seed,
+                                  budget=options.verify_budget, quick=options.quick, progress=progress)
+    return report, folder, problem.name
+
+
+def _verdict_lines(rows: list[dict[str, Any]], folder: Any, most: int = 10) -> list[str]:
+    """One line per requirement; beyond ``most`` the ones not falsified are counted, not listed."""
+    shown = rows if len(rows) <= most else [r for r in rows if r["verdict"] != "not_falsified"]
+    lines = [f"  {r['verdict']:<14} {r['name']}" + (f"  replay: visnav replay {folder / r['counterexample_file']}"
+                                                   if r["counterexample_file"] else "") for r in shown]
+    if len(shown) < len(rows):
+        lines.append(f"  not_falsified  {len(rows) - len(shown)} other requirement(s) (report.md has the table)")
+    return lines
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     import time
+
+    from analysis.falsification import FalsificationError, SimulationFailed
+    from analysis.loading import ProblemLoadError
+    from analysis.verdicts import EXIT_CODES
+    from hybrid.errors import ParameterError
 
     from visnav.app.files import prepare_output_dir
     from visnav.app.report import ReportOptions, build_report
     from visnav.app.report_files import write_report
+    from visnav.app.verification_report import VERDICT_LABELS
     from visnav.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario)
-    folder = prepare_output_dir(args.out or f"reports/{scenario.name}")
     def show(name: str) -> None:
         print(f"visnav report: {name} ...", file=sys.stderr, flush=True)
 
     progress = show if sys.stderr.isatty() else None
+    options = ReportOptions.for_mode(quick=args.quick, seed=args.seed, verify_budget=args.budget)
     start = time.perf_counter()
-    report = build_report(scenario, ReportOptions.for_mode(quick=args.quick, seed=args.seed), progress=progress)
+    try:
+        if args.problem is not None:
+            report, folder, subject = _build_problem_report(args, options, progress)
+        else:
+            scenario = load_scenario(args.scenario or "paper")
+            folder = prepare_output_dir(args.out or f"reports/{scenario.name}")
+            report = build_report(scenario, options, progress=progress, source=args.scenario or "paper")
+            subject = scenario.name
+    except ProblemLoadError as error:
+        if error.user_traceback:
+            print(error.user_traceback.rstrip(), file=sys.stderr)
+        print(f"visnav: error: {error.render()}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except SimulationFailed as error:
+        print(f"{error.traceback.rstrip()}\nvisnav: error: {error}\nyour simulator raised (your code's traceback "
+              "above)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except ParameterError as error:  # FalsificationError, or a problem the user built wrongly
+        if args.problem is None and not isinstance(error, FalsificationError):
+            raise  # the scenario's own studies: not the user's input
+        print(f"visnav: error: {error.render()}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     written = write_report(report, folder)
     elapsed = time.perf_counter() - start
-    counts = report.data["claim_counts"]
+    counts, verdict = report.data["claim_counts"], report.data["verdict"]
+    code = EXIT_CODES[verdict]
     if args.json:
-        print(json.dumps({"scenario": scenario.name, "out": str(folder), "claim_counts": counts,
-                          "files": [str(p) for p in written]}, sort_keys=True))
+        print(json.dumps({"problem" if args.problem is not None else "scenario": subject, "out": str(folder),
+                          "verdict": verdict, "exit_code": code,
+                          "claim_counts": counts, "files": [str(p) for p in written]}, sort_keys=True))
     else:
-        lines = [f"visnav report {scenario.name}{' (quick)' if args.quick else ''}: {counts['proven']} proven, "
-                 f"{counts['measured']} measured, {counts['sampled']} sampled claims in {elapsed:.1f} s"]
+        lines = [f"visnav report {subject}{' (quick)' if args.quick else ''}: {VERDICT_LABELS[verdict]}; "
+                 f"{counts['proven']} proven, {counts['measured']} measured, {counts['sampled']} sampled claims in "
+                 f"{elapsed:.1f} s"]
+        lines += _verdict_lines(report.data["verification"]["requirements"], folder)
         lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
         lines += [f"  wrote {p}" for p in written]
         print("\n".join(lines))
-    return EXIT_OK
+    return code
 
 
 def _summary(result: Any, digest: str) -> dict[str, Any]:

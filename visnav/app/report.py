@@ -1,35 +1,48 @@
-"""The verification report of a scenario: what was simulated, proven, measured and sampled.
+"""The verification report of a scenario: what was verified, simulated, proven, measured and sampled.
 
 :func:`build_report` runs every study on one scenario and returns a
 :class:`Report`: a JSON-ready dictionary (byte-identical for the same
 scenario, options and dependency versions: no wall-clock time, no absolute
-path, no date) and the figures as matplotlib figures.  Rendering to
+path, no date), the figures as matplotlib figures and the counterexample
+files.  The first section is the verification of the scenario's requirements
+(:func:`visnav.verification.paper_problem`, the generic section of
+:mod:`visnav.app.verification_report`): ``report.json``'s top-level
+``verdict`` is its overall verdict.  Then come the case study's own sections
+(model, simulation, analysis, stiffness, fuzzing, campaign).  Rendering to
 Markdown and self-contained HTML is :mod:`visnav.app.report_render`; writing the
-files is the CLI's job.
+files is :mod:`visnav.app.report_files`.
 
 Every claim of the report is a :class:`Claim` marked
 
 * ``proven`` — a sound certificate or an exact symbolic identity,
   re-checkable from the report;
 * ``measured`` — a number computed by deterministic numerics on the model
-  (a simulation, eigenvalues, margins, errors against a reference);
+  (a simulation, eigenvalues, margins, errors against a reference, a
+  counterexample to a requirement);
 * ``sampled`` — a statement that generalises from samples and can miss
-  cases (structural checks by sampling, fuzzing, Monte-Carlo campaigns,
-  entry angles from one run).
+  cases (a requirement not falsified, structural checks by sampling,
+  fuzzing, Monte-Carlo campaigns, entry angles from one run).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import platform
 import tomllib
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from importlib import metadata
+from dataclasses import dataclass
 from typing import Any
 
-from hybrid.jsonable import to_jsonable
+from visnav.app.verification_report import (
+    CLAIM_STATUSES,
+    DEPENDENCIES,
+    VERIFY_BUDGET,
+    VERIFY_BUDGET_QUICK,
+    Claim,
+    Report,
+    Section,
+    dependency_versions,
+)
 from visnav.parameters import Scenario
 
 __all__ = [
@@ -43,13 +56,6 @@ __all__ = [
     "automaton_digest",
     "dependency_versions",
 ]
-
-CLAIM_STATUSES = ("proven", "measured", "sampled")
-"""How a claim was obtained, strongest first."""
-
-DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx", "matplotlib", "dask",
-                "distributed")
-"""Packages whose versions the report records."""
 
 PAPER_PUBLISHED = {
     "task_achieved": True,
@@ -65,40 +71,17 @@ Progress = Callable[[str], None]
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
-class Claim:
-    """One statement of the report and how it was obtained.
-
-    Attributes
-    ----------
-    text : str
-    status : {"proven", "measured", "sampled"}
-    section : str
-        The report section that supports it.
-    """
-
-    text: str
-    status: str
-    section: str
-
-    def __post_init__(self) -> None:
-        if self.status not in CLAIM_STATUSES:
-            raise ValueError(f"Claim.status = {self.status!r}; expected one of {', '.join(CLAIM_STATUSES)}")
-
-    def as_dict(self) -> dict[str, str]:
-        """JSON-ready view."""
-        return {"section": self.section, "status": self.status, "text": self.text}
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
 class ReportOptions:
     """What the report runs, and how much.
 
     Attributes
     ----------
     quick : bool
-        Smaller budgets everywhere (the ``--quick`` report, < 20 s).
+        Smaller budgets everywhere (the ``--quick`` report, about a minute).
     seed : int
-        Seed of every random study (structural sampling, fuzzing, campaign).
+        Seed of every random study (verification search, structural sampling, fuzzing, campaign).
+    verify_budget : int
+        Simulations of the verification of the scenario's requirements.
     check_samples : int
         Samples per mode of the structural checks.
     fuzz_examples : int
@@ -109,63 +92,26 @@ class ReportOptions:
 
     quick: bool = False
     seed: int = 0
+    verify_budget: int = VERIFY_BUDGET
     check_samples: int = 300
     fuzz_examples: int = 60
     campaign_samples: int = 40
 
     @classmethod
-    def for_mode(cls, *, quick: bool, seed: int = 0) -> ReportOptions:
-        """The full or the quick budgets."""
+    def for_mode(cls, *, quick: bool, seed: int = 0, verify_budget: int | None = None) -> ReportOptions:
+        """The full or the quick budgets (``verify_budget`` overrides the mode's)."""
         if quick:
-            return cls(quick=True, seed=seed, check_samples=40, fuzz_examples=10, campaign_samples=6)
-        return cls(quick=False, seed=seed)
+            return cls(quick=True, seed=seed, verify_budget=verify_budget or VERIFY_BUDGET_QUICK, check_samples=40,
+                       fuzz_examples=10, campaign_samples=6)
+        return cls(quick=False, seed=seed, verify_budget=verify_budget or VERIFY_BUDGET)
 
     def __post_init__(self) -> None:
-        for name in ("check_samples", "fuzz_examples", "campaign_samples"):
+        for name in ("verify_budget", "check_samples", "fuzz_examples", "campaign_samples"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"ReportOptions.{name} = {value!r}; expected a whole number >= 1")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"ReportOptions.seed = {self.seed!r}; expected a whole number >= 0")
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Report:
-    """A built report.
-
-    Attributes
-    ----------
-    data : dict
-        JSON-ready content (what ``report.json`` holds), deterministic.
-    figures : dict of str to matplotlib Figure
-        Keyed by file stem; ``data`` refers to them by stem.
-    timings_s : dict of str to float
-        Wall time per section [s] (not part of ``data``: not reproducible).
-    """
-
-    data: dict[str, Any]
-    figures: dict[str, Any] = field(default_factory=dict)
-    timings_s: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def claims(self) -> tuple[Claim, ...]:
-        """Every claim, in section order."""
-        return tuple(Claim(**c) for c in self.data["claims"])
-
-
-def dependency_versions() -> dict[str, str]:
-    """Installed versions of :data:`DEPENDENCIES` and of Python (``"not installed"`` when absent)."""
-    out = {"python": platform.python_version()}
-    for name in DEPENDENCIES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "not installed"
-    try:
-        out["visnav"] = metadata.version("visnav")
-    except metadata.PackageNotFoundError:
-        out["visnav"] = "not installed"
-    return out
 
 
 def automaton_digest(scenario: Scenario) -> str:
@@ -186,6 +132,7 @@ def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str
     from hybrid import check
 
     from visnav.app.figures import mode_graph_figure
+    from visnav.app.verification_report import findings_summary
     from visnav.scenario import scenario_to_toml
     from visnav.supervisor import build_supervisor, measurement_box, measurement_system
 
@@ -194,6 +141,7 @@ def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str
     report = check(measurement_system(model), measurement_box(model, scenario.camera.half_width_px),
                    samples=options.check_samples, starts=8 if not options.quick else 2, seed=options.seed)
     checks = report.as_dict()
+    checks["summary"] = findings_summary(checks["findings"])
     data = {
         "parameters": tomllib.loads(scenario_to_toml(scenario)),
         "automaton": {
@@ -389,6 +337,18 @@ def _campaign_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
     return data, claims, {}
 
 
+def _verification_section(scenario: Scenario, options: ReportOptions, source: str) -> Section:
+    """The generic verification section of the scenario's problem (:func:`visnav.verification.paper_problem`)."""
+    from analysis.verdicts import verify
+
+    from visnav.app.verification_report import verification_section
+    from visnav.verification import paper_problem
+
+    problem = paper_problem(scenario)
+    result = verify(problem, budget=options.verify_budget, seed=options.seed)
+    return verification_section(problem, result, spec="paper", options={"scenario": source})
+
+
 _SECTIONS: tuple[tuple[str, Callable[..., tuple[dict[str, Any], list[Claim], dict]]], ...] = (
     ("model", _model_section),
     ("simulation", _simulation_section),
@@ -397,11 +357,12 @@ _SECTIONS: tuple[tuple[str, Callable[..., tuple[dict[str, Any], list[Claim], dic
     ("fuzzing", _fuzzing_section),
     ("campaign", _campaign_section),
 )
+"""The case study's own sections, after the verification."""
 
 
 def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
-                 progress: Progress | None = None) -> Report:
-    """Run every study on ``scenario`` and assemble the report.
+                 progress: Progress | None = None, source: str | None = None) -> Report:
+    """Verify ``scenario``'s requirements, run every study on it and assemble the report.
 
     Parameters
     ----------
@@ -410,43 +371,46 @@ def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
         Default: the full report with seed 0.
     progress : callable, optional
         Called with the name of each section as it starts (for a progress display).
+    source : str, optional
+        How the scenario was named (built-in name or TOML path; default its name): written into the
+        counterexample files (``visnav replay`` loads it) and the regeneration command.
 
     Returns
     -------
     Report
     """
+    import functools
     import time
 
+    from visnav.app.verification_report import assemble_report, report_command
     from visnav.scenario import scenario_digest
 
     options = options or ReportOptions()
-    data: dict[str, Any] = {
-        "meta": {
-            "tool": "visnav report",
-            "scenario": scenario.name,
-            "scenario_digest": scenario_digest(scenario),
-            "quick": options.quick,
-            "seeds": {"report": options.seed},
-            "budgets": {"check_samples": options.check_samples, "fuzz_examples": options.fuzz_examples,
-                        "campaign_samples": options.campaign_samples},
-            "versions": dependency_versions(),
-        },
-        "sections": [],
-    }
-    figures: dict[str, Any] = {}
-    claims: list[Claim] = []
+    source = source or scenario.name
+    sections: list[tuple[str, Section]] = []
     timings: dict[str, float] = {}
-    for name, build in _SECTIONS:
+    verification = functools.partial(_verification_section, source=source)
+    for name, build in (("verification", verification), *_SECTIONS):
         if progress is not None:
             progress(name)
         start = time.perf_counter()
-        section, section_claims, section_figures = build(scenario, options)
+        built = build(scenario, options)
+        if not isinstance(built, Section):
+            data, claims, figures = built
+            built = Section(data=data, claims=tuple(claims), figures=figures)
+        sections.append((name, built))
         timings[name] = time.perf_counter() - start
-        data[name] = section
-        data["sections"].append(name)
-        claims += section_claims
-        figures.update(section_figures)
-    data["meta"]["automaton_digest"] = data["model"]["automaton"]["digest"]  # computed once, by the model section
-    data["claims"] = [c.as_dict() for c in claims]
-    data["claim_counts"] = {s: sum(c.status == s for c in claims) for s in CLAIM_STATUSES}
-    return Report(data=to_jsonable(data), figures=figures, timings_s=timings)
+    meta = {
+        "tool": "visnav report",
+        "scenario": scenario.name,
+        "scenario_digest": scenario_digest(scenario),
+        "automaton_digest": sections[1][1].data["automaton"]["digest"],  # computed once, by the model section
+        "quick": options.quick,
+        "seeds": {"report": options.seed},
+        "budgets": {"verify_budget": options.verify_budget, "check_samples": options.check_samples,
+                    "fuzz_examples": options.fuzz_examples, "campaign_samples": options.campaign_samples},
+        "command": report_command(f"--scenario {source}", quick=options.quick, seed=options.seed,
+                                  budget=options.verify_budget),
+        "versions": dependency_versions(),
+    }
+    return assemble_report(meta, sections, timings)

@@ -3,18 +3,25 @@
 Both renderers consume the same list of blocks built by :func:`report_blocks`
 from ``report.json``'s content, so the two documents say the same things.
 The HTML embeds every figure as a base64 PNG ``data:`` URI and carries no
-script: it renders offline, in any browser, with nothing to fetch.
+script: it renders offline, in any browser, with nothing to fetch.  Long
+lists (every structural finding) go into a ``details`` block: collapsed in
+both documents (``<details>`` is an HTML block GitHub renders in Markdown too).
+Text may hold `code` spans and relative ``[text](path)`` links (the
+counterexample files).
 """
 
 from __future__ import annotations
 
 import base64
 import html
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Block", "report_blocks", "render_markdown", "render_html", "SECTION_RENDERERS"]
+from visnav.app.verification_report import VERDICT_LABELS
+
+__all__ = ["Block", "report_blocks", "findings_blocks", "render_markdown", "render_html", "SECTION_RENDERERS"]
 
 _BADGE = {"proven": "PROVEN", "measured": "MEASURED", "sampled": "SAMPLED"}
 
@@ -24,8 +31,9 @@ class Block:
     """One element of the document.
 
     ``kind`` is ``"h1"``, ``"h2"``, ``"h3"``, ``"p"``, ``"table"`` (``content`` =
-    ``(header, rows)``), ``"figure"`` (``content`` = ``(stem, caption)``) or
-    ``"claims"`` (``content`` = list of claim dicts).
+    ``(header, rows)``), ``"figure"`` (``content`` = ``(stem, caption)``),
+    ``"claims"`` (``content`` = list of claim dicts) or ``"details"``
+    (``content`` = ``(summary, blocks)``: the blocks collapsed under a one-line summary).
     """
 
     kind: str
@@ -70,15 +78,135 @@ def _model_blocks(data: dict[str, Any]) -> list[Block]:
     blocks.append(Block("figure", ("mode_graph", "Mode graph of the supervisor automaton")))
     checks = model["structural_checks"]
     blocks.append(Block("h3", "Structural checks (hybrid.check)"))
-    findings = checks.get("findings", [])
-    blocks.append(Block("p", ("Clean: no unreachable or sink mode, no non-determinism, no deadlock, no reset "
-                              "outside an invariant or re-triggering its guard." if checks["clean"] else
-                              f"{len(findings)} finding(s):")))
-    if findings:
-        blocks.append(Block("table", (["severity", "kind", "modes / transitions", "message"],
-                                      [[f["severity"], f["kind"], _fmt(f["modes"] + f["transitions"]),
-                                        f["message"]] for f in findings])))
+    if checks["clean"] and not checks.get("findings"):
+        blocks.append(Block("p", "Clean: no unreachable or sink mode, no non-determinism, no deadlock, no reset "
+                                 "outside an invariant or re-triggering its guard."))
+    else:
+        blocks += findings_blocks(checks["findings"], checks["summary"], clean=checks["clean"])
     blocks.append(Block("claims", _claims_of(data, "model")))
+    return blocks
+
+
+def _finding_row(f: dict[str, Any]) -> list[str]:
+    return [f["severity"], f["kind"], _fmt(list(f.get("modes") or []) + list(f.get("transitions") or [])),
+            f["message"]]
+
+
+def findings_blocks(findings: list[dict[str, Any]], summary: dict[str, Any], *, clean: bool) -> list[Block]:
+    """Structural findings: the counts, the worst few, and the full list collapsed in a ``details`` block.
+
+    ``summary`` is :func:`visnav.app.verification_report.findings_summary` of ``findings``.
+    """
+    sev = summary["by_severity"]
+    blocks = [Block("p", (("Clean (no error, no warning). " if clean else "NOT clean. ")
+                          + f"{summary['total']} finding(s): {sev['error']} error(s), {sev['warning']} warning(s), "
+                          f"{sev['info']} info(s)."))]
+    if not findings:
+        return blocks
+    blocks.append(Block("table", (["severity", "kind", "findings"],
+                                  [[r["severity"], r["kind"], _fmt(r["count"])] for r in summary["by_kind"]])))
+    header = ["severity", "kind", "modes / transitions", "message"]
+    worst = summary["worst"]
+    if len(worst) < len(findings):
+        blocks.append(Block("p", f"The first {len(worst)}, most severe first:"))
+    blocks.append(Block("table", (header, [_finding_row(f) for f in worst])))
+    if len(worst) < len(findings):
+        blocks.append(Block("details", (f"All {len(findings)} findings",
+                                        [Block("table", (header, [_finding_row(f) for f in findings]))])))
+    return blocks
+
+
+def _rho(value: Any) -> str:
+    """A robustness: ``+∞``/``−∞`` for the JSON strings ``"inf"``/``"-inf"``, ``0`` for ``-0.0``."""
+    if isinstance(value, str):
+        return {"inf": "+∞", "-inf": "−∞"}.get(value, value)
+    return _fmt(value + 0.0 if isinstance(value, float) else value)
+
+
+def _verdict_sentence(ver: dict[str, Any]) -> str:
+    counts = {v: sum(r["verdict"] == v for r in ver["requirements"]) for v in ("proven", "falsified",
+                                                                               "not_falsified")}
+    parts = [f"{n} {VERDICT_LABELS[v].lower()}" for v, n in counts.items() if n]
+    text = (f"Overall verdict: {VERDICT_LABELS[ver['verdict']]} (exit code {ver['exit_code']}) — "
+            f"{len(ver['requirements'])} requirement(s): {', '.join(parts)}; {ver['simulations']} simulation(s) "
+            f"of a budget of {ver['budget']} (method {ver['method']}, seed {ver['seed']}).")
+    if ver["invalid"]:
+        text += (f" {ver['invalid']} point(s) outside the problem's hypotheses skipped ("
+                 + "; ".join(ver["invalid_reasons"][:2]) + ").")
+    if ver["diverged"]:
+        first = ver["diverged"][0]
+        text += f" {len(ver['diverged'])} simulation(s) diverged; first: {first['status']}: {first['detail']}."
+    return text
+
+
+def _verification_table(ver: dict[str, Any]) -> Block:
+    rows = []
+    for r in ver["requirements"]:
+        file = r["counterexample_file"]
+        rows.append([r["name"], VERDICT_LABELS[r["verdict"]], _rho(r["robustness"]), _rho(r["nominal_robustness"]),
+                     r["evidence"], f"[{file}]({file})" if file else "—"])
+    return Block("table", (["requirement", "verdict", "robustness (lowest)", "nominal", "evidence",
+                            "counterexample"], rows))
+
+
+def _verification_figures(ver: dict[str, Any]) -> list[Block]:
+    blocks = []
+    pages = ver["nominal"]["figures"]
+    figures = [Block("figure", (page["stem"], "Nominal run" + (f" (requirements {page['first']}–{page['last']})"
+                                                               if len(pages) > 1 else "")
+                                + ": what each requirement compares, dashed thresholds, modes shaded, the deciding "
+                                  "instant dotted")) for page in pages]
+    blocks += figures[:1]
+    if len(figures) > 1:  # the first page visible, the others collapsed
+        blocks.append(Block("details", (f"Nominal run: requirements {pages[1]['first']}–{pages[-1]['last']}",
+                                        figures[1:])))
+    for r in ver["requirements"]:
+        if r["figure"]:
+            cx = r["counterexample"]
+            blocks.append(Block("figure", (r["figure"], f"Counterexample to {r['name']}: violated at t = "
+                                           f"{_fmt(cx['time'])} s (red) by {cx['atom'].strip()}")))
+    if ver["robustness_figure"]:
+        blocks.append(Block("figure", (ver["robustness_figure"], "Lowest robustness against the simulations "
+                                       "(below 0: violated)")))
+    return blocks
+
+
+def _verification_blocks(data: dict[str, Any]) -> list[Block]:
+    ver = data["verification"]
+    blocks = [Block("h2", f"Verification of `{ver['problem']}`"),
+              Block("p", _verdict_sentence(ver)),
+              _verification_table(ver)]
+    replay = [r["counterexample_file"] for r in ver["requirements"] if r["counterexample_file"]]
+    if replay:
+        blocks.append(Block("p", "Re-run a counterexample with `visnav replay FILE` (files next to this report: "
+                                 + ", ".join(f"[{f}]({f})" for f in replay) + ")."))
+    blocks.append(Block("table", (["requirement", "formula", "meaning"],
+                                  [[r["name"], f"`{' '.join(r['formula'].split())}`", r["description"]]
+                                   for r in ver["requirements"]])))
+    box = ver["parameters"]
+    desc = (ver["description"] + ". ") if ver["description"] else ""
+    blocks.append(Block("p", f"{desc}Horizon {_fmt(ver['horizon_s'])} s; box of {len(box)} parameter(s) "
+                             f"(source `{ver['source']}`). Coverage: per parameter, the share of ten equal bins a "
+                             "simulated point fell in; a row's coverage is the smallest share."))
+    if box:
+        table = Block("table", (["parameter", "low", "nominal", "high", "unit", "distribution", "seen",
+                                 "bins hit"],
+                                [[p["name"], _fmt(p["low"]), _fmt(p["nominal"]), _fmt(p["high"]), p["unit"] or "",
+                                  p["distribution"], f"{_fmt(p['low_seen'])} … {_fmt(p['high_seen'])}",
+                                  f"{p['bins_hit']:.0%}"] for p in box]))
+        blocks.append(table if len(box) <= 10 else Block("details", (f"The {len(box)} parameters", [table])))
+    blocks += _verification_figures(ver)
+    blocks.append(Block("claims", _claims_of(data, "verification")))
+    return blocks
+
+
+def _structure_blocks(data: dict[str, Any]) -> list[Block]:
+    st = data["structure"]
+    blocks = [Block("h2", f"Structural checks of `{st['automaton']}`")]
+    if st["checks"]:
+        blocks.append(Block("table", (["check", "status"], [[k, v] for k, v in st["checks"].items()])))
+    blocks += findings_blocks(st["findings"], st["summary"], clean=st["clean"])
+    blocks.append(Block("claims", _claims_of(data, "structure")))
     return blocks
 
 
@@ -196,6 +324,8 @@ def _campaign_blocks(data: dict[str, Any]) -> list[Block]:
 
 
 SECTION_RENDERERS: dict[str, Callable[[dict[str, Any]], list[Block]]] = {
+    "verification": _verification_blocks,
+    "structure": _structure_blocks,
     "model": _model_blocks,
     "simulation": _simulation_blocks,
     "analysis": _analysis_blocks,
@@ -206,20 +336,32 @@ SECTION_RENDERERS: dict[str, Callable[[dict[str, Any]], list[Block]]] = {
 """Block builders per section name (sections without one are listed by their claims only)."""
 
 
-def report_blocks(data: dict[str, Any]) -> list[Block]:
-    """The document as blocks: title, claim summary, each section, versions and seeds."""
-    meta = data["meta"]
+def _subject(meta: dict[str, Any]) -> str:
+    """What the report is about: ``scenario `paper``` or ``problem `name```."""
+    if "scenario" in meta:
+        return f"scenario `{meta['scenario']}`"
+    return f"problem `{meta['problem']}`"
+
+
+def _claims_intro(data: dict[str, Any]) -> Block:
     counts = data["claim_counts"]
-    blocks = [
-        Block("h1", f"Verification report — scenario `{meta['scenario']}`" + (" (quick)" if meta["quick"] else "")),
-        Block("p", ("Every claim is marked PROVEN (a sound certificate or an exact identity, re-checkable), "
-                    "MEASURED (deterministic numerics on the model) or SAMPLED (generalised from samples: it can "
-                    f"miss cases). This report: {counts['proven']} proven, {counts['measured']} measured, "
-                    f"{counts['sampled']} sampled.")),
-        Block("h2", "Claims"),
-        Block("claims", data["claims"]),
-    ]
-    for name in data["sections"]:
+    return Block("p", ("Every claim is marked PROVEN (a sound certificate or an exact identity, re-checkable), "
+                       "MEASURED (deterministic numerics on the model) or SAMPLED (generalised from samples: it "
+                       f"can miss cases). This report: {counts['proven']} proven, {counts['measured']} measured, "
+                       f"{counts['sampled']} sampled."))
+
+
+def report_blocks(data: dict[str, Any]) -> list[Block]:
+    """The document as blocks: title, the verification (verdict table first), every claim, the other sections,
+    versions and seeds."""
+    meta = data["meta"]
+    blocks = [Block("h1", f"Verification report — {_subject(meta)}" + (" (quick)" if meta["quick"] else ""))]
+    first = [name for name in data["sections"] if name == "verification"]
+    rest = [name for name in data["sections"] if name != "verification"]
+    for name in first:
+        blocks += SECTION_RENDERERS[name](data)
+    blocks += [Block("h2", "Claims"), _claims_intro(data), Block("claims", data["claims"])]
+    for name in rest:
         render = SECTION_RENDERERS.get(name)
         if render is None:
             blocks += [Block("h2", name.capitalize()), Block("claims", _claims_of(data, name))]
@@ -228,10 +370,9 @@ def report_blocks(data: dict[str, Any]) -> list[Block]:
     versions = meta["versions"]
     blocks += [
         Block("h2", "Reproducibility"),
-        Block("p", (f"Regenerate with `visnav report --scenario {meta['scenario']}"
-                    + (" --quick" if meta["quick"] else "") + f" --seed {meta['seeds']['report']}`. "
-                    "The same scenario, seed and dependency versions give a byte-identical report.json "
-                    "and report.md.")),
+        Block("p", (f"Regenerate with `{meta['command']}`. The same "
+                    + ("scenario" if "scenario" in meta else "problem") + ", seed, budgets and dependency versions "
+                    "give a byte-identical report.json and report.md.")),
         Block("table", (["seed", "value"], [[k, _fmt(v)] for k, v in meta["seeds"].items()]
                         + [[f"budget: {k}", _fmt(v)] for k, v in meta["budgets"].items()])),
         Block("table", (["package", "version"], [[k, v] for k, v in versions.items()])),
@@ -246,10 +387,9 @@ def _md_cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def render_markdown(data: dict[str, Any], figure_paths: dict[str, str]) -> str:
-    """Markdown text; figures link to ``figure_paths[stem]`` (relative paths)."""
+def _markdown_lines(blocks: list[Block], figure_paths: dict[str, str]) -> list[str]:
     out: list[str] = []
-    for block in report_blocks(data):
+    for block in blocks:
         if block.kind in ("h1", "h2", "h3"):
             out.append("#" * int(block.kind[1]) + " " + block.content)
         elif block.kind == "p":
@@ -264,8 +404,18 @@ def render_markdown(data: dict[str, Any], figure_paths: dict[str, str]) -> str:
             out.append(f"![{caption}]({figure_paths[stem]})")
         elif block.kind == "claims":
             out += [f"- **{_BADGE[c['status']]}** {c['text']}" for c in block.content] or ["(none)"]
+        elif block.kind == "details":  # an HTML block: GitHub renders the Markdown between the blank lines
+            summary, inner = block.content
+            out += ["<details>", f"<summary>{html.escape(summary)}</summary>", ""]
+            out += _markdown_lines(inner, figure_paths)
+            out.append("</details>")
         out.append("")
-    return "\n".join(out)
+    return out
+
+
+def render_markdown(data: dict[str, Any], figure_paths: dict[str, str]) -> str:
+    """Markdown text; figures link to ``figure_paths[stem]`` (relative paths)."""
+    return "\n".join(_markdown_lines(report_blocks(data), figure_paths))
 
 
 # --------------------------------------------------------------------------- HTML
@@ -282,19 +432,28 @@ figcaption { font-size: 0.9em; color: #555; }
 .proven { background: #1a7f37; } .measured { background: #0969da; } .sampled { background: #9a6700; }
 ul.claims { list-style: none; padding-left: 0; } ul.claims li { margin: 0.3em 0; }
 code { background: #f6f8fa; padding: 0 0.2em; }
+details { margin: 0.8em 0; } summary { cursor: pointer; color: #0969da; }
 """
 
 
+_LINK = re.compile(r"\[([^\[\]]+)\]\(([^()\s]+)\)")
+"""A Markdown link ``[text](relative/path)`` (no scheme: the report links only its own files)."""
+
+
+def _links(escaped: str) -> str:
+    return _LINK.sub(lambda m: f'<a href="{m.group(2)}">{m.group(1)}</a>' if ":" not in m.group(2) else m.group(0),
+                     escaped)
+
+
 def _inline(text: str) -> str:
-    """Escape, then turn `code` spans into <code>."""
+    """Escape, then turn `code` spans into <code> and [text](path) links into <a>."""
     parts = html.escape(text).split("`")
-    return "".join(f"<code>{p}</code>" if i % 2 else p for i, p in enumerate(parts))
+    return "".join(f"<code>{p}</code>" if i % 2 else _links(p) for i, p in enumerate(parts))
 
 
-def render_html(data: dict[str, Any], figure_png: dict[str, bytes]) -> str:
-    """Self-contained HTML: figures embedded as ``data:image/png;base64`` URIs, no script."""
+def _html_parts(blocks: list[Block], figure_png: dict[str, bytes]) -> list[str]:
     body: list[str] = []
-    for block in report_blocks(data):
+    for block in blocks:
         if block.kind in ("h1", "h2", "h3"):
             body.append(f"<{block.kind}>{_inline(block.content)}</{block.kind}>")
         elif block.kind == "p":
@@ -314,6 +473,17 @@ def render_html(data: dict[str, Any], figure_png: dict[str, bytes]) -> str:
             items = "".join(f'<li><span class="badge {c["status"]}">{_BADGE[c["status"]]}</span>'
                             f"{_inline(c['text'])}</li>" for c in block.content)
             body.append(f'<ul class="claims">{items}</ul>')
-    title = html.escape(f"visnav verification report — {data['meta']['scenario']}")
+        elif block.kind == "details":
+            summary, inner = block.content
+            body.append(f"<details><summary>{_inline(summary)}</summary>\n" + "\n".join(_html_parts(inner, figure_png))
+                        + "\n</details>")
+    return body
+
+
+def render_html(data: dict[str, Any], figure_png: dict[str, bytes]) -> str:
+    """Self-contained HTML: figures embedded as ``data:image/png;base64`` URIs, no script."""
+    body = _html_parts(report_blocks(data), figure_png)
+    meta = data["meta"]
+    title = html.escape(f"visnav verification report — {meta.get('scenario') or meta['problem']}")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{title}</title><style>{_CSS}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")

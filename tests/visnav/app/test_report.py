@@ -1,4 +1,4 @@
-"""`visnav report`: reproducible, self-contained, claims marked, bad input refused; the HTML in a browser."""
+"""`visnav report`: reproducible, self-contained, claims marked, verdict first, bad input refused; the HTML in a browser."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from analysis.verdicts import EXIT_CODES
 
 from visnav.app.cli import main
 from visnav.app.report import CLAIM_STATUSES, Claim, ReportOptions, build_report, dependency_versions
@@ -32,6 +34,17 @@ def _run_report(out: Path, *extra: str, hashseed: str = "7", blas_threads: str |
                           capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
 
 
+def _assert_exit_is_the_verdicts(done: subprocess.CompletedProcess, out: Path) -> None:
+    """The report exits with its verification's code: 0 proven / not falsified, 1 falsified, 3 diverged."""
+    assert (out / "report.json").is_file(), done.stderr
+    verdict = json.loads((out / "report.json").read_text())["verdict"]
+    assert done.returncode == EXIT_CODES[verdict], (verdict, done.stderr)
+
+
+def _counterexamples(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted((folder / "counterexamples").glob("*.json"))}
+
+
 @pytest.fixture(scope="module")
 def quick_dirs(tmp_path_factory):
     """The quick report written twice, by two processes with different string hashing and BLAS threads."""
@@ -39,7 +52,7 @@ def quick_dirs(tmp_path_factory):
     for seed, threads in (("1", "2"), ("2", None)):
         out = tmp_path_factory.mktemp(f"quick{seed}")
         done = _run_report(out, "--quick", hashseed=seed, blas_threads=threads)
-        assert done.returncode == 0, done.stderr
+        _assert_exit_is_the_verdicts(done, out)
         dirs.append(out)
     return dirs
 
@@ -49,6 +62,7 @@ def test_quick_report_is_byte_identical_across_processes(quick_dirs):
     a, b = quick_dirs
     for name in ("report.json", "report.md"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    assert _counterexamples(a) == _counterexamples(b)
     for png in sorted((a / "figures").glob("*.png")):
         if png.name != "stiffness_error_vs_time.png":  # plots measured wall-clock times
             assert png.read_bytes() == (b / "figures" / png.name).read_bytes(), png.name
@@ -57,7 +71,11 @@ def test_quick_report_is_byte_identical_across_processes(quick_dirs):
 def test_report_contents_and_claims(quick_dirs):
     out = quick_dirs[0]
     data = json.loads((out / "report.json").read_text())
-    assert data["sections"][:3] == ["model", "simulation", "analysis"]
+    assert data["sections"][:4] == ["verification", "model", "simulation", "analysis"]
+    assert data["verdict"] == data["verification"]["verdict"]
+    assert data["meta"]["budgets"]["verify_budget"] == ReportOptions.for_mode(quick=True).verify_budget
+    for row in data["verification"]["requirements"]:  # every counterexample linked is next to the report
+        assert row["counterexample_file"] is None or (out / row["counterexample_file"]).is_file()
     assert data["meta"]["versions"] == dependency_versions()
     assert len(data["meta"]["scenario_digest"]) == 64 and len(data["meta"]["automaton_digest"]) == 64
     statuses = {c["status"] for c in data["claims"]}
@@ -67,12 +85,18 @@ def test_report_contents_and_claims(quick_dirs):
     assert comparison["max_reconstruction_error_px"]["ours"] < comparison["max_reconstruction_error_px"]["paper"]
     # every figure the documents refer to exists, and the Markdown links them relatively
     md = (out / "report.md").read_text()
-    for stem in data["simulation"]["figures"] + data["analysis"]["figures"] + ["mode_graph"]:
+    assert md.index("## Verification of") < md.index("## Claims") < md.index("## Model")
+    for stem in (data["verification"]["figures"] + data["simulation"]["figures"] + data["analysis"]["figures"]
+                 + ["mode_graph"]):
         assert (out / "figures" / f"{stem}.png").is_file()
         assert f"(figures/{stem}.png)" in md
     html = (out / "report.html").read_text()
     assert html.count("data:image/png;base64,") == len(list((out / "figures").glob("*.png")))
     assert "<script" not in html and "http://" not in html and "https://" not in html
+    # the model's structural findings: counts and the worst few visible, the full list collapsed
+    findings = data["model"]["structural_checks"]["findings"]
+    if len(findings) > len(data["model"]["structural_checks"]["summary"]["worst"]):
+        assert f"<summary>All {len(findings)} findings</summary>" in html and "<details>" in md
 
 
 def test_committed_paper_report_regenerates(tmp_path):
@@ -84,11 +108,13 @@ def test_committed_paper_report_regenerates(tmp_path):
         pytest.skip(f"reports/paper was generated with other package versions {differ}: regenerate it with "
                     "`make demo` on this machine")
     done = _run_report(tmp_path)
-    assert done.returncode == 0, done.stderr
+    _assert_exit_is_the_verdicts(done, tmp_path)
     for name in ("report.json", "report.md"):
         assert (tmp_path / name).read_bytes() == (COMMITTED / name).read_bytes(), (
             f"{name} differs from reports/paper/{name}: the report changed; regenerate it with `make demo` and "
             "review the diff")
+    assert _counterexamples(tmp_path) == _counterexamples(COMMITTED), (
+        "reports/paper/counterexamples/ differs: regenerate it with `make demo` and review the diff")
 
 
 def test_claims_need_a_known_status():
@@ -96,6 +122,9 @@ def test_claims_need_a_known_status():
         Claim(text="x", status="likely", section="model")
     with pytest.raises(ValueError, match="check_samples = 0"):
         ReportOptions(check_samples=0)
+    with pytest.raises(ValueError, match="verify_budget = 0"):
+        ReportOptions(verify_budget=0)
+    assert ReportOptions.for_mode(quick=True, verify_budget=5).verify_budget == 5
 
 
 def test_markdown_escapes_table_pipes():

@@ -1,0 +1,220 @@
+"""The report of any verification problem: verdict table first, counterexample links, figures, collapsed lists.
+
+Small budgets throughout (the whole file runs in well under a minute).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import textwrap
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from analysis.loading import load_problem
+from hybrid.check import Finding
+
+from visnav.app.cli import main
+from visnav.app.report_files import report_json_text
+from visnav.app.report_render import Block, render_html, render_markdown
+from visnav.app.verification_report import (
+    VERDICT_LABELS,
+    WORST_FINDINGS,
+    build_problem_report,
+    findings_summary,
+)
+
+ROOT = Path(__file__).resolve().parents[3]
+THERMOSTAT = "examples/thermostat.py"
+BUDGET = 12
+
+USER_PROBLEM = '''
+"""A user's problem outside the repository: x' = -x from x0 in [0.5, 2]."""
+from analysis.problems import hybrid_problem
+from analysis.requirements import Requirement
+from analysis.verification import Parameter
+from hybrid import HybridAutomaton, HybridSystem, Mode, check
+
+automaton = HybridAutomaton(name="decay", modes=(Mode(name="flow"),), transitions=(), variables=("x",),
+                            initial_mode="flow")
+system = HybridSystem(automaton=automaton, state_names=("x",), flows={"flow": lambda t, x, m: (-x[0],)})
+problem = hybrid_problem(
+    name="decay", system=system, initial={"x": Parameter(name="x0", low=0.5, high=2.0, nominal=1.0)},
+    horizon=3.0, sample_period=0.1, structural=lambda: check(system),
+    requirements=(Requirement(name="positive", formula="always[0, 3] (x > 0)", description="x stays positive"),
+                  Requirement(name="bounded", formula="always[0, 3] (x <= 1.5)", description="x stays below 1.5")))
+'''
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """The reports built in-process keep their matplotlib figures open: close them after each test."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
+def _report(spec: str, budget: int = BUDGET):
+    problem = load_problem(str(ROOT / spec.split(":")[0]) + ":" + spec.split(":")[1])
+    return problem, build_problem_report(problem, spec=spec, seed=0, budget=budget, quick=True)
+
+
+def _documents(report) -> tuple[str, str]:
+    png = {stem: b"png" for stem in report.figures}
+    return (render_markdown(report.data, {stem: f"figures/{stem}.png" for stem in report.figures}),
+            render_html(report.data, png))
+
+
+@pytest.fixture(scope="module")
+def zero_band():
+    return _report(f"{THERMOSTAT}:zero_band")
+
+
+def test_not_falsified_problem_has_its_verdict_table_first():
+    problem, report = _report(f"{THERMOSTAT}:problem")
+    data = report.data
+    assert data["verdict"] == "not_falsified" and data["sections"] == ["verification", "structure"]
+    rows = data["verification"]["requirements"]
+    assert [r["name"] for r in rows] == list(problem.requirement_names)
+    assert all(r["verdict"] == "not_falsified" and r["counterexample_file"] is None for r in rows)
+    assert all(f"{BUDGET} simulations, lowest at" in r["evidence"] and "coverage" in r["evidence"] for r in rows)
+    assert report.files == {}
+    assert {"verification_nominal", "verification_robustness"} == set(report.figures)
+    md, _ = _documents(report)
+    body = md.split("\n## ", 2)
+    assert body[1].startswith("Verification of `thermostat-band-1`")  # the first section, before the claims
+    assert "Overall verdict: NOT FALSIFIED (exit code 0)" in md
+    assert "| comfort | NOT FALSIFIED |" in md
+    assert {c["status"] for c in data["claims"]} == {"sampled"}
+    assert data["structure"]["automaton"] == "thermostat" and data["structure"]["checks"]  # hybrid.check ran
+
+
+def test_falsified_problem_links_its_counterexample(zero_band):
+    problem, report = zero_band
+    data = report.data
+    assert data["verdict"] == "falsified" and data["verification"]["exit_code"] == 1
+    row = {r["name"]: r for r in data["verification"]["requirements"]}["min_dwell"]
+    assert row["verdict"] == "falsified" and row["counterexample_file"] == "counterexamples/min_dwell.json"
+    cx = row["counterexample"]
+    assert f"violated at t = {cx['time']:.4g} s by `{cx['atom'].strip()}`" in row["evidence"]
+    text = report.files["counterexamples/min_dwell.json"]
+    assert json.loads(text)["requirement"] == "min_dwell"
+    md, html = _documents(report)
+    assert "| min_dwell | FALSIFIED |" in md
+    assert "[counterexamples/min_dwell.json](counterexamples/min_dwell.json)" in md
+    assert '<a href="counterexamples/min_dwell.json">counterexamples/min_dwell.json</a>' in html
+    assert any(c["status"] == "measured" and "min_dwell FALSIFIED" in c["text"] for c in data["claims"])
+
+
+def test_counterexample_figure_marks_the_violation_instant(zero_band):
+    _, report = zero_band
+    cx = {r["name"]: r for r in report.data["verification"]["requirements"]}["min_dwell"]["counterexample"]
+    figure = report.figures["verification_counterexample_min_dwell"]
+    ax = figure.axes[0]
+    marks = [line for line in ax.get_lines() if str(line.get_label()).startswith("violated at t = ")]
+    assert len(marks) == 1 and marks[0].get_color() == "tab:red"
+    assert f"t = {cx['time']:.4g} s" in marks[0].get_label() and cx["atom"].strip() in marks[0].get_label()
+    # the nominal run marks where each requirement is decided, one panel per requirement
+    assert len(report.figures["verification_nominal"].axes) >= 2
+
+
+def test_same_seed_gives_identical_bytes(zero_band):
+    problem, first = zero_band
+    second = build_problem_report(problem, spec=f"{THERMOSTAT}:zero_band", seed=0, budget=BUDGET, quick=True)
+    assert report_json_text(first) == report_json_text(second)
+    assert _documents(first)[0] == _documents(second)[0]
+    assert first.files == second.files
+
+
+def test_cli_report_problem_exits_1_when_falsified(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    out = tmp_path / "tmp"
+    code = main(["report", "--problem", f"{THERMOSTAT}:zero_band", "--out", str(out), "--quick",
+                 "--budget", str(BUDGET), "--json"])
+    summary = json.loads(capsys.readouterr().out)
+    assert code == 1 and summary["verdict"] == "falsified" and summary["exit_code"] == 1
+    data = json.loads((out / "report.json").read_text())
+    assert data["verdict"] == "falsified"
+    assert (out / "counterexamples" / "min_dwell.json").is_file()
+    assert (out / "figures" / "verification_counterexample_min_dwell.png").is_file()
+    assert "visnav report --problem examples/thermostat.py:zero_band --quick --seed 0 --budget 12" in (
+        out / "report.md").read_text()
+    assert main(["replay", str(out / "counterexamples" / "min_dwell.json")]) == 1
+
+
+def test_user_problem_outside_the_repository_end_to_end(tmp_path, capsys):
+    (tmp_path / "decay_problem.py").write_text(USER_PROBLEM)
+    out = tmp_path / "report"
+    spec = f"{tmp_path / 'decay_problem.py'}:problem"
+    code = main(["report", "--problem", spec, "--out", str(out), "--budget", "30"])
+    printed = capsys.readouterr().out
+    assert code == 1, printed
+    data = json.loads((out / "report.json").read_text())
+    assert data["sections"] == ["verification", "structure"] and data["verdict"] == "falsified"
+    rows = {r["name"]: r for r in data["verification"]["requirements"]}
+    assert rows["positive"]["verdict"] == "not_falsified" and rows["bounded"]["verdict"] == "falsified"
+    assert data["structure"]["summary"]["by_kind"] == [{"severity": "warning", "kind": "sink_mode", "count": 1}]
+    md = (out / "report.md").read_text()
+    assert "## Structural checks of `decay`" in md and "| bounded | FALSIFIED |" in md
+    assert main(["replay", str(out / rows["bounded"]["counterexample_file"])]) == 1
+    # a second report into the same folder without the counterexample removes the stale file
+    (tmp_path / "fixed_problem.py").write_text(USER_PROBLEM.replace("x <= 1.5", "x <= 2.5"))
+    assert main(["report", "--problem", f"{tmp_path / 'fixed_problem.py'}:problem", "--out", str(out),
+                 "--budget", "8"]) == 0
+    assert not (out / "counterexamples" / "bounded.json").exists()
+
+
+def _many_findings_problem():
+    problem = load_problem(f"{ROOT / THERMOSTAT}:problem")
+    findings = [Finding(kind="zeno_candidate", severity="info", message=f"cycle {i} of the mode graph",
+                        modes=("off", "on"), transitions=("heat_on", "heat_off")) for i in range(40)]
+    findings.insert(17, Finding(kind="sink_mode", severity="warning", message="mode 'on' is a sink", modes=("on",)))
+    report = SimpleNamespace(automaton="thermostat", findings=tuple(findings))
+    return dataclasses.replace(problem, structural=lambda: report)
+
+
+def test_long_finding_lists_are_collapsed():
+    problem = _many_findings_problem()
+    report = build_problem_report(problem, spec="many", seed=0, budget=4, quick=True)
+    summary = report.data["structure"]["summary"]
+    assert summary["total"] == 41 and summary["by_severity"] == {"error": 0, "warning": 1, "info": 40}
+    assert summary["worst"][0]["kind"] == "sink_mode" and len(summary["worst"]) == WORST_FINDINGS
+    md, html = _documents(report)
+    assert "<details>" in html and "<summary>All 41 findings</summary>" in html
+    assert "<details>\n<summary>All 41 findings</summary>\n" in md
+    section = html[html.index("<h2>Structural checks of"):html.index("<h2>Reproducibility")]
+    visible = re.sub(r"<details>.*?</details>", "", section, flags=re.S)
+    assert visible.count("<table>") == 2  # the counts and the worst few
+    for table in re.findall(r"<table>.*?</table>", visible, flags=re.S):
+        assert table.count("<tr>") <= 11  # header + at most 10 rows outside the collapsed list
+    assert html.count("cycle 39 of the mode graph") == 1  # in the full list only
+
+
+def test_findings_summary_orders_by_severity():
+    findings = [{"kind": "zeno_point", "severity": "info", "message": "a"},
+                {"kind": "deadlock", "severity": "error", "message": "b"},
+                {"kind": "sink_mode", "severity": "warning", "message": "c"}]
+    summary = findings_summary(findings, worst=2)
+    assert [f["message"] for f in summary["worst"]] == ["b", "c"]
+    assert [r["kind"] for r in summary["by_kind"]] == ["deadlock", "sink_mode", "zeno_point"]
+
+
+def test_details_block_renders_in_both_documents():
+    from visnav.app import report_render
+
+    blocks = [Block("details", ("Three rows", [Block("table", (["a"], [["1"], ["2"], ["3"]]))]))]
+    md = "\n".join(report_render._markdown_lines(blocks, {}))
+    html = "\n".join(report_render._html_parts(blocks, {}))
+    assert md.startswith("<details>\n<summary>Three rows</summary>\n\n| a |") and md.rstrip().endswith("</details>")
+    assert html.startswith("<details><summary>Three rows</summary>") and html.endswith("</details>")
+    assert VERDICT_LABELS["not_falsified"] == "NOT FALSIFIED"
+
+
+def test_bad_problem_spec_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    assert main(["report", "--problem", "examples/no_such_file.py:problem", "--out", str(tmp_path / "x")]) == 2
+    assert "no_such_file.py" in capsys.readouterr().err
