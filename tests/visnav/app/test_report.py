@@ -102,13 +102,13 @@ def test_report_contents_and_claims(quick_dirs):
 def test_committed_paper_report_regenerates(tmp_path):
     """reports/paper is the output of the README's main job; regenerating it must give the same bytes."""
     committed = json.loads((COMMITTED / "report.json").read_text())
+    done = _run_report(tmp_path)  # the main job runs whatever the versions: it must complete
+    _assert_exit_is_the_verdicts(done, tmp_path)
     if committed["meta"]["versions"] != dependency_versions():
         differ = {k: (v, dependency_versions().get(k)) for k, v in committed["meta"]["versions"].items()
                   if dependency_versions().get(k) != v}
-        pytest.skip(f"reports/paper was generated with other package versions {differ}: regenerate it with "
-                    "`make demo` on this machine")
-    done = _run_report(tmp_path)
-    _assert_exit_is_the_verdicts(done, tmp_path)
+        pytest.skip(f"the report ran; its bytes are not compared: reports/paper was generated with other "
+                    f"package versions {differ}: regenerate it with `make demo` on this machine")
     for name in ("report.json", "report.md"):
         assert (tmp_path / name).read_bytes() == (COMMITTED / name).read_bytes(), (
             f"{name} differs from reports/paper/{name}: the report changed; regenerate it with `make demo` and "
