@@ -42,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.set_defaults(func=_cmd_simulate)
     graph = sub.add_parser("mode-graph", help="print the supervisor's mode graph (Graphviz DOT or JSON)")
     graph.add_argument("--scenario", default="paper")
+    graph.add_argument("--problem", default=None, metavar="SPEC",
+                       help="the automaton of a verification problem instead (PKG.MOD:OBJ or FILE.py:OBJ)")
     graph.add_argument("--format", choices=("dot", "json"), default="dot",
                        help="dot: Graphviz with guards and resets as labels; json: the automaton's description")
     graph.set_defaults(func=_cmd_mode_graph)
@@ -75,6 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--starts", type=positive_int, default=8, help="optimiser starts per question (default: 8)")
     chk.add_argument("--seed", type=int, default=0, help="seed of the sampling (default: 0)")
     chk.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    chk.add_argument("--problem", default=None, metavar="SPEC",
+                     help="check a verification problem's automaton instead (its own box; PKG.MOD:OBJ or FILE.py:OBJ)")
     chk.set_defaults(func=_cmd_check_model)
     from visnav.app.cli_sweep import add_parser as _add_sweep; _add_sweep(sub)
     from visnav.app.cli_stiffness import add_parser as _add_stiffness; _add_stiffness(sub)
@@ -248,18 +252,45 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK if summary["success"] else EXIT_TASK_FAILED
 
 
+def _user_problem(spec: str) -> Any:
+    """The verification problem ``spec`` names, or the exit code of a bad one (the message printed)."""
+    from hybrid.errors import ParameterError
+
+    from visnav.app.cli_verify import load_verification_problem
+
+    try:
+        return load_verification_problem(spec, {}, None)
+    except ParameterError as error:
+        trace = getattr(error, "user_traceback", "")
+        if trace:
+            print(trace.rstrip(), file=sys.stderr)
+        print(f"visnav: error: {error.render()}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
 def _cmd_mode_graph(args: argparse.Namespace) -> int:
     from hybrid import to_dot, to_json
 
     from visnav.scenario import load_scenario
     from visnav.supervisor import build_supervisor
 
-    scenario = load_scenario(args.scenario)
-    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
-    if args.format == "json":
-        print(json.dumps(to_json(model.automaton), sort_keys=True, indent=2))
+    if args.problem is not None:
+        problem = _user_problem(args.problem)
+        if isinstance(problem, int):
+            return problem
+        automaton = problem.automaton
+        if automaton is None:
+            print(f"visnav: error: problem {problem.name!r} declares no automaton (VerificationProblem.automaton); "
+                  "build it with analysis.problems.hybrid_problem or sampled_problem, or set automaton=",
+                  file=sys.stderr)
+            return EXIT_BAD_INPUT
     else:
-        print(to_dot(model.automaton), end="")
+        scenario = load_scenario(args.scenario)
+        automaton = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles)).automaton
+    if args.format == "json":
+        print(json.dumps(to_json(automaton), sort_keys=True, indent=2))
+    else:
+        print(to_dot(automaton), end="")
     return EXIT_OK
 
 
@@ -383,6 +414,26 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _check_problem(args: argparse.Namespace) -> int:
+    import time
+
+    problem = _user_problem(args.problem)
+    if isinstance(problem, int):
+        return problem
+    if problem.structural is None:
+        print(f"visnav: error: problem {problem.name!r} has no structural checks (VerificationProblem.structural); "
+              "give hybrid_problem(..., check_box=Box(...)) or structural=...", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    start = time.perf_counter()
+    report = problem.structural()
+    elapsed = time.perf_counter() - start
+    if args.json:
+        print(json.dumps({"problem": problem.name, "clean": report.clean, **report.as_dict()}, sort_keys=True))
+    else:
+        print(_check_human(report, problem.name, elapsed))
+    return EXIT_OK if report.clean else EXIT_TASK_FAILED
+
+
 def _cmd_check_model(args: argparse.Namespace) -> int:
     import time
 
@@ -391,6 +442,8 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
     from visnav.scenario import load_scenario, scenario_digest
     from visnav.supervisor import build_supervisor, measurement_box, measurement_system
 
+    if args.problem is not None:
+        return _check_problem(args)
     scenario = load_scenario(args.scenario)
     model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
     start = time.perf_counter()
