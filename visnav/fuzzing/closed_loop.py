@@ -3,31 +3,40 @@
 :func:`simulate_variant` runs a scenario around a variant
 (:class:`VariantLoop`, through :func:`hybrid.simulate_sampled`), measures the
 largest control jump at a switch and classifies the end of the run
-(:func:`classify_outcome`, one of :data:`OUTCOMES`).  The properties on these
-runs are in :mod:`visnav.fuzzing.scenario_properties`.
+(:func:`classify_outcome`, one of :data:`OUTCOMES`).  The variant is a
+supervisor of :data:`visnav.fuzzing.variants.VARIANTS` or a closed-loop mutant
+of :data:`visnav.fuzzing.loop_mutants.LOOP_MUTANTS` (the resolved supervisor
+with a mutated estimator or blend).  A :class:`BlendMonitor` passed to it
+compares the applied control at every sample with eqs. (18)–(19) recomputed
+from the recorded µ.  The properties on these runs are in
+:mod:`visnav.fuzzing.scenario_properties` and :mod:`visnav.fuzzing.properties`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
 from hybrid import Plant, SampledTrace, simulate_sampled
+from hybrid.errors import NumericalFailure
 
 from visnav.closed_loop import ClosedLoop, LoopState, robot_plant
+from visnav.fuzzing.loop_mutants import LOOP_MUTANTS, LoopMutant, PureControls, loop_mutant, resolved_blend
 from visnav.fuzzing.mutants import RESOLVED, SupervisorVariant
 from visnav.fuzzing.variants import make_variant
+from visnav.geometry import ImageMeasurement
 from visnav.parameters import Scenario
 from visnav.simulation import RUN_OUTCOMES, TARGET_LOST_WINDOW_S, Metrics, classify_run, compute_metrics
-from visnav.supervisor import I_NEAREST, I_PAN, I_SIDE
+from visnav.supervisor import I_PAN
 
 __all__ = [
     "OUTCOMES",
     "TARGET_LOST_WINDOW_S",
     "VariantLoop",
     "ScenarioRun",
+    "BlendMonitor",
     "classify_outcome",
     "simulate_variant",
 ]
@@ -42,18 +51,49 @@ classify_outcome = classify_run
 class VariantLoop(ClosedLoop):
     """The paper's closed loop around a supervisor variant instead of the resolved automaton.
 
-    The measurement stage passes ϑ unwrapped when the variant says so; a
+    The measurement stage passes ϑ unwrapped when the variant says so; the
+    controllers read the memory through the variant's
+    :meth:`~visnav.fuzzing.mutants.SupervisorVariant.controller_memory` (a
     variant that does not latch the avoided obstacle is given the nearest one
-    and the current bypass side (as the paper reads them at every sample);
+    and the current bypass side, as the paper reads them at every sample);
     success needs the variant's initial mode (no risk flag) instead of
-    ``FAR|CLEAR``.
+    ``FAR|CLEAR``.  With a :class:`~visnav.fuzzing.loop_mutants.LoopMutant`
+    the loop builds its estimator, or combines its pure controls by its
+    blending law, instead of the resolved ones.
     """
 
     variant: SupervisorVariant
+    mutant: LoopMutant | None = None
 
     def __post_init__(self) -> None:
         ClosedLoop.__post_init__(self)
         object.__setattr__(self, "supervisor", self.variant.model)
+
+    def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
+        """As :meth:`ClosedLoop.initial_state`, with the mutant's estimator if it has one."""
+        c = ClosedLoop.initial_state(self, t, x)
+        if self.mutant is not None and self.mutant.estimator is not None:
+            c.estimator = self.mutant.estimator(self.scenario.robot, self.scenario.estimator)
+        return c
+
+    def pure_controls(self, x: Sequence[float], v: Sequence[float], image: ImageMeasurement,
+                      features: tuple[tuple[float, float, float], ...],
+                      estimated: tuple[tuple[float, float, float], ...], mode: str,
+                      memory: Mapping[str, float]) -> PureControls:
+        """The resolved loop's pure controls at one sample (:class:`~visnav.fuzzing.loop_mutants.PureControls`)."""
+        return PureControls(lambda mu_coll, mu_occ: ClosedLoop.command(
+            self, x, v, image, features, estimated, mode, memory, risk=(mu_coll, mu_occ)))
+
+    def command(self, x: Sequence[float], v: Sequence[float], image: ImageMeasurement,
+                features: tuple[tuple[float, float, float], ...], estimated: tuple[tuple[float, float, float], ...],
+                mode: str, memory: Mapping[str, float], *,
+                risk: tuple[float, float] | None = None) -> tuple[float, float, float]:
+        """As :meth:`ClosedLoop.command`, or the mutant's blending law of the same pure controls."""
+        if self.mutant is None or self.mutant.blend_law is None:
+            return ClosedLoop.command(self, x, v, image, features, estimated, mode, memory, risk=risk)
+        mu_coll, mu_occ = self.supervisor.risk(mode, v, memory) if risk is None else risk
+        return self.mutant.blend_law(mu_coll, mu_occ,
+                                     self.pure_controls(x, v, image, features, estimated, mode, memory))
 
     def measure(self, t: float, x: Sequence[float], c: LoopState) -> tuple[tuple[float, ...], LoopState]:
         """As :meth:`ClosedLoop.measure`, with the raw pan angle for a variant that does not wrap it."""
@@ -63,9 +103,7 @@ class VariantLoop(ClosedLoop):
         return v, c
 
     def _view(self, v: Sequence[float], memory: Mapping[str, float]) -> Mapping[str, float]:
-        if self.variant.latches_obstacle:
-            return memory
-        return {**memory, "obstacle": float(v[I_NEAREST]), "side": float(v[I_SIDE])}
+        return self.variant.controller_memory(v, memory)
 
     def control(self, t: float, x: Sequence[float], c: LoopState, v: Sequence[float], mode: str,
                 memory: Mapping[str, float]) -> tuple[tuple[float, float, float], LoopState, tuple[float, ...]]:
@@ -82,15 +120,71 @@ class VariantLoop(ClosedLoop):
         return None
 
 
-class _SwitchProbe:
-    """Wraps a loop; at every sample whose jumps changed the mode, compares the controls of both modes."""
+@dataclass(kw_only=True, slots=True)
+class BlendMonitor:
+    """What :func:`simulate_variant` finds when it checks the blend of the controllers at every sample.
 
-    def __init__(self, loop: VariantLoop) -> None:
+    At every sample the applied control ``(v, ω, ϖ)`` is compared with
+    eqs. (18)–(19) (:func:`~visnav.fuzzing.loop_mutants.resolved_blend`)
+    recomputed from the µ the loop recorded and the resolved loop's pure
+    controls at the same state, image, features and memory.  Filled in
+    during the run, so it keeps what was seen even if the run later raises.
+
+    Attributes
+    ----------
+    tolerance : float
+        Largest accepted gap (max norm) [m/s, rad/s].
+    worst : float
+        Largest gap seen.
+    worst_at : dict
+        Time, mode, µ, applied and recomputed control of the largest gap.
+    first_at : dict or None
+        The same at the first sample whose gap exceeded ``tolerance``.
+    samples : int
+        Samples compared.
+    skipped : int
+        Samples where a pure control could not be computed (it raised).
+    """
+
+    tolerance: float = 1e-9
+    worst: float = 0.0
+    worst_at: dict[str, Any] = field(default_factory=dict)
+    first_at: dict[str, Any] | None = None
+    samples: int = 0
+    skipped: int = 0
+
+    def compare(self, t: float, mode: str, mu: tuple[float, float], applied: Sequence[float],
+                pure: PureControls) -> None:
+        """Compare one sample's applied control with (18)–(19) at the recorded ``mu``."""
+        try:
+            expected = resolved_blend(mu[0], mu[1], pure)
+        except NumericalFailure:
+            self.skipped += 1
+            return
+        self.samples += 1
+        gap = max(abs(a - b) for a, b in zip(applied, expected))
+        if gap > self.worst or (gap > self.tolerance and self.first_at is None):
+            at = {"t_s": t, "mode": mode, "mu_coll": mu[0], "mu_occ": mu[1], "applied": [float(a) for a in applied],
+                  "eq_18_19": list(expected), "gap": gap}
+            if gap > self.worst:
+                self.worst, self.worst_at = gap, at
+            if gap > self.tolerance and self.first_at is None:
+                self.first_at = at
+
+
+class _SwitchProbe:
+    """Wraps a loop; at every sample whose jumps changed the mode, compares the controls of both modes.
+
+    With a :class:`BlendMonitor` it also compares, at every sample, the applied control with (18)–(19).
+    """
+
+    def __init__(self, loop: VariantLoop, blend_monitor: BlendMonitor | None = None) -> None:
         self.loop = loop
         self.record_names = loop.record_names
         self.previous: tuple[str, Mapping[str, float]] | None = None
         self.worst = 0.0
         self.worst_at: dict[str, Any] = {}
+        self.blend_monitor = blend_monitor
 
     def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
         return self.loop.initial_state(t, x)
@@ -113,6 +207,11 @@ class _SwitchProbe:
                                  "after": list(u_after)}
         u, c, row = loop.control(t, x, c, v, mode, memory)
         self.previous = (mode, dict(memory))
+        monitor = self.blend_monitor
+        if monitor is not None and c.image is not None:
+            features = tuple(tr if vis else es for tr, es, vis in zip(c.true_features, c.estimated, c.image.visible))
+            pure = loop.pure_controls(x, v, c.image, features, c.estimated, mode, loop._view(v, memory))
+            monitor.compare(t, mode, (row[0], row[1]), u, pure)
         return u, c, row
 
 
@@ -129,8 +228,18 @@ class ScenarioRun:
     switch_jump_at: Mapping[str, Any]
 
 
-def simulate_variant(scenario: Scenario, variant: str = RESOLVED) -> ScenarioRun:
+def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
+                     blend_monitor: BlendMonitor | None = None) -> ScenarioRun:
     """Run ``scenario``'s closed loop around a variant and classify the outcome.
+
+    Parameters
+    ----------
+    variant : str
+        A supervisor of :data:`~visnav.fuzzing.variants.VARIANTS`; for a
+        closed-loop mutant of :data:`~visnav.fuzzing.loop_mutants.LOOP_MUTANTS`
+        the resolved supervisor with that mutant's estimator or blend.
+    blend_monitor : BlendMonitor or None
+        Filled in with the comparison of the applied control with (18)–(19) at every sample.
 
     Raises
     ------
@@ -138,8 +247,9 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED) -> ScenarioRun
         When the numerics break down (the properties report it).
     """
     model_variant = make_variant(variant, scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
-    loop = VariantLoop(scenario=scenario, variant=model_variant)
-    probe = _SwitchProbe(loop)
+    mutant = loop_mutant(variant) if variant in LOOP_MUTANTS else None
+    loop = VariantLoop(scenario=scenario, variant=model_variant, mutant=mutant)
+    probe = _SwitchProbe(loop, blend_monitor)
     plant: Plant = robot_plant()
     trace = simulate_sampled(
         loop.supervisor.automaton, plant, probe, scenario.start.as_tuple(),

@@ -5,7 +5,9 @@ fuzz --property NAME``; the checks' docstrings are the specification): the
 signal-sequence properties of :mod:`visnav.fuzzing.properties`, the state
 machine of :mod:`visnav.fuzzing.machine` (replayed as a sequence by
 ``check_stateful``) and the closed-loop properties of
-:mod:`visnav.fuzzing.scenario_properties`.
+:mod:`visnav.fuzzing.scenario_properties` (and the two closed-loop checks of
+:mod:`visnav.fuzzing.properties` written against slips,
+``reconstruction_bounded`` and ``blend_weights``).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from hypothesis import strategies as st
 
 from visnav.fuzzing.layouts import scenarios
 from visnav.fuzzing.properties import (
+    check_blend_weights,
     check_control_continuity,
     check_determinism,
     check_differential,
@@ -29,6 +32,10 @@ from visnav.fuzzing.properties import (
     check_mu_continuity,
     check_mu_range,
     check_no_chatter,
+    check_occlu_timing,
+    check_reconstruction_bounded,
+    check_release_band,
+    check_side_latched,
     check_stateful,
 )
 from visnav.fuzzing.scenario_properties import (
@@ -101,6 +108,11 @@ PROPERTIES: Mapping[str, Property] = MappingProxyType({
         Property(name="leave_release", kind="signals", inputs="bounded", check=check_leave_release, ci_examples=150),
         Property(name="differential", kind="signals", inputs="adversarial", check=check_differential,
                  ci_examples=120),
+        Property(name="occlu_timing", kind="signals", inputs="adversarial", check=check_occlu_timing,
+                 ci_examples=120),
+        Property(name="release_band", kind="signals", inputs="bounded", check=check_release_band, ci_examples=150),
+        Property(name="side_latched", kind="signals", inputs="adversarial-respecting", check=check_side_latched,
+                 ci_examples=120),
         Property(name="stateful", kind="stateful", inputs="machine", check=check_stateful, ci_examples=40),
         Property(name="no_collision", kind="scenario", inputs="scenarios-respecting", check=check_no_collision,
                  ci_examples=20),
@@ -108,6 +120,10 @@ PROPERTIES: Mapping[str, Property] = MappingProxyType({
                  ci_examples=20),
         Property(name="closed_loop_continuity", kind="scenario", inputs="scenarios-respecting",
                  check=check_closed_loop_continuity, ci_examples=15),
+        Property(name="reconstruction_bounded", kind="scenario", inputs="scenarios-respecting",
+                 check=check_reconstruction_bounded, ci_examples=15),
+        Property(name="blend_weights", kind="scenario", inputs="scenarios-respecting", check=check_blend_weights,
+                 ci_examples=15),
     )
 })
 """Every property, in the order ``visnav fuzz`` runs them."""

@@ -8,7 +8,8 @@ from visnav.fuzzing.registry import PROPERTIES, budget, property_names
 
 
 def test_registry_documents_every_property():
-    assert property_names("scenario") == ("no_collision", "classified_outcome", "closed_loop_continuity")
+    assert property_names("scenario") == ("no_collision", "classified_outcome", "closed_loop_continuity",
+                                          "reconstruction_bounded", "blend_weights")
     for p in PROPERTIES.values():
         assert p.summary and p.summary.endswith(".") and len(p.doc) > 100, p.name
         assert p.ci_examples >= 15
