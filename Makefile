@@ -23,8 +23,10 @@ demo: $(STAMP)
 	if [ $$status -eq 1 ]; then echo "make demo: reports/paper/ written; a requirement is FALSIFIED (its verdict table is at the top of report.md)"; fi; \
 	test $$status -le 1
 
+# two workers (pytest-xdist), whole files per worker: the full report's regeneration
+# (tests/visnav/app/test_report_committed.py, ~4 min) runs beside the rest of the suite
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_paper_scenario.py
