@@ -462,7 +462,7 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
 
 
 def _single_threaded_blas() -> None:
-    """One BLAS/LAPACK thread for the report, set before numpy loads.
+    """One BLAS/LAPACK thread for every command, set before numpy loads.
 
     OpenBLAS splits some LAPACK work across threads, and the split changes the
     round-off: the stiffness study's 1e-13 reference then differs in its last
@@ -479,10 +479,9 @@ def _single_threaded_blas() -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``visnav`` console script; returns the exit code."""
+    _single_threaded_blas()  # before anything imports numpy (building the parser imports some of the toolkit)
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.command == "report":
-        _single_threaded_blas()  # before anything imports numpy
 
     from hybrid import DivergenceError
 
