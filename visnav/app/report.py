@@ -65,7 +65,7 @@ PAPER_PUBLISHED = {
     "max_depth_error_mm": 1.164,
     "controls_saturated": False,
 }
-"""Folio & Cadenat's published results for their scenario (``../shared/paper/NOTES.md``)."""
+"""Folio & Cadenat's published results for their scenario (as ``docs/estimator.md`` and ``docs/requirements.md`` quote them)."""
 
 Progress = Callable[[str], None]
 
