@@ -334,36 +334,6 @@ def _memory_table(
     return states, table
 
 
-def _arc_clearance(scenario: Scenario, trace: SampledTrace, substeps: int) -> np.ndarray:
-    """Per sample, the smallest distance to any obstacle along the exact arc to the next sample [m].
-
-    The arc of :func:`visnav.simulation.dense_clearance` (same sub-steps, same
-    formula), kept per sample: its minimum over the samples is that function's value.
-    """
-    n = len(trace.times)
-    if not scenario.obstacles:
-        return np.full(n, math.inf)
-    centres = np.array([o.center_m for o in scenario.obstacles])
-    radii = np.array([o.radius_m for o in scenario.obstacles])
-    states, inputs = trace.states[:-1], trace.inputs[:-1]
-    tau = trace.period / substeps * np.arange(1, substeps)[None, :]
-    v, omega, theta = inputs[:, 0:1], inputs[:, 1:2], states[:, 2:3]
-    half = 0.5 * omega * tau
-    chord = v * tau * np.sinc(half / np.pi)
-    mid = theta + half
-    xs = states[:, 0:1] + chord * np.cos(mid)
-    ys = states[:, 1:2] + chord * np.sin(mid)
-
-    def nearest(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        d = np.hypot(x[..., None] - centres[:, 0], y[..., None] - centres[:, 1]) - radii
-        return d.min(axis=-1)
-
-    out = nearest(trace.states[:, 0], trace.states[:, 1])
-    if n > 1:
-        out[:-1] = np.minimum(out[:-1], nearest(xs, ys).min(axis=1))
-    return out
-
-
 def _reconstruction_errors(scenario: Scenario, trace: SampledTrace) -> tuple[np.ndarray, np.ndarray]:
     n_points = len(scenario.target.points_m)
     f = scenario.camera.focal_px
@@ -473,7 +443,7 @@ def _measured_rows(
     substeps: int | None,
 ) -> dict[str, np.ndarray]:
     """The sample's measurements on each of its rows, and ``d_coll_m`` (which depends on the row's memory)."""
-    from visnav.simulation import CLEARANCE_SUBSTEPS
+    from visnav.simulation import CLEARANCE_SUBSTEPS, arc_clearance
 
     k, sig = rows.sample, trace.signals
     n_obstacles = len(scenario.obstacles)
@@ -486,7 +456,7 @@ def _measured_rows(
     pan = trace.state("pan_rad")
     wrapped = np.fromiter((wrap_angle(float(p)) for p in pan), dtype=float, count=pan.size)
     recon_px, recon_mm = _reconstruction_errors(scenario, trace)
-    clearance = _arc_clearance(scenario, trace, CLEARANCE_SUBSTEPS if substeps is None else substeps)
+    clearance = arc_clearance(scenario, trace, CLEARANCE_SUBSTEPS if substeps is None else substeps)
     out = {
         "d_nearest_m": sig[k, I_D_NEAREST],
         "nearest_obstacle": sig[k, I_NEAREST],

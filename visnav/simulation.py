@@ -29,6 +29,8 @@ __all__ = [
     "Metrics",
     "simulate",
     "compute_metrics",
+    "arc_clearance",
+    "dense_clearance",
     "classify_run",
     "without_diagnosis",
     "OUTCOMES",
@@ -155,27 +157,44 @@ def simulate(scenario: Scenario) -> SimulationResult:
     )
 
 
-def dense_clearance(scenario: Scenario, trace: SampledTrace, substeps: int = CLEARANCE_SUBSTEPS) -> float:
-    """Smallest distance from M to any obstacle surface along the exact trajectory [m].
+def arc_clearance(scenario: Scenario, trace: SampledTrace, substeps: int = CLEARANCE_SUBSTEPS) -> np.ndarray:
+    """Per sample, the smallest distance to any obstacle surface at the sample and along the exact arc to the next one.
 
-    The exact flow is evaluated ``substeps`` times per sampling period, so
-    the minimum is missed by at most ``(v T / substeps)² / (2 R)``.
+    The exact flow (the arc of ``propagate_pose``) is evaluated ``substeps`` times per
+    sampling period, so a minimum is missed by at most ``(v T / substeps)² / (2 R)``.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        [m]; ``inf`` without obstacles.
     """
+    n = len(trace.times)
     if not scenario.obstacles:
-        return math.inf
+        return np.full(n, math.inf)
     centres = np.array([o.center_m for o in scenario.obstacles])
     radii = np.array([o.radius_m for o in scenario.obstacles])
     states, inputs = trace.states[:-1], trace.inputs[:-1]
-    # the exact arc of propagate_pose, vectorised over samples (rows) and sub-steps (columns)
+    # vectorised over samples (rows) and sub-steps (columns)
     tau = trace.period / substeps * np.arange(1, substeps)[None, :]
     v, omega, theta = inputs[:, 0:1], inputs[:, 1:2], states[:, 2:3]
     half = 0.5 * omega * tau
     chord = v * tau * np.sinc(half / np.pi)  # np.sinc(u/π) = sin(u)/u, exact at u = 0
     mid = theta + half
-    xs = np.concatenate([trace.states[:, 0], (states[:, 0:1] + chord * np.cos(mid)).ravel()])
-    ys = np.concatenate([trace.states[:, 1], (states[:, 1:2] + chord * np.sin(mid)).ravel()])
-    dist = np.hypot(xs[:, None] - centres[None, :, 0], ys[:, None] - centres[None, :, 1]) - radii[None, :]
-    return float(dist.min())
+    xs = states[:, 0:1] + chord * np.cos(mid)
+    ys = states[:, 1:2] + chord * np.sin(mid)
+
+    def nearest(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return (np.hypot(x[..., None] - centres[:, 0], y[..., None] - centres[:, 1]) - radii).min(axis=-1)
+
+    out = nearest(trace.states[:, 0], trace.states[:, 1])
+    if n > 1:
+        out[:-1] = np.minimum(out[:-1], nearest(xs, ys).min(axis=1))
+    return out
+
+
+def dense_clearance(scenario: Scenario, trace: SampledTrace, substeps: int = CLEARANCE_SUBSTEPS) -> float:
+    """Smallest distance from M to any obstacle surface along the exact trajectory [m] (:func:`arc_clearance`)."""
+    return float(arc_clearance(scenario, trace, substeps).min())
 
 
 def _transitions(trace: SampledTrace) -> tuple[dict[str, Any], ...]:
