@@ -52,8 +52,8 @@ def _message(problem: VerificationProblem, result: VerificationResult, budget: i
             f"({cx.atom} = {cx.atom_value:.6g})",
             f"    formula: {' '.join(r.formula.split())}",
             f"    counterexample ({cx.how}): {point}",
-            f"    reproduce: visnav verify {source} --requirement {r.name} --seed {seed} --budget {budget} "
-            f"--out out/verify/{problem.name}   (then: visnav replay "
+            f"    reproduce: visnav verify {source} --seed {seed} --budget {budget} "
+            f"--method {result.method} --out out/verify/{problem.name}   (then: visnav replay "
             f"out/verify/{problem.name}/counterexamples/{r.name}.json)",
         ]
     for d in result.diverged[:3]:

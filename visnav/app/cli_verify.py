@@ -50,7 +50,7 @@ def add_parser(sub: Any) -> None:
     ver.add_argument("--scenario", default=None, help="paper only: built-in scenario name or TOML file")
     ver.add_argument("--variant", default=None, help="paper only: supervisor variant (resolved, paper, a mutant)")
     ver.add_argument("--out", default=None, help="folder of the journal, verification.json and counterexamples "
-                                                 "(default: out/verify/<problem>)")
+                                                 "(default: out/verify/<problem>/<method>-seed<S>-budget<N>)")
     ver.add_argument("--workers", type=positive_int, default=None,
                      help="monte-carlo only: local worker processes (default: in this process)")
     ver.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
@@ -96,6 +96,15 @@ def _spec_hash(spec: str, options: Mapping[str, Any], problem: Any, args: argpar
                 "parameters": [[p.name, p.low, p.high, p.nominal] for p in problem.parameters]}
     digest = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     return {"format": JOURNAL_FORMAT, "version": 1, "spec_hash": digest, "spec": identity}
+
+
+def _default_out(name: str, args: argparse.Namespace) -> str:
+    """``out/verify/<problem>/<method>-seed<S>-budget<N>[-<requirements>]``: a search of other options resumes
+    its own journal instead of being refused by this one."""
+    tail = f"{args.method}-seed{args.seed}-budget{args.budget}"
+    if args.requirement:
+        tail += "-" + hashlib.sha256(",".join(sorted(args.requirement)).encode()).hexdigest()[:8]
+    return f"out/verify/{name}/{tail}"
 
 
 def _journal(folder: Path, header: dict[str, Any], budget: int):
@@ -147,7 +156,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         return _bad_input(error.render(), error.user_traceback)
     except ParameterError as error:
         return _bad_input(error.render())
-    folder = prepare_output_dir(args.out or f"out/verify/{problem.name}")
+    folder = prepare_output_dir(args.out or _default_out(problem.name, args))
     header = _spec_hash(args.problem, options, problem, args)
     try:
         store, found = _journal(folder, header, args.budget)
