@@ -294,11 +294,12 @@ def _cmd_mode_graph(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _check_human(report: Any, scenario: str, elapsed: float) -> str:
+def _check_human(report: Any, source: str, elapsed: float) -> str:
+    """The check report in words; ``source`` says where the automaton comes from (``"scenario paper"``)."""
     counts = {sev: sum(1 for f in report.findings if f.severity == sev) for sev in ("error", "warning", "info")}
     automaton_modes = len(report.searched.modes)
     lines = [
-        f"check-model {report.automaton} (scenario {scenario}): "
+        f"check-model {report.automaton} ({source}): "
         + ("CLEAN" if report.clean else f"{counts['error']} error(s), {counts['warning']} warning(s)"),
         f"  searched {automaton_modes} modes over the declared measurement box; seed {report.searched.seed}, "
         f"{report.searched.samples} samples + corners + face samples per mode, {report.searched.starts} optimiser "
@@ -430,7 +431,7 @@ def _check_problem(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"problem": problem.name, "clean": report.clean, **report.as_dict()}, sort_keys=True))
     else:
-        print(_check_human(report, problem.name, elapsed))
+        print(_check_human(report, f"problem {problem.name}", elapsed))
     return EXIT_OK if report.clean else EXIT_TASK_FAILED
 
 
@@ -457,7 +458,7 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
         out.update(report.as_dict())
         print(json.dumps(out, sort_keys=True))
     else:
-        print(_check_human(report, scenario.name, elapsed))
+        print(_check_human(report, f"scenario {scenario.name}", elapsed))
     return EXIT_OK if report.clean else EXIT_TASK_FAILED
 
 
