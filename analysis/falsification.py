@@ -45,7 +45,7 @@ import numpy as np
 from hybrid.jsonable import float_from_json, to_jsonable
 from hybrid.errors import DivergenceError, ExecutionError, NumericalFailure, ParameterError, ZenoError
 
-from analysis.stl import TraceError
+from analysis.stl import SignalTrace, TraceError
 from analysis.verification import InvalidPoint, VerificationProblem
 
 __all__ = [
@@ -172,6 +172,10 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
         return Outcome(status="diverged", detail=f"{type(error).__name__}: {error}")
     except Exception as error:  # the user's own code: their traceback is reported
         raise SimulationFailed(point, error) from error
+    if not isinstance(trace, SignalTrace):
+        error = TypeError(f"simulate(point) returned a {type(trace).__name__}: expected an analysis.stl.SignalTrace "
+                          "(build it with SignalTrace(times=..., signals={...}, labels={...}))")
+        raise SimulationFailed(point, error)
     try:
         rho = tuple(float(r.formula.robustness(trace)) for r in problem.parsed)
         sat = tuple(bool(r.formula.satisfied(trace)) for r in problem.parsed)
@@ -398,17 +402,19 @@ def _shrink(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]])
         falsified[r] = (tuple(current), f"{how}, then coordinates reset to nominal")
 
 
-def _monte_carlo(search: Search, seed: int, runner: Runner | None) -> None:
-    units = [monte_carlo_unit(search.problem, seed, i) for i in range(search.budget)]
-    if runner is not None:
-        pending = [(i, u) for i, u in enumerate(units) if _key(u) not in search.cache]
-        for i, outcome in runner(pending).items():
-            search.cache[_key(units[i])] = outcome
-    for u in units:
-        try:
-            search.run(u, "monte-carlo")
-        except _Exhausted:
-            break
+def _monte_carlo(search: Search, seed: int, runner: Runner | None, chunk: int = 1024) -> None:
+    """Draws ``0..budget-1`` in order, generated chunk by chunk (a huge budget allocates nothing ahead)."""
+    for first in range(0, search.budget, chunk):
+        units = {i: monte_carlo_unit(search.problem, seed, i) for i in range(first, min(first + chunk, search.budget))}
+        if runner is not None:
+            pending = [(i, u) for i, u in units.items() if _key(u) not in search.cache]
+            for i, outcome in runner(pending).items():
+                search.cache[_key(units[i])] = outcome
+        for u in units.values():
+            try:
+                search.run(u, "monte-carlo")
+            except _Exhausted:
+                return
 
 
 def _dual_annealing(search: Search, seed: int, falsified: Mapping[int, Any]) -> None:

@@ -33,6 +33,7 @@ import difflib
 import math
 import re
 from collections.abc import Collection, Iterator, Mapping
+import dataclasses
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple, Union
@@ -712,7 +713,34 @@ def parse_tree(text: str, *, signals: Collection[str] | None = None,
         raise FormulaError(str(text), 1, 1, f"a formula is a str, not {type(text).__name__}")
     if horizon is not None and not (isinstance(horizon, int | float) and math.isfinite(horizon) and horizon >= 0):
         raise FormulaError(text, 1, 1, f"horizon = {horizon!r}: expected a finite number of seconds >= 0")
-    return _Parser(text, signals, labels, horizon).parse()
+    try:
+        tree = _Parser(text, signals, labels, horizon).parse()
+    except RecursionError:
+        tree = None
+    if tree is None or _depth(tree) > MAX_DEPTH:
+        raise FormulaError(text, 1, 1, f"the formula nests too deeply (at most {MAX_DEPTH} levels of operators and "
+                                       "parentheses): split it into "
+                                       "several requirements, or drop redundant parentheses")
+    return tree
+
+
+MAX_DEPTH = 200
+"""Deepest syntax tree accepted: evaluation and printing recurse over the tree."""
+
+
+def _depth(tree: object) -> int:
+    """Depth of a syntax tree, computed without recursion (any depth)."""
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        if dataclasses.is_dataclass(node):
+            for f in dataclasses.fields(node):
+                value = getattr(node, f.name)
+                for child in (value if isinstance(value, tuple) else (value,)):
+                    if dataclasses.is_dataclass(child):
+                        stack.append((child, depth + 1))
+    return deepest
 
 
 # --------------------------------------------------------------------------- printing and static properties

@@ -255,7 +255,8 @@ def _bad_input(message: str, user_traceback: str = "") -> int:
 _WORKER_PROBLEMS: dict[str, Any] = {}
 
 
-def _evaluate_task(spec: tuple[str, tuple[tuple[str, Any], ...], tuple[str, ...] | None, tuple], index: int):
+def _evaluate_task(spec: tuple[str, tuple[tuple[str, Any], ...], tuple[str, ...] | None, Mapping[int, tuple]],
+                   index: int):
     """Campaign task: evaluate Monte-Carlo draw ``index`` of the problem the spec names (loaded once per process)."""
     from analysis.falsification import evaluate
 
@@ -271,10 +272,9 @@ def _runner(args: argparse.Namespace, problem: Any, options: Mapping[str, Any], 
     from analysis.falsification import Evaluation
 
     def run(pending: list[tuple[int, tuple[float, ...]]]) -> dict[int, Any]:
-        units = dict(pending)
-        table = tuple(units.get(i, ()) for i in range(max(units, default=-1) + 1))
+        units = dict(pending)  # one chunk of draws (analysis.falsification), by index
         spec = (args.problem, tuple(sorted(options.items())), tuple(args.requirement) if args.requirement else None,
-                table)
+                units)
         outcomes: dict[int, Any] = {}
 
         def sink(i: int, outcome: Any) -> None:

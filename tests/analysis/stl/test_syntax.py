@@ -319,3 +319,20 @@ def test_syntax_errors(text, line, column, words):
 def test_a_non_string_formula_and_a_bad_horizon_are_refused():
     assert "a formula is a str" in error(42).reason
     assert "horizon = -1.0" in error("x > 0", horizon=-1.0).reason
+
+
+@pytest.mark.parametrize("text", ["(" * 5000 + "x > 0" + ")" * 5000, "x" + " + x" * 20000 + " > 0",
+                                  "always[0, 1] (" * 300 + "x > 0" + ")" * 300])
+def test_a_formula_nested_too_deeply_is_a_formula_error_not_a_recursion_error(text):
+    with pytest.raises(FormulaError, match="nests too deeply"):
+        parse_formula(text, signals=["x"])
+
+
+def test_a_formula_at_the_depth_limit_still_parses_and_evaluates():
+    import numpy as np
+
+    from analysis.stl import SignalTrace
+
+    f = parse_formula("x" + " + x" * 190 + " > 0", signals=["x"])
+    trace = SignalTrace(times=np.arange(3.0), signals={"x": np.ones(3)})
+    assert f.robustness(trace) == 191.0

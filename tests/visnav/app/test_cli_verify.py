@@ -126,3 +126,15 @@ def test_mode_graph_of_a_problem_without_automaton_is_a_clear_error(tmp_path, ca
     path = _module(tmp_path)
     code, _, err = _run(capsys, "mode-graph", "--problem", f"{path}:problem")
     assert code == 2 and "declares no automaton" in err
+
+
+@pytest.mark.parametrize("returned, needle", [("{'x': 1.0}", "returned a dict"),
+                                              ("SignalTrace(times=t, signals={'x': t * float('nan')})", "nan")])
+def test_a_simulator_returning_a_wrong_object_or_nan_exits_2_with_a_message(tmp_path, capsys, returned, needle):
+    path = _module(tmp_path)
+    text = path.read_text().replace('return SignalTrace(times=t, signals={"x": p["x0"] * np.exp(-t)}, '
+                                    'labels={"mode": ("run",) * 41})', f"return {returned}")
+    assert text != path.read_text()
+    path.write_text(text)
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    assert code == 2 and needle in err.lower()
