@@ -79,7 +79,7 @@ from scipy.optimize import Bounds, minimize
 from .errors import ExecutionError, ModelDefinitionError
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
-from .model import HybridAutomaton, Transition
+from .model import HybridAutomaton, Transition, refuse_bool
 from .region import Box
 from .system import HybridSystem
 
@@ -474,6 +474,8 @@ class _Oracle:
         )
 
     def _real(self, value: Any, what: str, x: Sequence[float], m: Mapping[str, float]) -> float:
+        if value.__class__ is not float:
+            refuse_bool(value, f"check of {self.what}: {what}")
         try:
             r = float(value)
         except (TypeError, ValueError) as err:

@@ -58,7 +58,7 @@ except ImportError:  # pragma: no cover - private names moved: fall back to inte
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import Transition, crossed
+from .model import Transition, crossed, refuse_bool
 from .system import HybridSystem
 from .system import format_state as _fmt
 
@@ -416,6 +416,8 @@ class _Watch:
 
 
 def _real(value: Any, what: str, mode: str, t: float, x: Sequence[float]) -> float:
+    if value.__class__ is not float:
+        refuse_bool(value, f"{what} (mode {mode!r}, t = {t:.17g} s)")
     try:
         out = float(value)
     except (TypeError, ValueError):
@@ -521,10 +523,16 @@ class _Run:
             for w in watches:
                 if w.role == "guard":
                     tr = w.transition
-                    g = float(tr.guard(v, memory))  # type: ignore[union-attr]
+                    raw = tr.guard(v, memory)  # type: ignore[union-attr]
+                    if raw.__class__ is bool:
+                        raise ValueError  # the careful pass names it
+                    g = float(raw)
                     out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
                 elif w.role == "invariant":
-                    out.append(-float(self.invariants[mode](v, memory)))  # type: ignore[misc]
+                    raw = self.invariants[mode](v, memory)  # type: ignore[misc]
+                    if raw.__class__ is bool:
+                        raise ValueError
+                    out.append(-float(raw))
                 else:
                     out.append(float(self.stops[w.name](t, x, mode, memory)))
             self.guard_evaluations += len(watches)

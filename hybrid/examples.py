@@ -16,9 +16,19 @@ carries on purpose):
   (:func:`nondeterministic`, :func:`deadlock`, :func:`bad_reset`,
   :func:`retrigger`, :func:`unreachable`).
 
-Guards, invariants, flows and jump maps are affine (the exports rely on it),
-conjunctions are built with :func:`~hybrid.model.all_of`, and a transition
-without a jump map keeps the state (its ``reset_text`` is then empty).
+Guards, invariants, flows and jump maps are affine (the exports rely on it)
+and symbolic: they are written with the builders of :mod:`hybrid.symbolic`
+(``v.h``, ``flow_map``, ``jump_map``), never as Python lambdas, so that a
+checker can hand them to an SMT solver.  Each is the same arithmetic, in the
+same order, as the formula in its docstring, and so evaluates bit for bit like
+the plain float expression.  Conjunctions are built with
+:func:`~hybrid.model.all_of` (a :class:`~hybrid.model.Conjunction` whose terms
+are symbolic; the exports write one inequality per term).  Every invariant is
+such a conjunction, of a single term where there is one: unlike a bare
+symbolic expression, which refuses ``bool()``, a conjunction can stand in
+``mode.invariant or default``, and its value is its term's value.  A
+transition without a jump map keeps the state (its ``reset_text`` is then
+empty).
 
 Two remarks for whoever writes a checker against ``planted``:
 
@@ -55,8 +65,9 @@ from dataclasses import dataclass
 from numbers import Integral, Real
 
 from .errors import ModelDefinitionError
-from .model import HybridAutomaton, Mode, Transition, all_of
+from .model import Conjunction, HybridAutomaton, Mode, Transition, all_of
 from .region import Box
+from .symbolic import Apply, Expr, SymbolicVector, as_expr, coordinates, flow_map, is_symbolic, jump_map
 from .system import HybridSystem
 
 __all__ = [
@@ -208,6 +219,19 @@ def _horizon(times: tuple[float, ...]) -> float:
     return 0.5 * (times[-2] + times[-1])
 
 
+def _minus(a: Expr | float, b: Expr | float) -> Expr:
+    """The symbolic difference ``a - b`` exactly as written, for a parameter that may be ``0.0``.
+
+    The ``-`` operator of :mod:`hybrid.symbolic` simplifies ``0 - e`` to
+    ``-e`` and ``e - 0`` to ``e``; the first turns the ``+0.0`` of
+    ``0.0 - 0.0`` into ``-0.0`` (and the second an integer signal into an
+    integer result), so a threshold ``r2 = 0`` would no longer evaluate bit for
+    bit like the float formula on the face ``x2 = 0``.  This node keeps the
+    subtraction.
+    """
+    return Apply("sub", (as_expr(a), as_expr(b)))
+
+
 # ---------------------------------------------------------------------- bouncing ball
 GRAVITY = 9.81
 """Default gravitational acceleration [m/s²]."""
@@ -284,17 +308,19 @@ def bouncing_ball(
     g, e, h0, v0 = _ball("bouncing_ball", gravity, restitution, h0, v0)
     _, v1 = _first_impact(g, h0, v0)
     top = v1 * v1 / (2.0 * g)  # h0 + v0²/(2 g): no point of the motion is higher
+    v = coordinates("h", "v")  # the signals read by the guards and invariants (v = x)
+    x = coordinates("h", "v")  # the continuous state
     fly = Mode(
         name="fly",
         description="ball in the air (or on the ground), accelerated downwards by gravity",
-        invariant=lambda v, m: v[0],
+        invariant=all_of(v.h),
         invariant_text="h >= 0",
     )
     bounce = Transition(
         name="bounce",
         source="fly",
         target="fly",
-        guard=all_of(lambda v, m: -v[0], lambda v, m: -v[1]),
+        guard=all_of(-v.h, -v.v),
         guard_text="h <= 0 and v <= 0",
         reads=("h", "v"),
         reset_text=f"v := -{e:g} v",
@@ -307,12 +333,10 @@ def bouncing_ball(
         initial_mode="fly",
         description=f"bouncing ball, g = {g:g} m/s², e = {e:g}",
     )
-    system = HybridSystem(
-        automaton=automaton,
-        state_names=("h", "v"),
-        flows={"fly": lambda t, x, m: (x[1], -g)},
-        jumps={"bounce": lambda x, m: (x[0], -e * x[1])},
-    )
+    flows = {"fly": flow_map(x.v, -g)}
+    jumps = {"bounce": jump_map(x.h, -e * x.v)}
+    _require_symbolic("bouncing_ball", automaton.modes, automaton.transitions, flows, jumps)
+    system = HybridSystem(automaton=automaton, state_names=("h", "v"), flows=flows, jumps=jumps)
     impacts = bouncing_ball_impact_times(gravity=g, restitution=e, h0=h0, v0=v0, count=HORIZON_EVENT + 1)
     return ReferenceModel(
         name="bouncing_ball",
@@ -524,27 +548,30 @@ def thermostat(
     ['heat_on']
     """
     a, u, k, lo, hi, T, on = _thermostat("thermostat", ambient, heater, rate, low, high, T0, initially_on)
+    v = coordinates("T")  # signal
+    x = coordinates("T")  # state
+    # The thresholds and temperatures may be 0.0: _minus keeps each subtraction as written.
     modes = (
         Mode(
             name="off",
             description="heater off: the room cools towards the ambient temperature",
-            invariant=lambda v, m: v[0] - lo,
+            invariant=all_of(_minus(v.T, lo)),
             invariant_text=f"T >= {lo:g}",
         ),
         Mode(
             name="on",
             description="heater on: the room warms towards the heater temperature",
-            invariant=lambda v, m: hi - v[0],
+            invariant=all_of(_minus(hi, v.T)),
             invariant_text=f"T <= {hi:g}",
         ),
     )
     transitions = (
         Transition(
-            name="heat_on", source="off", target="on", guard=lambda v, m: lo - v[0],
+            name="heat_on", source="off", target="on", guard=_minus(lo, v.T),
             guard_text=f"T <= {lo:g}", reads=("T",),
         ),
         Transition(
-            name="heat_off", source="on", target="off", guard=lambda v, m: v[0] - hi,
+            name="heat_off", source="on", target="off", guard=_minus(v.T, hi),
             guard_text=f"T >= {hi:g}", reads=("T",),
         ),
     )
@@ -557,14 +584,12 @@ def thermostat(
         initial_mode=initial,
         description=f"on/off thermostat with hysteresis band [{lo:g}, {hi:g}]",
     )
-    system = HybridSystem(
-        automaton=automaton,
-        state_names=("T",),
-        flows={
-            "off": lambda t, x, m: (-k * (x[0] - a),),
-            "on": lambda t, x, m: (-k * (x[0] - u),),
-        },
-    )
+    flows = {
+        "off": flow_map(-k * _minus(x.T, a)),
+        "on": flow_map(-k * _minus(x.T, u)),
+    }
+    _require_symbolic("thermostat", automaton.modes, automaton.transitions, flows, {})
+    system = HybridSystem(automaton=automaton, state_names=("T",), flows=flows)
     switches = thermostat_switch_times(
         ambient=a, heater=u, rate=k, low=lo, high=hi, T0=T, initially_on=on, count=HORIZON_EVENT + 1
     )
@@ -724,27 +749,29 @@ def water_tanks(
     8.0
     """
     w, v1, v2, a, b, x1, x2 = _tanks("water_tanks", inflow, outflow1, outflow2, r1, r2, x1_0, x2_0)
+    v = coordinates("x1", "x2")  # signals (the levels)
+    # The thresholds are 0.0 by default: _minus keeps each subtraction as written.
     modes = (
         Mode(
             name="fill1",
             description="inflow into tank 1; tank 2 drains",
-            invariant=lambda v, m: v[1] - b,
+            invariant=all_of(_minus(v.x2, b)),
             invariant_text=f"x2 >= {b:g}",
         ),
         Mode(
             name="fill2",
             description="inflow into tank 2; tank 1 drains",
-            invariant=lambda v, m: v[0] - a,
+            invariant=all_of(_minus(v.x1, a)),
             invariant_text=f"x1 >= {a:g}",
         ),
     )
     transitions = (
         Transition(
-            name="to_fill2", source="fill1", target="fill2", guard=lambda v, m: b - v[1],
+            name="to_fill2", source="fill1", target="fill2", guard=_minus(b, v.x2),
             guard_text=f"x2 <= {b:g}", reads=("x2",),
         ),
         Transition(
-            name="to_fill1", source="fill2", target="fill1", guard=lambda v, m: a - v[0],
+            name="to_fill1", source="fill2", target="fill1", guard=_minus(a, v.x1),
             guard_text=f"x1 <= {a:g}", reads=("x1",),
         ),
     )
@@ -756,14 +783,12 @@ def water_tanks(
         initial_mode="fill1",
         description=f"two water tanks, inflow {w:g}, outflows {v1:g} and {v2:g}",
     )
-    system = HybridSystem(
-        automaton=automaton,
-        state_names=("x1", "x2"),
-        flows={
-            "fill1": lambda t, x, m: (w - v1, -v2),
-            "fill2": lambda t, x, m: (-v1, w - v2),
-        },
-    )
+    flows = {  # constant in each mode (the float differences are taken once, here)
+        "fill1": flow_map(w - v1, -v2),
+        "fill2": flow_map(-v1, w - v2),
+    }
+    _require_symbolic("water_tanks", automaton.modes, automaton.transitions, flows, {})
+    system = HybridSystem(automaton=automaton, state_names=("x1", "x2"), flows=flows)
     excess = x1 - a + x2 - b
     switches = water_tanks_switch_times(
         inflow=w, outflow1=v1, outflow2=v2, r1=a, r2=b, x1_0=x1, x2_0=x2, count=HORIZON_EVENT + 1
@@ -893,15 +918,16 @@ def _unit_speed_model(
     description: str,
     modes: tuple[Mode, ...],
     transitions: tuple[Transition, ...],
-    flows: dict[str, Callable[..., tuple[float, ...]]],
-    jumps: dict[str, Callable[..., tuple[float, ...]]],
+    flows: dict[str, SymbolicVector],
+    jumps: dict[str, SymbolicVector],
     initial_mode: str,
     bounds: tuple[float, float],
     duration: float,
     planted: tuple[str, ...],
     x0: float = 0.0,
 ) -> ReferenceModel:
-    """A one-state (``x``) model from its parts."""
+    """A one-state (``x``) model from its symbolic parts (see :func:`_require_symbolic`)."""
+    _require_symbolic(name, modes, transitions, flows, jumps)
     automaton = HybridAutomaton(
         name=name,
         modes=modes,
@@ -923,12 +949,38 @@ def _unit_speed_model(
     )
 
 
-def _rise(t: float, x: object, m: object) -> tuple[float, ...]:
-    return (1.0,)
+def _require_symbolic(
+    name: str,
+    modes: tuple[Mode, ...],
+    transitions: tuple[Transition, ...],
+    flows: dict[str, SymbolicVector],
+    jumps: dict[str, SymbolicVector],
+) -> None:
+    """:class:`ModelDefinitionError` unless every guard, invariant (term), flow and jump map is symbolic."""
+    parts: list[tuple[str, object]] = []
+    for mode in modes:
+        if mode.invariant is not None:
+            parts.append((f"invariant of mode {mode.name!r}", mode.invariant))
+    parts += [(f"guard of transition {t.name!r}", t.guard) for t in transitions]
+    parts += [(f"flow of mode {k!r}", f) for k, f in flows.items()]
+    parts += [(f"jump map of transition {k!r}", r) for k, r in jumps.items()]
+    for what, function in parts:
+        terms = function.terms if isinstance(function, Conjunction) else (function,)
+        if not all(is_symbolic(term) for term in terms):
+            raise ModelDefinitionError(
+                f"reference model {name!r}: the {what} is {function!r}; expected a symbolic expression of "
+                "hybrid.symbolic (coordinates(), flow_map(), jump_map()) so that a checker can decide it"
+            )
 
 
-def _fall(t: float, x: object, m: object) -> tuple[float, ...]:
-    return (-1.0,)
+def _rise() -> SymbolicVector:
+    """``ẋ = 1``."""
+    return flow_map(1.0)
+
+
+def _fall() -> SymbolicVector:
+    """``ẋ = -1``."""
+    return flow_map(-1.0)
 
 
 def nondeterministic() -> ReferenceModel:
@@ -950,22 +1002,23 @@ def nondeterministic() -> ReferenceModel:
     >>> [t.name for t in model.system.automaton.enabled("a", (1.75,), {})]
     ['a_to_b', 'a_to_c']
     """
+    v = coordinates("x")  # signal
     modes = (
         Mode(name="a", description="x rises until one of two overlapping guards fires",
-             invariant=lambda v, m: 2.0 - v[0], invariant_text="x <= 2"),
+             invariant=all_of(2.0 - v.x), invariant_text="x <= 2"),
         Mode(name="b", description="x rises to 3, then returns to a at x = 0",
-             invariant=lambda v, m: 3.0 - v[0], invariant_text="x <= 3"),
+             invariant=all_of(3.0 - v.x), invariant_text="x <= 3"),
         Mode(name="c", description="x falls to 0, then returns to a",
-             invariant=lambda v, m: v[0], invariant_text="x >= 0"),
+             invariant=all_of(v.x), invariant_text="x >= 0"),
     )
     transitions = (
-        Transition(name="a_to_b", source="a", target="b", guard=lambda v, m: v[0] - 1.0,
+        Transition(name="a_to_b", source="a", target="b", guard=v.x - 1.0,
                    guard_text="x >= 1", reads=("x",), priority=0),
-        Transition(name="a_to_c", source="a", target="c", guard=lambda v, m: v[0] - 1.5,
+        Transition(name="a_to_c", source="a", target="c", guard=v.x - 1.5,
                    guard_text="x >= 1.5", reads=("x",), priority=0),
-        Transition(name="b_to_a", source="b", target="a", guard=lambda v, m: v[0] - 3.0,
+        Transition(name="b_to_a", source="b", target="a", guard=v.x - 3.0,
                    guard_text="x >= 3", reads=("x",), reset_text="x := 0"),
-        Transition(name="c_to_a", source="c", target="a", guard=lambda v, m: -v[0],
+        Transition(name="c_to_a", source="c", target="a", guard=-v.x,
                    guard_text="x <= 0", reads=("x",)),
     )
     return _unit_speed_model(
@@ -976,8 +1029,8 @@ def nondeterministic() -> ReferenceModel:
         ),
         modes=modes,
         transitions=transitions,
-        flows={"a": _rise, "b": _rise, "c": _fall},
-        jumps={"b_to_a": lambda x, m: (0.0,)},
+        flows={"a": _rise(), "b": _rise(), "c": _fall()},
+        jumps={"b_to_a": jump_map(0.0)},
         initial_mode="a",
         bounds=(0.0, 3.0),
         duration=8.0,  # switches at 1, 3, 4, 6, 7, 9, ...: 8 is not one of them
@@ -1004,12 +1057,14 @@ def deadlock() -> ReferenceModel:
     >>> model.system.automaton.enabled("run", (1.0,), {})
     ()
     """
+    v = coordinates("x")  # signal
+    x = coordinates("x")  # state
     modes = (
         Mode(name="run", description="x rises towards the end x = 1 of its invariant",
-             invariant=lambda v, m: 1.0 - v[0], invariant_text="x <= 1"),
+             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
     )
     transitions = (
-        Transition(name="rewind", source="run", target="run", guard=lambda v, m: -0.5 - v[0],
+        Transition(name="rewind", source="run", target="run", guard=-0.5 - v.x,
                    guard_text="x <= -0.5", reads=("x",), reset_text="x := x + 1"),
     )
     return _unit_speed_model(
@@ -1020,8 +1075,8 @@ def deadlock() -> ReferenceModel:
         ),
         modes=modes,
         transitions=transitions,
-        flows={"run": _rise},
-        jumps={"rewind": lambda x, m: (x[0] + 1.0,)},
+        flows={"run": _rise()},
+        jumps={"rewind": jump_map(x.x + 1.0)},
         initial_mode="run",
         bounds=(-1.0, 2.0),
         duration=2.0,
@@ -1046,16 +1101,18 @@ def bad_reset() -> ReferenceModel:
     >>> model.system.automaton.mode("down").invariant((2.0,), {}) < 0
     True
     """
+    v = coordinates("x")  # signal
+    x = coordinates("x")  # state
     modes = (
         Mode(name="up", description="x rises to 1",
-             invariant=lambda v, m: 1.0 - v[0], invariant_text="x <= 1"),
+             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
         Mode(name="down", description="x falls to 0; x must stay within [0, 1.5]",
-             invariant=all_of(lambda v, m: v[0], lambda v, m: 1.5 - v[0]), invariant_text="0 <= x <= 1.5"),
+             invariant=all_of(v.x, 1.5 - v.x), invariant_text="0 <= x <= 1.5"),
     )
     transitions = (
-        Transition(name="reverse", source="up", target="down", guard=lambda v, m: v[0] - 1.0,
+        Transition(name="reverse", source="up", target="down", guard=v.x - 1.0,
                    guard_text="x >= 1", reads=("x",), reset_text="x := x + 1"),
-        Transition(name="rearm", source="down", target="up", guard=lambda v, m: -v[0],
+        Transition(name="rearm", source="down", target="up", guard=-v.x,
                    guard_text="x <= 0", reads=("x",)),
     )
     return _unit_speed_model(
@@ -1066,8 +1123,8 @@ def bad_reset() -> ReferenceModel:
         ),
         modes=modes,
         transitions=transitions,
-        flows={"up": _rise, "down": _fall},
-        jumps={"reverse": lambda x, m: (x[0] + 1.0,)},
+        flows={"up": _rise(), "down": _fall()},
+        jumps={"reverse": jump_map(x.x + 1.0)},
         initial_mode="up",
         bounds=(0.0, 2.5),
         duration=3.0,
@@ -1090,12 +1147,14 @@ def retrigger() -> ReferenceModel:
     >>> fire.guard(model.system.jump("fire", 1.0, (1.0,), {}), {}) >= 0
     True
     """
+    v = coordinates("x")  # signal
+    x = coordinates("x")  # state
     modes = (
         Mode(name="tick", description="x rises to 1, where the self-loop fires forever",
-             invariant=lambda v, m: 1.0 - v[0], invariant_text="x <= 1"),
+             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
     )
     transitions = (
-        Transition(name="fire", source="tick", target="tick", guard=lambda v, m: v[0] - 1.0,
+        Transition(name="fire", source="tick", target="tick", guard=v.x - 1.0,
                    guard_text="x >= 1", reads=("x",), reset_text="x := x"),
     )
     return _unit_speed_model(
@@ -1106,8 +1165,8 @@ def retrigger() -> ReferenceModel:
         ),
         modes=modes,
         transitions=transitions,
-        flows={"tick": _rise},
-        jumps={"fire": lambda x, m: (x[0],)},
+        flows={"tick": _rise()},
+        jumps={"fire": jump_map(x.x)},
         initial_mode="tick",
         bounds=(0.0, 2.0),
         duration=2.0,
@@ -1130,16 +1189,17 @@ def unreachable() -> ReferenceModel:
     >>> [(t.source, t.target) for t in model.system.automaton.transitions]
     [('main', 'main'), ('orphan', 'main')]
     """
+    v = coordinates("x")  # signal
     modes = (
         Mode(name="main", description="x rises to 1 and wraps around to 0",
-             invariant=lambda v, m: 1.0 - v[0], invariant_text="x <= 1"),
+             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
         Mode(name="orphan", description="never entered: x would fall to 0 and go to main",
-             invariant=lambda v, m: v[0], invariant_text="x >= 0"),
+             invariant=all_of(v.x), invariant_text="x >= 0"),
     )
     transitions = (
-        Transition(name="wrap", source="main", target="main", guard=lambda v, m: v[0] - 1.0,
+        Transition(name="wrap", source="main", target="main", guard=v.x - 1.0,
                    guard_text="x >= 1", reads=("x",), reset_text="x := 0"),
-        Transition(name="orphan_to_main", source="orphan", target="main", guard=lambda v, m: -v[0],
+        Transition(name="orphan_to_main", source="orphan", target="main", guard=-v.x,
                    guard_text="x <= 0", reads=("x",)),
     )
     return _unit_speed_model(
@@ -1150,8 +1210,8 @@ def unreachable() -> ReferenceModel:
         ),
         modes=modes,
         transitions=transitions,
-        flows={"main": _rise, "orphan": _fall},
-        jumps={"wrap": lambda x, m: (0.0,)},
+        flows={"main": _rise(), "orphan": _fall()},
+        jumps={"wrap": jump_map(0.0)},
         initial_mode="main",
         bounds=(0.0, 1.0),
         duration=2.5,  # wraps at t = 1, 2, 3, ...: 2.5 is between two of them

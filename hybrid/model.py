@@ -32,6 +32,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .errors import ExecutionError, ModelDefinitionError
+from .symbolic import Condition, SymbolicReset, level_form
 
 __all__ = [
     "Guard",
@@ -45,7 +46,26 @@ __all__ = [
     "guard_value",
     "Conjunction",
     "all_of",
+    "BOOL_GUARD_HINT",
+    "refuse_bool",
 ]
+
+BOOL_GUARD_HINT = (
+    "a guard or invariant is a level function, >= 0 where it holds: write `lambda v, m: v[0] - 5.0` "
+    "for v[0] >= 5 (not `v[0] > 5.0`, whose False would read as 0.0, i.e. enabled), "
+    "all_of(g1, g2) for a conjunction, or a symbolic comparison (hybrid.symbolic: v.T >= 5.0)"
+)
+
+
+def refuse_bool(value: Any, what: str) -> None:
+    """Raise :class:`ExecutionError` when a guard or invariant returned a bool (it would read as 0.0 or 1.0)."""
+    if value.__class__ is bool or value.__class__.__name__ == "bool_":
+        raise ExecutionError(f"{what} returned the bool {value!r}; {BOOL_GUARD_HINT}")
+
+
+def _as_level(function: Any) -> Any:
+    """A symbolic condition as its level form; anything else unchanged."""
+    return level_form(function) if isinstance(function, Condition) else function
 
 Guard = Callable[[Sequence[float], Mapping[str, float]], float]
 """Guard value ``g(v, m)``; the transition is enabled when ``g >= 0``."""
@@ -88,6 +108,7 @@ class Mode:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Mode.name = {self.name!r}: expected a non-empty string")
+        object.__setattr__(self, "invariant", _as_level(self.invariant))
         if self.invariant is not None and not callable(self.invariant):
             raise ModelDefinitionError(
                 f"mode {self.name!r}: invariant = {self.invariant!r} is not callable; "
@@ -138,6 +159,15 @@ class Transition:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Transition.name = {self.name!r}: expected a non-empty string")
+        object.__setattr__(self, "guard", _as_level(self.guard))
+        if isinstance(self.reset, SymbolicReset):
+            if not self.writes:
+                object.__setattr__(self, "writes", self.reset.writes)
+            elif set(self.writes) != set(self.reset.writes):
+                raise ModelDefinitionError(
+                    f"transition {self.name!r}: writes = {tuple(self.writes)!r} but the symbolic reset assigns "
+                    f"{self.reset.writes!r}; drop `writes` (it is taken from the reset) or make them agree"
+                )
         if not callable(self.guard):
             raise ModelDefinitionError(
                 f"transition {self.name!r}: guard = {self.guard!r} is not callable; "
@@ -264,6 +294,26 @@ class HybridAutomaton:
             MappingProxyType({k: tuple(sorted(v, key=lambda tr: tr.priority)) for k, v in outgoing.items()}),
         )
         object.__setattr__(self, "_mode_index", MappingProxyType({n: i for i, n in enumerate(mode_names)}))
+        self._probe_levels()
+
+    def _probe_levels(self) -> None:
+        """Refuse a guard or invariant that returns a bool, probed at zero signals and the initial memory.
+
+        A probe that raises proves nothing and is ignored (the function may be undefined at zero);
+        the executors and checks refuse a bool at every evaluation as well (:func:`refuse_bool`).
+        """
+        zeros = tuple(0.0 for _ in self.variables)
+        memory = MappingProxyType(self.initial_memory())
+        probes = [(f"invariant of mode {q.name!r}", q.invariant) for q in self.modes if q.invariant is not None]
+        probes += [(f"guard of transition {t.name!r}", t.guard) for t in self.transitions]
+        for what, function in probes:
+            try:
+                value = function(zeros, memory)
+            except Exception:  # noqa: BLE001 - a probe only looks for bools
+                continue
+            if value.__class__ is bool or value.__class__.__name__ == "bool_":
+                raise ModelDefinitionError(f"automaton {self.name!r}: {what} returns a bool ({value!r}); "
+                                           f"{BOOL_GUARD_HINT}")
 
     # ------------------------------------------------------------------ queries
     @property
@@ -358,6 +408,8 @@ def guard_value(t: Transition, v: Sequence[float], memory: Mapping[str, float]) 
         The guard returned NaN.
     """
     g = t.guard(v, memory)
+    if g.__class__ is not float:
+        refuse_bool(g, f"guard of transition {t.name!r} (from mode {t.source!r})")
     if g != g:
         raise ExecutionError(
             f"guard of transition {t.name!r} (from mode {t.source!r}) is NaN at signals {tuple(v)!r}; "

@@ -33,6 +33,18 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from hybrid import Box, HybridAutomaton, HybridSystem, MemoryVariable, Mode, Transition
+from hybrid.symbolic import (
+    Expr,
+    coordinates,
+    ite,
+    maximum,
+    memory as memory_refs,
+    minimum,
+    output_map,
+    param,
+    reset as memory_reset,
+    select,
+)
 
 from visnav.parameters import Envelopes, SupervisorSettings
 
@@ -46,6 +58,7 @@ __all__ = [
     "split_mode",
     "measurement_system",
     "measurement_box",
+    "measurement_rates",
 ]
 
 COLLISION_PHASES = ("FAR", "APPROACH", "AVOID", "ARMED", "PASSED", "LEAVE")
@@ -155,78 +168,65 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
         Number of obstacles; the signals carry one distance per obstacle.
     """
     env = envelopes
-    d_minus, d_zero, d_plus = env.d_minus_m, env.d_zero_m, env.d_plus_m
-    D_minus, D_zero, D_plus = env.D_minus_px, env.D_zero_px, env.D_plus_px
-    arm = settings.arm_angle_rad
-    hysteresis = settings.detection_hysteresis_m
+    d_minus, d_zero, d_plus = (param("d_minus", env.d_minus_m), param("d_zero", env.d_zero_m),
+                               param("d_plus", env.d_plus_m))
+    D_minus, D_zero, D_plus = (param("D_minus", env.D_minus_px), param("D_zero", env.D_zero_px),
+                               param("D_plus", env.D_plus_px))
+    arm = param("arm", settings.arm_angle_rad)
+    hysteresis = param("hysteresis", settings.detection_hysteresis_m)
     release_margin = 0.5 * (D_zero - D_minus)
-
-    def d_latched(v: Sequence[float], m: Mapping[str, float]) -> float:
-        return v[I_FIRST_OBSTACLE + int(m["obstacle"])]
-
-    def crossed_zero(v: Sequence[float], m: Mapping[str, float]) -> float:
-        # ϑ (wrapped) is back on the other side of zero from where it was armed, near 0
-        pan = v[I_PAN]
-        return min(-m["arm_sign"] * pan, 0.5 * math.pi - abs(pan))
+    v = coordinates(SIGNALS + tuple(f"d_coll_{i}_m" for i in range(n_obstacles)))
+    m = memory_refs("obstacle", "side", "arm_sign", "dL", "d_end", "DL", "D_end")
+    pan, d_occ, d_bord = v.pan_wrapped_rad, v.d_occ_px, v.d_bord_px
+    # the latched obstacle's distance (with no obstacle, the nearest distance, which is then inf)
+    d_latched: Expr = (select(m.obstacle, [v[f"d_coll_{i}_m"] for i in range(n_obstacles)])
+                       if n_obstacles else v.d_nearest_m)
+    # ϑ (wrapped) is back on the other side of zero from where it was armed, near 0
+    crossed_zero = minimum(-m.arm_sign * pan, 0.5 * math.pi - abs(pan))
 
     # ---- resets --------------------------------------------------------------------
-    def latch_obstacle(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        return {"obstacle": float(v[I_NEAREST]), "side": float(v[I_SIDE])}
-
-    def forget_obstacle(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        return {"obstacle": 0.0, "side": 0.0, "arm_sign": 0.0, "dL": 0.0, "d_end": 0.0}
-
-    def arm_leave(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        return {"arm_sign": 1.0 if v[I_PAN] > 0.0 else -1.0}
-
-    def latch_dl(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        dl = d_latched(v, m)
-        return {"dL": dl, "d_end": max(d_plus, dl + (d_plus - d_zero))}
-
-    def disarm(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        return {"arm_sign": 0.0, "dL": 0.0, "d_end": 0.0}
-
-    def latch_DL(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        d = v[I_D_OCC]
-        dl = d if math.isfinite(d) else D_zero
-        return {"DL": dl, "D_end": max(D_plus, dl + (D_plus - D_zero))}
-
-    def clear_DL(v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
-        return {"DL": 0.0, "D_end": 0.0}
+    latch_obstacle = memory_reset(obstacle=v.nearest_obstacle, side=v.bypass_side)
+    forget_obstacle = memory_reset(obstacle=0.0, side=0.0, arm_sign=0.0, dL=0.0, d_end=0.0)
+    arm_leave = memory_reset(arm_sign=ite(pan > 0.0, 1.0, -1.0))
+    latch_dl = memory_reset(dL=d_latched, d_end=maximum(d_plus, d_latched + (d_plus - d_zero)))
+    disarm = memory_reset(arm_sign=0.0, dL=0.0, d_end=0.0)
+    latched_occ = ite(d_occ < math.inf, d_occ, D_zero)  # an occluder out of view latches D0
+    latch_DL = memory_reset(DL=latched_occ, D_end=maximum(D_plus, latched_occ + (D_plus - D_zero)))
+    clear_DL = memory_reset(DL=0.0, D_end=0.0)
 
     # ---- collision component -------------------------------------------------------------
     # (source, target, guard, reset, writes, guard_text, reset_text, priority, occlusion phases or None=all)
     collision_rules = [
-        ("FAR", "APPROACH", lambda v, m: d_plus - v[I_D_NEAREST], latch_obstacle, ("obstacle", "side"),
+        ("FAR", "APPROACH", d_plus - v.d_nearest_m, latch_obstacle, ("obstacle", "side"),
          "d_nearest <= d+", "obstacle := nearest; side := bypass side", 10, None),
-        ("APPROACH", "AVOID", lambda v, m: d_minus - d_latched(v, m), None, (),
+        ("APPROACH", "AVOID", d_minus - d_latched, None, (),
          "d <= d-", "", 10, None),
-        ("APPROACH", "FAR", lambda v, m: d_latched(v, m) - (d_plus + hysteresis), forget_obstacle,
+        ("APPROACH", "FAR", d_latched - (d_plus + hysteresis), forget_obstacle,
          ("obstacle", "side", "arm_sign", "dL", "d_end"), "d >= d+ + hysteresis", "forget obstacle", 11, None),
-        ("AVOID", "ARMED", lambda v, m: abs(v[I_PAN]) - arm, arm_leave, ("arm_sign",),
+        ("AVOID", "ARMED", abs(pan) - arm, arm_leave, ("arm_sign",),
          "|wrap(pan)| >= arm", "arm_sign := sign(pan)", 10, None),
-        ("ARMED", "LEAVE", lambda v, m: min(crossed_zero(v, m), v[I_D_OCC] - D_zero), latch_dl, ("dL", "d_end"),
+        ("ARMED", "LEAVE", minimum(crossed_zero, d_occ - D_zero), latch_dl, ("dL", "d_end"),
          "pan back through 0 and mu_occ = 0", "dL := d; d_end := max(d+, dL + d+ - d0)", 10, ("CLEAR",)),
         ("ARMED", "PASSED", crossed_zero, None, (),
          "pan back through 0 and mu_occ > 0", "", 11, None),
-        ("PASSED", "LEAVE", lambda v, m: v[I_D_OCC] - D_zero, latch_dl, ("dL", "d_end"),
+        ("PASSED", "LEAVE", d_occ - D_zero, latch_dl, ("dL", "d_end"),
          "mu_occ = 0", "dL := d; d_end := max(d+, dL + d+ - d0)", 10, ("CLEAR",)),
-        ("LEAVE", "FAR", lambda v, m: d_latched(v, m) - max(m["d_end"], d_plus + hysteresis), forget_obstacle,
+        ("LEAVE", "FAR", d_latched - maximum(m.d_end, d_plus + hysteresis), forget_obstacle,
          ("obstacle", "side", "arm_sign", "dL", "d_end"), "d >= max(d_end, d+ + hysteresis)", "AVOID := LEAVE := 0",
          10, None),
-        ("LEAVE", "AVOID", lambda v, m: min(d_minus - d_latched(v, m), m["dL"] - 0.01 - d_latched(v, m)), disarm,
+        ("LEAVE", "AVOID", minimum(d_minus - d_latched, m.dL - 0.01 - d_latched), disarm,
          ("arm_sign", "dL", "d_end"), "d <= min(d-, dL - 1 cm)", "LEAVE := 0; disarm", 11, None),
     ]
     # ---- occlusion component ----------------------------------------------------------------
     occlusion_rules = [
-        ("CLEAR", "OCCLUDED", lambda v, m: D_minus - v[I_D_OCC], None, (), "d_occ <= D-", "", 0),
+        ("CLEAR", "OCCLUDED", D_minus - d_occ, None, (), "d_occ <= D-", "", 0),
         ("OCCLUDED", "RELEASE",
-         lambda v, m: max(v[I_D_OCC] - D_zero, min(-v[I_D_BORD], v[I_D_OCC] - (D_minus + release_margin))),
+         maximum(d_occ - D_zero, minimum(-d_bord, d_occ - (D_minus + release_margin))),
          latch_DL, ("DL", "D_end"), "d_occ >= D0 or (d_bord = 0 and d_occ >= (D- + D0)/2)",
          "DL := d_occ; D_end := max(D+, DL + D+ - D0)", 0),
-        ("RELEASE", "CLEAR", lambda v, m: v[I_D_OCC] - m["D_end"], clear_DL, ("DL", "D_end"),
+        ("RELEASE", "CLEAR", d_occ - m.D_end, clear_DL, ("DL", "D_end"),
          "d_occ >= D_end", "", 0),
-        ("RELEASE", "OCCLUDED", lambda v, m: D_minus - v[I_D_OCC], clear_DL, ("DL", "D_end"),
+        ("RELEASE", "OCCLUDED", D_minus - d_occ, clear_DL, ("DL", "D_end"),
          "d_occ <= D-", "", 1),
     ]
 
@@ -309,30 +309,34 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
     """The supervisor over a *consistent* measurement state, for :func:`hybrid.check`.
 
     The supervisor's signals are not independent: ``d_nearest`` is the
-    smallest ``d_coll_i`` and ``nearest_obstacle`` its index.  Searching a box
-    over the signals themselves would visit impossible combinations and
-    report defects that no robot can produce, so the checks search over the
-    raw measurements ``(d_coll_0, ..., d_coll_{n-1}, bypass_side, d_occ,
-    d_bord, pan)`` and the output map derives the signals from them.
+    smallest ``d_coll_i`` and ``nearest_obstacle`` its index (the first one on
+    a tie).  Searching a box over the signals themselves would visit
+    impossible combinations and report defects that no robot can produce, so
+    the checks search over the raw measurements ``(d_coll_0, ...,
+    d_coll_{n-1}, bypass_side, d_occ, d_bord, pan_wrapped)`` and the output
+    map, symbolic like the guards, derives the signals from them.  The pan
+    angle is measured already wrapped into (−π, π], as the supervisor reads it.
 
     The flow is zero in every mode (the measurements are exogenous to the
     supervisor); it plays no part in the checks because no mode of the
     supervisor has an invariant (it is evaluated at every sample, and the
-    deadlock question is void).
+    deadlock question is void).  The dwell-time bounds of the Zeno check take
+    the measurements' rate bounds instead (:func:`measurement_rates`).
     """
-    names = tuple(f"d_coll_{i}_m" for i in range(model.n_obstacles)) + (
-        "bypass_side", "d_occ_px", "d_bord_px", "pan_rad",
-    )
     n = model.n_obstacles
-
-    def output(t: float, x: Sequence[float]) -> tuple[float, ...]:
-        distances = tuple(x[:n])
-        nearest = min(range(n), key=distances.__getitem__) if n else 0
-        d_nearest = distances[nearest] if n else math.inf
-        side, d_occ, d_bord, pan = x[n:]
-        wrapped = math.atan2(math.sin(pan), math.cos(pan))
-        return (d_nearest, float(nearest), side, d_occ, d_bord, wrapped, *distances)
-
+    names = tuple(f"d_coll_{i}_m" for i in range(n)) + (
+        "bypass_side", "d_occ_px", "d_bord_px", "pan_wrapped_rad",
+    )
+    x = coordinates(names)
+    distances = [x[f"d_coll_{i}_m"] for i in range(n)]
+    if n:
+        nearest: Expr = minimum(*distances)
+        index: Expr = 0.0 * distances[0]  # the first minimal distance's index, as min(range(n), key=...)
+        for i in range(1, n):
+            index = ite(distances[i] < minimum(*distances[:i]), float(i), index)
+    else:
+        nearest, index = 0.0 * x.d_occ_px + math.inf, 0.0 * x.d_occ_px  # type: ignore[assignment]
+    output = output_map(nearest, index, x.bypass_side, x.d_occ_px, x.d_bord_px, x.pan_wrapped_rad, *distances)
     zero = tuple(0.0 for _ in names)
     return HybridSystem(
         automaton=model.automaton,
@@ -340,6 +344,24 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
         flows={mode: (lambda t, x, m: zero) for mode in model.automaton.mode_names},
         output=output,
     )
+
+
+def measurement_rates(max_step: Mapping[str, float], period_s: float, n_obstacles: int) -> dict[str, float]:
+    """Rate bounds [unit/s] of the measurement coordinates of :func:`measurement_system`.
+
+    Parameters
+    ----------
+    max_step : Mapping[str, float]
+        Largest change per sample of ``d`` (every obstacle distance) [m],
+        ``d_occ`` [px], ``d_bord`` [px] and ``pan`` [rad].
+    period_s : float
+        Sampling period [s].
+    n_obstacles : int
+    """
+    rates = {f"d_coll_{i}_m": max_step["d"] / period_s for i in range(n_obstacles)}
+    rates.update({"d_occ_px": max_step["d_occ"] / period_s, "d_bord_px": max_step["d_bord"] / period_s,
+                  "pan_wrapped_rad": max_step["pan"] / period_s})
+    return rates
 
 
 def measurement_box(model: SupervisorModel, camera_half_width_px: float) -> Box:
@@ -356,6 +378,6 @@ def measurement_box(model: SupervisorModel, camera_half_width_px: float) -> Box:
     bounds.update({
         "d_occ_px": (0.0, 2.0 * env.D_plus_px),
         "d_bord_px": (0.0, float(camera_half_width_px)),
-        "pan_rad": (-math.pi, math.pi),
+        "pan_wrapped_rad": (-math.pi, math.pi),
     })
     return Box(bounds=bounds, choices={"bypass_side": (-1.0, 1.0)})

@@ -1,0 +1,1318 @@
+"""Structural questions decided by an SMT solver on symbolic models, each answer proven or witnessed.
+
+:func:`decide` answers, for the modes whose guards, invariants, resets, jump
+maps (and, for the deadlock question, flows) are symbolic
+(:mod:`hybrid.symbolic`), the questions that :func:`hybrid.check` otherwise
+answers by sampling:
+
+* **overlaps** — for every pair of transitions leaving one mode, whether both
+  can be enabled at one state of the box inside the mode's invariant
+  (``nondeterminism`` for equal priorities, ``priority_overlap`` otherwise);
+* **deadlock** — a point of the invariant's boundary (``inv = 0``) where the
+  flow leaves it (``d/dt inv < 0``, the exact Lie derivative) and no outgoing
+  transition is enabled; a bare automaton (no flow) counts every boundary point;
+* **reset_outside_invariant** — a jump from an enabled state that lands more
+  than ``tol`` outside the target's invariant;
+* **instantaneous cycles** (``reset_retriggers``, ``zeno_point``) — a cycle
+  of level-triggered jumps that can follow one another at one instant, with
+  the executors' priorities (:mod:`hybrid.instant`) and back to its first
+  transition; robust (an open set of states does it: an error) or only on a
+  set without interior (a Zeno point: info);
+* **Zeno, per cycle of the mode graph** — a lower bound on the duration of one
+  lap of the cycle, from the guards' separation and the rate bounds of the
+  coordinates, or a witness of instantaneous cycling.
+
+What "proven" assumes
+---------------------
+**Memory.**  Memory variables range over what the transitions entering a mode
+can write, not over their initial values.  For every mode ``q`` an interval
+hull ``H(q)`` of each memory variable is computed by a fixpoint over the
+transitions (``H(init)`` holds the initial values; a transition into ``q``
+adds the interval enclosure of its reset over its source's box and ``H(src)``,
+and carries the variables it does not write; a variable still growing after
+:data:`HULL_ROUNDS` rounds is widened to the whole line).  A query in ``q``
+then states the memory *exactly* as written by one entering transition ``t``:
+``m = r_t(x', m')`` for some pre-jump state ``x'`` in the source's box with
+``t`` enabled there and ``m'`` in ``H(src)``, or the initial memory in the
+initial mode.  This over-approximates the reachable memory, so an *exclusive*
+answer is a proof; a witness is confirmed by evaluating the model's functions
+at it, its memory's provenance included.
+**States.** Only the declared box is considered; the question is over every
+point of it (reachable or not).
+**Crossing-triggered transitions** are enabled on the side their crossing ends
+on (``g >= 0`` rising, ``g <= 0`` falling), as in :mod:`hybrid.check`, and never
+fire after the first jump of an instant (:mod:`hybrid.instant`).
+**Rates.**  The dwell bounds use ``|dx_j/dt| <= R_j`` in each mode: the rates
+declared by the caller, else the interval enclosure of a symbolic flow over the
+mode's box and memory hull; a coordinate without either is unbounded.
+**Transcendental terms** are enclosed by intervals: unsat stays a proof; a
+witness that does not re-check makes the answer "undecided".
+
+Every solver call has a timeout; "unknown" is reported as undecided within that
+many seconds, never as clean.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time as _time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import networkx as nx
+
+from .check import KIND_SEVERITY, Finding, Witness, _Oracle
+from .errors import ExecutionError, ModelDefinitionError
+from .graph import mode_graph
+from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
+from .model import Conjunction, HybridAutomaton, Transition
+from .region import Box
+from .smt import Translation, rational, solver_version, to_float
+from .symbolic import (
+    Condition,
+    Coordinate,
+    Expr,
+    SymbolicError,
+    SymbolicReset,
+    SymbolicVector,
+    diff,
+    enclose,
+    free_symbols,
+    level_form,
+    minimum,
+    render,
+    substitute,
+)
+from .system import HybridSystem
+
+__all__ = [
+    "CLAIM_STATUSES",
+    "DEFAULT_TIMEOUT_S",
+    "HULL_ROUNDS",
+    "Claim",
+    "PairVerdict",
+    "CycleVerdict",
+    "ZenoSummary",
+    "Decision",
+    "decide",
+]
+
+CLAIM_STATUSES = ("proven", "found", "sampled", "undecided", "skipped")
+"""How a check's answer was obtained: a proof; a re-checked witness; a search; neither; not run."""
+DEFAULT_TIMEOUT_S = 5.0
+"""Timeout of one solver call [s]."""
+HULL_ROUNDS = 12
+"""Fixpoint rounds of the memory hulls before a still-growing variable is widened to the whole line."""
+RECHECK_TOL = 1e-9
+"""Relative tolerance of a witness re-check (a solver's rational rounded to floats)."""
+DWELL_REL = 1e-9
+"""Relative safety margin taken off a minimised dwell before it is verified as a lower bound."""
+BISECTIONS = 12
+"""Bisection steps of a dwell bound when the optimiser's value cannot be verified."""
+
+
+# ====================================================================== results
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Claim:
+    """The answer to one check over the whole model.
+
+    Attributes
+    ----------
+    check : str
+        ``nondeterminism``, ``deadlock``, ``reset_outside_invariant``, ``reset_retriggers``, ``zeno``.
+    status : str
+        One of :data:`CLAIM_STATUSES`.
+    method : str
+        How: the solver and what re-checked it, or the sampling.
+    assumptions : tuple of str
+        What a ``proven`` answer assumes.
+    detail : str
+        Counts, modes left to sampling, undecided questions.
+    """
+
+    check: str
+    status: str
+    method: str
+    assumptions: tuple[str, ...] = ()
+    detail: str = ""
+
+    def __post_init__(self) -> None:
+        if self.status not in CLAIM_STATUSES:
+            raise ValueError(f"Claim.status = {self.status!r}; expected one of {CLAIM_STATUSES}")
+        object.__setattr__(self, "assumptions", tuple(self.assumptions))
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {"check": self.check, "status": self.status, "method": self.method,
+                "assumptions": list(self.assumptions), "detail": self.detail}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class PairVerdict:
+    """Whether two transitions of one mode can be enabled together.
+
+    Attributes
+    ----------
+    mode, first, second : str
+    same_priority : bool
+    verdict : str
+        ``"overlap"`` (witness re-checked), ``"exclusive"`` (proven) or ``"undecided"``.
+    witness : Witness or None
+    detail : str
+    """
+
+    mode: str
+    first: str
+    second: str
+    same_priority: bool
+    verdict: str
+    witness: Witness | None = None
+    detail: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {"mode": self.mode, "first": self.first, "second": self.second,
+                "same_priority": self.same_priority, "verdict": self.verdict,
+                "witness": None if self.witness is None else self.witness.as_dict(), "detail": self.detail}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class CycleVerdict:
+    """The Zeno answer for one cycle of transitions.
+
+    Attributes
+    ----------
+    modes, transitions : tuple of str
+        The cycle, starting at its first transition's source.
+    verdict : str
+        ``"non_zeno"`` (a lap lasts at least ``dwell_s``, proven), ``"instantaneous"``
+        (its jumps can follow one another at one instant on an open set of states: witness),
+        ``"zeno_point"`` (only on a set without interior: witness), ``"infeasible"`` (no execution
+        takes its transitions in this order: proven) or ``"undecided"``.
+    dwell_s : float
+        Proven lower bound on one lap [s] (``0`` unless ``non_zeno``; ``inf`` when infeasible).
+    binding : str
+        Where the bound comes from.
+    witness : Witness or None
+    """
+
+    modes: tuple[str, ...]
+    transitions: tuple[str, ...]
+    verdict: str
+    dwell_s: float
+    binding: str = ""
+    witness: Witness | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {"modes": list(self.modes), "transitions": list(self.transitions), "verdict": self.verdict,
+                "dwell_s": _num(self.dwell_s), "binding": self.binding,
+                "witness": None if self.witness is None else self.witness.as_dict()}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ZenoSummary:
+    """The cycles of the mode graph grouped by verdict.
+
+    Attributes
+    ----------
+    cycles : int
+        Cycles of transitions examined.
+    counts : Mapping[str, int]
+        Cycles per verdict.
+    min_dwell_s : float or None
+        Smallest proven lap duration among the ``non_zeno`` cycles.
+    binding : str
+        Where that smallest bound binds.
+    binding_cycle : tuple of str
+        The transitions of that cycle.
+    capped : bool
+        Whether the enumeration stopped at ``max_cycles``.
+    rates : Mapping[str, Mapping[str, float]]
+        Rate bound of every coordinate used, per mode (``inf``: unbounded).
+    verdicts : tuple of CycleVerdict
+    """
+
+    cycles: int
+    counts: Mapping[str, int]
+    min_dwell_s: float | None
+    binding: str
+    binding_cycle: tuple[str, ...]
+    capped: bool
+    rates: Mapping[str, Mapping[str, float]]
+    verdicts: tuple[CycleVerdict, ...]
+
+    def as_dict(self, *, verdicts: bool = True) -> dict[str, Any]:
+        """JSON-ready copy (``verdicts=False`` leaves out the per-cycle list)."""
+        out: dict[str, Any] = {
+            "cycles": self.cycles, "counts": dict(self.counts),
+            "min_dwell_s": None if self.min_dwell_s is None else _num(self.min_dwell_s),
+            "binding": self.binding, "binding_cycle": list(self.binding_cycle), "capped": self.capped,
+            "rates": {q: {k: _num(r) for k, r in rs.items()} for q, rs in self.rates.items()},
+        }
+        if verdicts:
+            out["verdicts"] = [v.as_dict() for v in self.verdicts]
+        return out
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Decision:
+    """Result of :func:`decide`.
+
+    Attributes
+    ----------
+    findings : tuple of Finding
+        Each with a witness re-checked on the model's own functions.
+    claims : Mapping[str, Claim]
+        One per check.
+    pairs : tuple of PairVerdict
+        Every pair of transitions sharing a source mode (both symbolic).
+    zeno : ZenoSummary or None
+    memory_hulls : Mapping[str, Mapping[str, tuple[float, float]] or None]
+        The memory abstraction per mode (``None``: no entering transition reaches it).
+    sampled_modes : Mapping[str, str]
+        Modes (or checks in them) the solver could not take, with why.
+    queries : int
+        Solver calls.
+    solver_s : float
+        Time spent in the solver [s].
+    solver : str
+        Solver name and version.
+    """
+
+    findings: tuple[Finding, ...]
+    claims: Mapping[str, Claim]
+    pairs: tuple[PairVerdict, ...]
+    zeno: ZenoSummary | None
+    memory_hulls: Mapping[str, Mapping[str, tuple[float, float]] | None]
+    sampled_modes: Mapping[str, str]
+    queries: int
+    solver_s: float
+    solver: str
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
+        return {
+            "claims": {k: c.as_dict() for k, c in self.claims.items()},
+            "pairs": [p.as_dict() for p in self.pairs],
+            "zeno": None if self.zeno is None else self.zeno.as_dict(),
+            "memory_hulls": {q: None if h is None else {k: [_num(a), _num(b)] for k, (a, b) in h.items()}
+                             for q, h in self.memory_hulls.items()},
+            "sampled_modes": dict(self.sampled_modes),
+            "queries": self.queries,
+            "solver": self.solver,
+        }
+
+
+def _num(x: float) -> float | str:
+    x = float(x)
+    if not math.isfinite(x):
+        return str(x)
+    return float(f"{x + 0.0:.12g}")
+
+
+def _g(x: float) -> str:
+    return f"{x + 0.0:.10g}"
+
+
+# ====================================================================== the symbolic view of a model
+class _View:
+    """The model's functions as expressions over its coordinates (``None`` where a function is not symbolic)."""
+
+    def __init__(self, model: HybridSystem | HybridAutomaton) -> None:
+        self.oracle = _Oracle(model)
+        self.system = self.oracle.system
+        self.automaton: HybridAutomaton = self.oracle.automaton
+        self.coords = self.oracle.coords
+        a = self.automaton
+        self.memory_names = tuple(mv.name for mv in a.memory)
+        self.signals: dict[str, Expr] | None = {}
+        if self.system is not None and self.system.output is not None:
+            out = self.system.output
+            if isinstance(out, SymbolicVector) and len(out) == len(a.variables):
+                self.signals = dict(zip(a.variables, out.components))
+            else:
+                self.signals = None
+        self._cache: dict[tuple[str, str], Any] = {}
+
+    def _in_coords(self, e: Expr) -> Expr:
+        assert self.signals is not None
+        return substitute(e, coordinates=self.signals) if self.signals else e
+
+    def condition(self, fn: Any) -> Expr | None:
+        """A guard or invariant over the coordinates, or ``None`` when it is not symbolic."""
+        if isinstance(fn, Conjunction):
+            terms = [self.condition(t) for t in fn.terms]
+            return None if any(t is None for t in terms) else minimum(*terms)  # type: ignore[arg-type]
+        if isinstance(fn, Condition):
+            fn = level_form(fn)
+        if not isinstance(fn, Expr) or self.signals is None:
+            return None
+        return self._in_coords(fn)
+
+    def guard(self, t: Transition) -> Expr | None:
+        key = ("guard", t.name)
+        if key not in self._cache:
+            self._cache[key] = self.condition(t.guard)
+        return self._cache[key]
+
+    def invariant(self, q: str) -> Expr | None | bool:
+        """The invariant over the coordinates; ``True`` for "always"; ``None`` when not symbolic."""
+        key = ("inv", q)
+        if key not in self._cache:
+            inv = self.automaton.mode(q).invariant
+            self._cache[key] = True if inv is None else self.condition(inv)
+        return self._cache[key]
+
+    def reset(self, t: Transition) -> dict[str, Expr] | None:
+        """New values of the written memory over (coordinates, pre-jump memory); ``{}`` without a reset."""
+        if t.reset is None:
+            return {}
+        if not isinstance(t.reset, SymbolicReset) or self.signals is None:
+            return None
+        return {k: self._in_coords(e) for k, e in t.reset.assignments.items()}
+
+    def jump(self, t: Transition) -> tuple[Expr, ...] | None:
+        """Post-jump coordinates; the identity when the transition has no jump map."""
+        identity = tuple(Coordinate(n, i) for i, n in enumerate(self.coords))
+        if self.system is None:
+            return identity
+        r = self.system.jumps.get(t.name)
+        if r is None:
+            return identity
+        if isinstance(r, SymbolicVector) and r.kind == "jump" and len(r) == len(self.coords):
+            return r.components
+        return None
+
+    def flow(self, q: str) -> tuple[Expr, ...] | None:
+        if self.system is None:
+            return None
+        f = self.system.flows[q]
+        if isinstance(f, SymbolicVector) and f.kind == "flow" and len(f) == len(self.coords):
+            if any(free_symbols(c)["time"] for c in f.components):
+                return None
+            return f.components
+        return None
+
+
+# ====================================================================== z3 frames
+class _Frame:
+    """One state point of a query: z3 reals for the coordinates and the memory."""
+
+    def __init__(self, tag: str, coords: Sequence[str], memory_names: Sequence[str]) -> None:
+        import z3
+
+        self.tag = tag
+        self.x = {n: z3.Real(f"{tag}.{n}") for n in coords}
+        self.m = {n: z3.Real(f"{tag}.m.{n}") for n in memory_names}
+
+
+class _Decider:
+    def __init__(self, view: _View, boxes: Mapping[str, Box], *, rates: Mapping[str, float] | None,
+                 timeout_s: float, tol: float, max_cycles: int) -> None:
+        self.v = view
+        self.a = view.automaton
+        self.boxes = boxes
+        self.declared_rates = dict(rates or {})
+        self.timeout_s = timeout_s
+        self.tol = tol
+        self.max_cycles = max_cycles
+        self.queries = 0
+        self.solver_s = 0.0
+        self.unknown: list[str] = []
+        self.count = itertools.count()
+        self._states: dict[tuple[Any, ...], Any] = {}
+        self.timing: dict[str, float] = {}
+        self.hulls = self._memory_hulls()
+
+    # ------------------------------------------------------------------ solver
+    def solve(self, constraints: list[Any], what: str) -> tuple[str, Any]:
+        import z3
+
+        s = z3.Solver()
+        s.set("timeout", max(1, int(round(self.timeout_s * 1000))))
+        s.add(*constraints)
+        start = _time.perf_counter()
+        r = s.check()
+        self.solver_s += _time.perf_counter() - start
+        self.timing[what.split(" ")[0]] = self.timing.get(what.split(" ")[0], 0.0) + _time.perf_counter() - start
+        self.queries += 1
+        if r == z3.sat:
+            return "sat", s.model()
+        if r == z3.unsat:
+            return "unsat", None
+        self.unknown.append(f"{what}: undecided within {self.timeout_s:g} s ({s.reason_unknown()})")
+        return "unknown", None
+
+    def minimise(self, constraints: list[Any], objective: Any, what: str) -> float | None:
+        """The optimiser's minimum of ``objective`` (a candidate, verified by the caller), or ``None``."""
+        import z3
+
+        o = z3.Optimize()
+        o.set("timeout", max(1, int(round(self.timeout_s * 1000))))
+        o.add(*constraints)
+        h = o.minimize(objective)
+        start = _time.perf_counter()
+        r = o.check()
+        self.solver_s += _time.perf_counter() - start
+        self.timing["optimise " + what.split(" ")[0]] = self.timing.get("optimise " + what.split(" ")[0], 0.0) + _time.perf_counter() - start
+        self.queries += 1
+        if r != z3.sat:
+            return None
+        value = o.lower(h)
+        try:
+            return to_float(value)
+        except Exception:  # noqa: BLE001 - an infinite or symbolic optimum: no candidate
+            return None
+
+    # ------------------------------------------------------------------ memory abstraction
+    def _box_bounds(self, q: str) -> dict[str, tuple[float, float]]:
+        b = self.boxes[q]
+        out = {n: (float(lo), float(hi)) for n, (lo, hi) in b.bounds.items()}
+        for n, values in b.choices.items():
+            out[n] = (float(min(values)), float(max(values)))
+        return out
+
+    def _memory_hulls(self) -> dict[str, dict[str, tuple[float, float]] | None]:
+        a = self.a
+        hulls: dict[str, dict[str, tuple[float, float]] | None] = {q: None for q in a.mode_names}
+        hulls[a.initial_mode] = {k: (c, c) for k, c in a.initial_memory().items()}
+        growth: dict[tuple[str, str], int] = {}
+        for _ in range(HULL_ROUNDS + 2):
+            changed = False
+            for t in a.transitions:
+                src = hulls[t.source]
+                if src is None or t.source not in self.boxes:
+                    continue
+                written = self.v.reset(t)
+                bounds = self._box_bounds(t.source)
+                new = {}
+                for k in self.v.memory_names:
+                    if k in t.writes:
+                        e = None if written is None else written.get(k)
+                        new[k] = (-math.inf, math.inf) if e is None else enclose(e, bounds, src)
+                    else:
+                        new[k] = src[k]
+                old = hulls[t.target]
+                if old is None:
+                    hulls[t.target] = new
+                    changed = True
+                    continue
+                joined = {k: (min(old[k][0], new[k][0]), max(old[k][1], new[k][1])) for k in old}
+                if joined != old:
+                    for k in old:
+                        if joined[k] != old[k]:
+                            n = growth[(t.target, k)] = growth.get((t.target, k), 0) + 1
+                            if n > HULL_ROUNDS:
+                                joined[k] = (-math.inf, math.inf)
+                    hulls[t.target] = joined
+                    changed = True
+            if not changed:
+                break
+        return hulls
+
+    # ------------------------------------------------------------------ constraints
+    def frame(self, hint: str) -> _Frame:
+        return _Frame(f"{hint}#{next(self.count)}", self.v.coords, self.v.memory_names)
+
+    def translation(self, f: _Frame, q: str) -> Translation:
+        return Translation(coordinates=f.x, memory=f.m, bounds=self._box_bounds(q),
+                           memory_bounds=self.hulls[q] or {}, prefix=f"{f.tag}.aux")
+
+    def box(self, f: _Frame, q: str) -> list[Any]:
+        import z3
+
+        b = self.boxes[q]
+        out = []
+        for n, (lo, hi) in b.bounds.items():
+            out += [f.x[n] >= rational(float(lo)), f.x[n] <= rational(float(hi))]
+        for n, values in b.choices.items():
+            out.append(z3.Or(*(f.x[n] == rational(float(c)) for c in values)))
+        return out
+
+    def hull(self, f: _Frame, q: str) -> list[Any]:
+        out = []
+        for k, (lo, hi) in (self.hulls[q] or {}).items():
+            if math.isfinite(lo):
+                out.append(f.m[k] >= rational(lo))
+            if math.isfinite(hi):
+                out.append(f.m[k] <= rational(hi))
+        return out
+
+    def enabled(self, tr: Translation, t: Transition, strict: bool = False) -> Any:
+        g = tr.term(self.v.guard(t))
+        if t.direction < 0:
+            return g < 0 if strict else g <= 0
+        return g > 0 if strict else g >= 0
+
+    def disabled(self, tr: Translation, t: Transition, margin: float = 0.0) -> Any:
+        g = tr.term(self.v.guard(t))
+        if t.direction < 0:
+            return g > rational(margin) if margin else g > 0
+        return g < -rational(margin) if margin else g < 0
+
+    def inside(self, tr: Translation, q: str, strict: bool = False) -> list[Any]:
+        inv = self.v.invariant(q)
+        if inv is True or inv is None:
+            return []
+        term = tr.term(inv)
+        return [term > 0 if strict else term >= 0]
+
+    def entry(self, f: _Frame, q: str, only: Transition | None = None) -> tuple[list[Any], list[tuple[str, Any, _Frame]]]:
+        """Constraints saying ``f.m`` is a memory the transitions entering ``q`` can write (module docstring).
+
+        Returns the constraint and, per disjunct, ``(transition name or "initial", its formula, its pre-frame)``.
+        """
+        import z3
+
+        if not self.v.memory_names:
+            return [], []
+        disjuncts: list[tuple[str, Any, _Frame | None]] = []
+        if q == self.a.initial_mode and only is None:
+            init = self.a.initial_memory()
+            disjuncts.append(("initial", z3.And(*(f.m[k] == rational(c) for k, c in init.items())), None))
+        entering = [t for t in self.a.transitions if t.target == q and self.hulls[t.source] is not None
+                    and t.source in self.boxes]
+        if only is not None:
+            entering = [only]
+        for t in entering:
+            p = self.frame(f"{f.tag}<{t.name}")
+            tr = self.translation(p, t.source)
+            parts = self.box(p, t.source) + self.hull(p, t.source) + self.inside(tr, t.source)
+            if self.v.guard(t) is not None:
+                parts.append(self.enabled(tr, t))
+            written = self.v.reset(t)
+            for k in self.v.memory_names:
+                if k in t.writes:
+                    if written is not None:
+                        parts.append(f.m[k] == tr.term(written[k]))
+                else:
+                    parts.append(f.m[k] == p.m[k])
+            parts += tr.side
+            disjuncts.append((t.name, z3.And(*parts), p))
+        if not disjuncts:
+            return [z3.BoolVal(False)], []
+        return [z3.Or(*(d for _, d, _ in disjuncts))], disjuncts  # type: ignore[misc]
+
+    def state(self, q: str, only: Transition | None = None, strict: bool = False, role: str = "main",
+              entry: bool = True) -> tuple[_Frame, list[Any], Translation, list[tuple[str, Any, _Frame]]]:
+        """A point of ``q``: in its box, its memory reachable by the abstraction, inside its invariant.
+
+        Frames and their constraints are built once per (mode, role) and reused by every query
+        (each query is a fresh solver); the translation's domain conditions restart per query.
+        """
+        key = (q, None if only is None else only.name, strict, role, entry)
+        hit = self._states.get(key)
+        if hit is None:
+            f = self.frame(f"{role} {q}")
+            tr = self.translation(f, q)
+            memory, disjuncts = self.entry(f, q, only) if entry else ([], [])
+            tr.begin()
+            inside = self.inside(tr, q, strict)
+            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + memory + inside + list(tr.side))], tr,
+                   disjuncts)
+            self._states[key] = hit
+        f, cons, tr, disjuncts = hit
+        tr.begin()
+        return f, list(cons), tr, disjuncts
+
+    def landing(self, q: str, role: str) -> tuple[_Frame, list[Any], Translation]:
+        """A point of ``q`` whose memory the caller fixes: box, hull and invariant only (cached)."""
+        key = (q, "landing", False, role)
+        hit = self._states.get(key)
+        if hit is None:
+            f = self.frame(f"{role} {q}")
+            tr = self.translation(f, q)
+            tr.begin()
+            inside = self.inside(tr, q)
+            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + inside + list(tr.side))], tr, [])
+            self._states[key] = hit
+        f, cons, tr, _ = hit
+        tr.begin()
+        return f, list(cons), tr
+
+    # ------------------------------------------------------------------ witnesses
+    def point(self, model: Any, f: _Frame) -> tuple[tuple[float, ...], dict[str, float]]:
+        x = tuple(to_float(model.eval(f.x[n], model_completion=True)) for n in self.v.coords)
+        m = {k: to_float(model.eval(f.m[k], model_completion=True)) for k in self.v.memory_names}
+        return x, m
+
+    def provenance(self, model: Any, disjuncts: list[tuple[str, Any, _Frame]], m: Mapping[str, float]
+                   ) -> tuple[bool, dict[str, float], str]:
+        """Re-check that ``m`` is written by an entering transition at the solver's pre-jump state."""
+        import z3
+
+        if not disjuncts:
+            return True, {}, ""
+        for name, formula, pre in disjuncts:
+            if not z3.is_true(model.eval(formula, model_completion=True)):
+                continue
+            if pre is None:
+                init = self.a.initial_memory()
+                ok = all(_close(m[k], c) for k, c in init.items())
+                return ok, {}, "initial memory"
+            t = next(tr for tr in self.a.transitions if tr.name == name)
+            x0, m0 = self.point(model, pre)
+            o = self.v.oracle
+            v0 = o.signals(x0, m0)
+            g = o.guard(t, x0, v0, m0)
+            _, post = o.jump(t, x0, v0, m0)
+            enabled = g >= -self.tol * (1.0 + abs(g)) if t.direction >= 0 else g <= self.tol
+            ok = enabled and all(_close(post[k], m[k]) for k in self.v.memory_names)
+            values = {f"entry {name} guard": g}
+            values.update({f"entry {name} pre {n}": c for n, c in zip(self.v.coords, x0)})
+            return ok, values, f"memory written by {name}"
+        return False, {}, "no entering transition matches"
+
+    def witness(self, x: tuple[float, ...], m: Mapping[str, float], values: Mapping[str, float]) -> Witness:
+        o = self.v.oracle
+        v = o.signals(x, m)
+        return Witness(state=dict(zip(self.v.coords, x)), memory=dict(m),
+                       signals=dict(zip(self.a.variables, v)), values=dict(values))
+
+
+def _conjoin(constraints: list[Any]) -> Any:
+    """One formula for a cached list of constraints (one assertion instead of many)."""
+    import z3
+
+    return z3.And(*constraints) if constraints else z3.BoolVal(True)
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= RECHECK_TOL * (1.0 + abs(a) + abs(b))
+
+
+# ====================================================================== the questions
+class _Questions(_Decider):
+    """The checks of the module docstring, one method each."""
+
+    # ------------------------------------------------------------------ overlaps
+    def pair(self, q: str, t1: Transition, t2: Transition) -> PairVerdict:
+        same = t1.priority == t2.priority
+        base = dict(mode=q, first=t1.name, second=t2.name, same_priority=same)
+        if self.v.guard(t1) is None or self.v.guard(t2) is None or self.v.invariant(q) is None:
+            return PairVerdict(**base, verdict="undecided", detail="a guard or the invariant is not symbolic")
+        f, cons, tr, disjuncts = self.state(q)
+        cons = cons + [self.enabled(tr, t1), self.enabled(tr, t2)] + tr.side
+        status, model = self.solve(cons, f"overlap of {t1.name} and {t2.name} in {q}")
+        if status == "unsat":
+            return PairVerdict(**base, verdict="exclusive", detail="proven: no state of the box enables both")
+        if status == "unknown":
+            return PairVerdict(**base, verdict="undecided",
+                               detail=f"undecided within {self.timeout_s:g} s")
+        x, m = self.point(model, f)
+        o = self.v.oracle
+        vv = o.signals(x, m)
+        g1, g2 = o.guard(t1, x, vv, m), o.guard(t2, x, vv, m)
+        inv = o.invariant(q, x, vv, m)
+        ok_mem, values, how = self.provenance(model, disjuncts, m)
+        ok = _on(g1, t1, self.tol) and _on(g2, t2, self.tol) and inv >= -self.tol * (1 + abs(inv)) and ok_mem
+        values.update({f"guard {t1.name}": g1, f"guard {t2.name}": g2})
+        if math.isfinite(inv):
+            values[f"invariant {q}"] = inv
+        w = self.witness(x, m, values)
+        if not ok:
+            return PairVerdict(**base, verdict="undecided", witness=w,
+                               detail=f"the solver's witness does not re-check ({_approx_note(tr)}); {how}")
+        return PairVerdict(**base, verdict="overlap", witness=w, detail=f"witness re-checked; {how}")
+
+    # ------------------------------------------------------------------ deadlock
+    def deadlock(self, q: str) -> tuple[str, Finding | None, str]:
+        """``("proven"|"found"|"undecided"|"skipped", finding, detail)`` for mode ``q``."""
+        inv = self.v.invariant(q)
+        if inv is True:
+            return "proven", None, "no invariant"
+        out = self.a.outgoing(q)
+        if inv is None or any(self.v.guard(t) is None for t in out):
+            return "skipped", None, "invariant or a guard not symbolic"
+        flow = self.v.flow(q)
+        if self.v.system is not None and flow is None:
+            return "skipped", None, "flow not symbolic"
+        f, cons, tr, disjuncts = self.state(q)
+        cons.append(tr.term(inv) == 0)
+        lie = None
+        if flow is not None:
+            lie = _lie(inv, flow, self.v.coords)
+            cons.append(tr.term(lie) <= -rational(self.tol))
+        cons += [self.disabled(tr, t, self.tol) for t in out] + tr.side
+        status, model = self.solve(cons, f"deadlock in {q}")
+        if status == "unsat":
+            return "proven", None, ""
+        if status == "unknown":
+            return "undecided", None, f"undecided within {self.timeout_s:g} s"
+        x, m = self.point(model, f)
+        o = self.v.oracle
+        vv = o.signals(x, m)
+        value = o.invariant(q, x, vv, m)
+        guards = {t.name: o.guard(t, x, vv, m) for t in out}
+        rate = None if lie is None else _evaluate_lie(lie, x, m)
+        ok_mem, values, how = self.provenance(model, disjuncts, m)
+        ok = (abs(value) <= self.tol * 1e3 and all(not _on(g, t, 0.0) for t, g in zip(out, guards.values()))
+              and (rate is None or rate < 0.0) and ok_mem)
+        values.update({f"invariant {q}": value, **{f"guard {n}": g for n, g in guards.items()}})
+        if rate is not None:
+            values[f"d/dt invariant {q}"] = rate
+        if not ok:
+            return "undecided", None, f"witness does not re-check ({_approx_note(tr)})"
+        text = self.a.mode(q).invariant_text or "inv"
+        msg = (f"deadlock in mode {q!r}: at {self.v.oracle.where(x, m)} the state is on the boundary of the "
+               f"invariant ({text} = {_g(value)})"
+               + ("" if rate is None else f", the flow leaves it (d/dt = {_g(rate)})")
+               + " and no outgoing transition is enabled (guards "
+               + ", ".join(f"{n} = {_g(g)}" for n, g in guards.items())
+               + "); SMT witness, re-checked; widen a guard or the invariant")
+        return "found", Finding(kind="deadlock", severity=KIND_SEVERITY["deadlock"], message=msg,
+                                modes=(q,), witness=self.witness(x, m, values)), how
+
+    # ------------------------------------------------------------------ resets
+    def reset_outside(self, t: Transition) -> tuple[str, Finding | None, str]:
+        inv_t = self.v.invariant(t.target)
+        if inv_t is True:
+            return "proven", None, ""
+        jump, written, guard = self.v.jump(t), self.v.reset(t), self.v.guard(t)
+        if inv_t is None or jump is None or written is None or guard is None:
+            return "skipped", None, "a guard, reset, jump map or the target invariant is not symbolic"
+        f, cons, tr, disjuncts = self.state(t.source)
+        post_x = {n: tr.term(e) for n, e in zip(self.v.coords, jump)}
+        post_m = {k: (tr.term(written[k]) if k in written else f.m[k]) for k in self.v.memory_names}
+        after = Translation(coordinates=post_x, memory=post_m, bounds=_unbounded(self.v.coords),
+                            prefix=f"{f.tag}.post")
+        cons = cons + [self.enabled(tr, t), after.term(inv_t) <= -rational(self.tol)] + tr.side + after.side
+        status, model = self.solve(cons, f"reset of {t.name}")
+        if status == "unsat":
+            return "proven", None, ""
+        if status == "unknown":
+            return "undecided", None, f"undecided within {self.timeout_s:g} s"
+        x, m = self.point(model, f)
+        o = self.v.oracle
+        vv = o.signals(x, m)
+        g = o.guard(t, x, vv, m)
+        x2, m2 = o.jump(t, x, vv, m)
+        landed = o.invariant(t.target, x2, o.signals(x2, m2), m2)
+        ok_mem, values, how = self.provenance(model, disjuncts, m)
+        ok = _on(g, t, self.tol) and landed < -self.tol * 0.5 and ok_mem
+        values.update({f"guard {t.name}": g, f"invariant {t.target} after {t.name}": landed,
+                       **{f"post {n}": c for n, c in zip(self.v.coords, x2)}})
+        if not ok:
+            return "undecided", None, f"witness does not re-check ({_approx_note(tr)})"
+        msg = (f"the jump of {t.name!r} ({t.source} -> {t.target}) from {o.where(x, m)} lands outside the "
+               f"invariant of {t.target!r} ({self.a.mode(t.target).invariant_text or 'inv'} = {_g(landed)} < 0); "
+               "SMT witness, re-checked; fix the jump map/reset or the guard")
+        return "found", Finding(kind="reset_outside_invariant", severity=KIND_SEVERITY["reset_outside_invariant"],
+                                message=msg, modes=(t.source, t.target), transitions=(t.name,),
+                                witness=self.witness(x, m, values)), how
+
+    # ------------------------------------------------------------------ instantaneous laps
+    def lap(self, cycle: Sequence[Transition], strict: bool) -> tuple[str, Any, _Frame | None, list[Any]]:
+        """Can the jumps of ``cycle`` follow one another at one instant and enable its first one again?"""
+        if any(t.direction != 0 for t in cycle):
+            return "unsat", None, None, []
+        first = cycle[0]
+        q0 = first.source
+        if any(self.v.guard(t) is None or self.v.jump(t) is None or self.v.reset(t) is None for t in cycle):
+            return "unknown", None, None, []
+        f, cons, tr, disjuncts = self.state(q0, strict=strict, role="lap")
+        x_terms = dict(f.x)
+        m_terms = dict(f.m)
+        sequence = list(cycle) + [first]
+        current = tr
+        for i, t in enumerate(sequence):
+            cons.append(self.enabled(current, t, strict))
+            cons += [self.disabled(current, u) for u in self.a.outgoing(t.source)
+                     if u.direction == 0 and u.priority < t.priority and self.v.guard(u) is not None]
+            if i == len(sequence) - 1:
+                break
+            jump, written = self.v.jump(t), self.v.reset(t)
+            x_terms = {n: current.term(e) for n, e in zip(self.v.coords, jump)}  # type: ignore[arg-type]
+            m_terms = {k: (current.term(written[k]) if k in written else m_terms[k])  # type: ignore[index]
+                       for k in self.v.memory_names}
+            current = Translation(coordinates=x_terms, memory=m_terms, bounds=_unbounded(self.v.coords),
+                                  prefix=f"{f.tag}.j{i}")
+            cons += current.side
+        cons += current.side
+        status, model = self.solve(cons, "instantaneous lap " + " -> ".join(t.name for t in cycle))
+        return status, model, f, disjuncts
+
+    def lap_witness(self, cycle: Sequence[Transition], model: Any, f: _Frame,
+                    disjuncts: list[Any]) -> Witness | None:
+        """Re-check a lap witness on the executors' instant rule: ``cycle[0]`` fires and wins again."""
+        first = cycle[0]
+        o = self.v.oracle
+        x, m = self.point(model, f)
+        vv = o.signals(x, m)
+        g = o.guard(first, x, vv, m)
+        if g < -self.tol * (1 + abs(g)):
+            return None
+        ok_mem, values, _ = self.provenance(model, disjuncts, m)
+        if not ok_mem:
+            return None
+        x1, m1 = o.jump(first, x, vv, m)
+
+        def signals(_q: str, state: tuple[float, ...]) -> tuple[float, ...]:
+            return o.signals(state, m1)
+
+        def fire(u: Transition, state: Any, vs: Sequence[float], mm: Mapping[str, float]) -> Any:
+            return o.jump(u, state, vs, mm)
+
+        instant = settle_instant(o.outgoing, first.target, x1, m1, signals=signals,
+                                 guard=lambda u, vs, mm: o.guard(u, x1, vs, mm), fire=fire, ties="record",
+                                 max_jumps=max(len(cycle) + 1, MAX_JUMPS_PER_INSTANT), stop_before=first)
+        if not instant.stopped:
+            return None
+        values.update({f"guard {first.name}": g,
+                       "chain": float(len(instant.jumps) + 1)})
+        values.update({f"post {n}": c for n, c in zip(self.v.coords, x1)})
+        return self.witness(x, m, values)
+
+    # ------------------------------------------------------------------ dwell bounds
+    def rates(self, q: str) -> dict[str, float]:
+        """``|dx_j/dt| <= R_j`` in mode ``q``: declared, else the enclosure of a symbolic flow, else inf."""
+        out = {n: math.inf for n in self.v.coords}
+        flow = self.v.flow(q)
+        if flow is not None and q in self.boxes:
+            bounds = self._box_bounds(q)
+            for n, e in zip(self.v.coords, flow):
+                lo, hi = enclose(e, bounds, self.hulls[q] or {})
+                out[n] = max(abs(lo), abs(hi))
+        for n, r in self.declared_rates.items():
+            out[n] = min(out[n], float(r))
+        return out
+
+    def dwell(self, t_in: Transition, t_out: Transition) -> tuple[float, str]:
+        """Proven lower bound on the time between ``t_in`` entering a mode and ``t_out`` leaving it."""
+        q = t_in.target
+        rates = self.rates(q)
+        if all(math.isinf(r) for r in rates.values()):
+            return 0.0, "no rate bound"
+        if any(self.v.guard(t) is None for t in (t_in, t_out)) or self.v.jump(t_in) is None \
+                or self.v.reset(t_in) is None:
+            return 0.0, "not symbolic"
+        import z3
+
+        pre, cons, tr, _ = self.state(t_in.source, role="pre", entry=False)
+        b, landing, tb = self.landing(q, "exit")
+        cons.append(self.enabled(tr, t_in))
+        jump, written = self.v.jump(t_in), self.v.reset(t_in)
+        cons += [b.m[k] == (tr.term(written[k]) if k in written else pre.m[k])  # type: ignore[index]
+                 for k in self.v.memory_names]
+        a_x = {n: tr.term(e) for n, e in zip(self.v.coords, jump)}  # type: ignore[arg-type]
+        after = Translation(coordinates=a_x, memory=b.m, bounds=_unbounded(self.v.coords), prefix=f"{b.tag}.a")
+        cons += tr.side + self.inside(after, q) + after.side
+        cons += landing + [self.enabled(tb, t_out)] + tb.side
+        s = z3.Real(f"{b.tag}.s")
+        moves = []
+        for n, r in rates.items():
+            if math.isinf(r):
+                continue
+            delta = b.x[n] - a_x[n]
+            if r == 0.0:
+                moves.append(delta == 0)
+            else:
+                moves += [delta <= s * rational(r), -delta <= s * rational(r)]
+        what = f"dwell between {t_in.name} and {t_out.name}"
+        candidate = self.minimise(cons + moves + [s >= 0], s, what)
+        if candidate is not None and candidate <= 0.0:
+            return 0.0, ""
+        if candidate is None:
+            status, _ = self.solve(cons + moves + [s >= 0], what)
+            if status == "unsat":
+                return math.inf, "infeasible"
+            if status != "sat":
+                return 0.0, "undecided"
+        if candidate is not None and candidate > 0.0:
+            bound = candidate * (1.0 - DWELL_REL)
+            status, _ = self.solve(cons + moves + [s >= 0, s <= rational(bound)], what)
+            if status == "unsat":
+                return bound, _binding(q, t_in, t_out)
+        low, high = 0.0, max((w / rates[n] for n, w in _widths(self.boxes[q]).items()
+                              if rates.get(n, math.inf) not in (0.0, math.inf)), default=1.0)
+        for _ in range(BISECTIONS):
+            mid = 0.5 * (low + high)
+            status, _ = self.solve(cons + moves + [s >= 0, s <= rational(mid)], what)
+            if status == "unsat":
+                low = mid
+            else:
+                high = mid
+        return low, _binding(q, t_in, t_out) if low > 0.0 else ""
+
+    def projection(self, t: Transition, n: str) -> tuple[float, float]:
+        """A sound interval of coordinate ``n`` over the states where ``t`` can fire (verified optimum)."""
+        lo_box, hi_box = self._box_bounds(t.source)[n]
+        guard = self.v.guard(t)
+        if guard is None or n not in free_symbols(guard)["coordinates"]:
+            return lo_box, hi_box
+        f, cons, tr, _ = self.state(t.source)
+        cons = cons + [self.enabled(tr, t)] + tr.side
+        out = []
+        for sign in (1.0, -1.0):
+            target = f.x[n] if sign > 0 else -f.x[n]
+            best = self.minimise(cons, target, f"projection of {t.name} on {n}")
+            fallback = lo_box if sign > 0 else -hi_box
+            if best is None or not math.isfinite(best):
+                out.append(fallback)
+                continue
+            margin = 1e-12 * (1.0 + abs(best))
+            status, _ = self.solve(cons + [target < rational(best - margin)], f"projection of {t.name} on {n}")
+            out.append(best - margin if status == "unsat" else fallback)
+        return max(out[0], lo_box), min(-out[1], hi_box)
+
+
+def _on(g: float, t: Transition, tol: float) -> bool:
+    """Whether guard value ``g`` counts as enabled (within ``tol``) for ``t``'s direction."""
+    if t.direction < 0:
+        return g <= tol * (1.0 + abs(g))
+    return g >= -tol * (1.0 + abs(g))
+
+
+def _lie(inv: Expr, flow: Sequence[Expr], coords: Sequence[str]) -> Expr:
+    total: Expr | None = None
+    for n, f in zip(coords, flow):
+        term = diff(inv, n) * f
+        total = term if total is None else total + term
+    assert total is not None
+    return total
+
+
+def _evaluate_lie(lie: Expr, x: Sequence[float], m: Mapping[str, float]) -> float:
+    from .symbolic import evaluate
+
+    return float(evaluate(lie, x, m))
+
+
+def _unbounded(coords: Sequence[str]) -> dict[str, tuple[float, float]]:
+    return {n: (-math.inf, math.inf) for n in coords}
+
+
+def _widths(b: Box) -> dict[str, float]:
+    return {n: float(hi) - float(lo) for n, (lo, hi) in b.bounds.items()}
+
+
+def _binding(q: str, t_in: Transition, t_out: Transition) -> str:
+    return f"in {q} between {t_in.name} and {t_out.name}"
+
+
+def _approx_note(tr: Translation) -> str:
+    if tr.approximated:
+        return "transcendental terms enclosed by intervals: " + ", ".join(sorted(set(tr.approximated))[:3])
+    return "rounding of the solver's rationals"
+
+
+# ====================================================================== Zeno over the cycles
+def _travel(intervals: Sequence[tuple[float, float]]) -> float:
+    """Least distance a point moving on a line covers to visit ``intervals`` in order (exact, greedy)."""
+    lo, hi = intervals[0]
+    cost = 0.0
+    for a, b in intervals[1:]:
+        if b < lo:
+            cost, lo, hi = cost + (lo - b), b, b
+        elif a > hi:
+            cost, lo, hi = cost + (a - hi), a, a
+        else:
+            lo, hi = max(lo, a), min(hi, b)
+    return cost
+
+
+def _mode_cycles(a: HybridAutomaton, max_cycles: int) -> tuple[list[tuple[Transition, ...]], bool]:
+    """Cycles of transitions (every choice of parallel edges), deterministic order, at most ``max_cycles``."""
+    graph = mode_graph(a)
+    index = {q: i for i, q in enumerate(a.mode_names)}
+    numbered = nx.DiGraph()
+    numbered.add_nodes_from(range(len(a.mode_names)))
+    numbered.add_edges_from(sorted({(index[u], index[v]) for u, v in graph.edges()}))
+    between: dict[tuple[str, str], list[Transition]] = {}
+    for t in a.transitions:
+        between.setdefault((t.source, t.target), []).append(t)
+    out: list[tuple[Transition, ...]] = []
+    for cycle in nx.simple_cycles(numbered):
+        start = min(range(len(cycle)), key=cycle.__getitem__)
+        modes = [a.mode_names[i] for i in cycle[start:] + cycle[:start]]
+        hops = [between[(modes[i], modes[(i + 1) % len(modes)])] for i in range(len(modes))]
+        for choice in itertools.product(*hops):
+            out.append(tuple(choice))
+            if len(out) > max_cycles:
+                break
+        if len(out) > max_cycles:
+            break
+    capped = len(out) > max_cycles
+    out = out[:max_cycles]
+    order = {t.name: i for i, t in enumerate(a.transitions)}
+    out.sort(key=lambda c: (len(c), [index[t.source] for t in c], [order[t.name] for t in c]))
+    return out, capped
+
+
+class _Zeno:
+    def __init__(self, qs: _Questions) -> None:
+        self.qs = qs
+        self._dwell: dict[tuple[str, str], tuple[float, str]] = {}
+        self._proj: dict[tuple[str, str], tuple[float, float]] = {}
+        self.findings: list[Finding] = []
+
+    def dwell(self, t_in: Transition, t_out: Transition) -> tuple[float, str]:
+        key = (t_in.name, t_out.name)
+        if key not in self._dwell:
+            self._dwell[key] = self.qs.dwell(t_in, t_out)
+        return self._dwell[key]
+
+    def projection(self, t: Transition, n: str) -> tuple[float, float]:
+        key = (t.name, n)
+        if key not in self._proj:
+            self._proj[key] = self.qs.projection(t, n)
+        return self._proj[key]
+
+    def travel_bound(self, cycle: Sequence[Transition]) -> tuple[float, str]:
+        """``max_j`` (distance coordinate j must travel in one lap) / (its largest rate along the lap)."""
+        qs = self.qs
+        best, where = 0.0, ""
+        jumps = [qs.v.jump(t) for t in cycle]
+        if any(j is None for j in jumps):
+            return 0.0, ""
+        for i, n in enumerate(qs.v.coords):
+            if any(not (isinstance(j[i], Coordinate) and j[i].name == n) for j in jumps):  # type: ignore[index]
+                continue  # a jump moves this coordinate: its path is not continuous
+            rate = max(qs.rates(t.target)[n] for t in cycle)
+            if math.isinf(rate) or rate <= 0.0:
+                continue
+            path = [self.projection(t, n) for t in cycle]
+            distance = _travel(path + [path[0]])
+            if distance / rate > best:
+                best = distance / rate
+                where = f"{n} must travel {_g(distance)} per lap at <= {_g(rate)} per s"
+        return best, where
+
+    def verdict(self, cycle: tuple[Transition, ...]) -> CycleVerdict:
+        modes = tuple(t.source for t in cycle)
+        names = tuple(t.name for t in cycle)
+        total, parts = 0.0, []
+        for i, t in enumerate(cycle):
+            d, where = self.dwell(t, cycle[(i + 1) % len(cycle)])
+            total += d
+            if d > 0.0:
+                parts.append((d, where))
+        if math.isinf(total):
+            return CycleVerdict(modes=modes, transitions=names, verdict="infeasible", dwell_s=math.inf,
+                                binding="no execution takes these transitions in this order (proven)")
+        travel, where_travel = self.travel_bound(cycle) if total == 0.0 else (0.0, "")
+        if max(total, travel) > 0.0:
+            if travel > total:
+                return CycleVerdict(modes=modes, transitions=names, verdict="non_zeno", dwell_s=travel,
+                                    binding=where_travel)
+            top = max(parts)
+            return CycleVerdict(modes=modes, transitions=names, verdict="non_zeno", dwell_s=total,
+                                binding=f"dwell >= {_g(top[0])} s {top[1]}")
+        return self.instantaneous(cycle, modes, names)
+
+    def instantaneous(self, cycle: tuple[Transition, ...], modes: tuple[str, ...], names: tuple[str, ...]
+                      ) -> CycleVerdict:
+        qs = self.qs
+        for strict in (True, False):
+            status, model, f, disjuncts = qs.lap(cycle, strict)
+            if status == "sat":
+                w = qs.lap_witness(cycle, model, f, disjuncts)  # type: ignore[arg-type]
+                if w is None:
+                    continue
+                kind = "reset_retriggers" if strict else "zeno_point"
+                verdict = "instantaneous" if strict else "zeno_point"
+                chain = " -> ".join(names)
+                text = ("on an open set of states" if strict else
+                        "only on a set of states without interior (a Zeno point of the dynamics)")
+                self.findings.append(Finding(
+                    kind=kind, severity=KIND_SEVERITY[kind],
+                    message=(f"the jumps {chain} can follow one another at one instant and enable "
+                             f"{names[0]!r} again, {text}: from {qs.v.oracle.where(tuple(w.state.values()), w.memory)}"
+                             "; SMT witness, re-checked on the executors' instant rule"
+                             + ("; make the reset leave the guard (hysteresis) or use a crossing guard"
+                                if strict else "")),
+                    modes=modes, transitions=names, witness=w))
+                return CycleVerdict(modes=modes, transitions=names, verdict=verdict, dwell_s=0.0,
+                                    binding="instantaneous lap", witness=w)
+            if status == "unknown":
+                break
+        reason = ("no instantaneous lap (proven) but no positive dwell bound from the guards and rates: "
+                  "declare rate bounds, or this cycle may accumulate (Zeno behaviour over time)")
+        return CycleVerdict(modes=modes, transitions=names, verdict="undecided", dwell_s=0.0, binding=reason)
+
+    def summary(self) -> ZenoSummary:
+        qs = self.qs
+        cycles, capped = _mode_cycles(qs.a, qs.max_cycles)
+        verdicts = []
+        for c in cycles:
+            if any(qs.hulls[t.source] is None or t.source not in qs.boxes for t in c):
+                verdicts.append(CycleVerdict(modes=tuple(t.source for t in c), transitions=tuple(t.name for t in c),
+                                             verdict="undecided", dwell_s=0.0,
+                                             binding="a mode of the cycle is not searched (no box or unreachable)"))
+                continue
+            verdicts.append(self.verdict(c))
+        counts = {k: sum(v.verdict == k for v in verdicts)
+                  for k in ("non_zeno", "infeasible", "instantaneous", "zeno_point", "undecided")}
+        proven = [v for v in verdicts if v.verdict == "non_zeno"]
+        low = min(proven, key=lambda v: v.dwell_s) if proven else None
+        rates = {q: qs.rates(q) for q in qs.a.mode_names if q in qs.boxes}
+        return ZenoSummary(cycles=len(verdicts), counts=counts, min_dwell_s=None if low is None else low.dwell_s,
+                           binding="" if low is None else low.binding,
+                           binding_cycle=() if low is None else low.transitions, capped=capped,
+                           rates=MappingProxyType(rates), verdicts=tuple(verdicts))
+
+
+# ====================================================================== entry point
+def decide(
+    model: HybridSystem | HybridAutomaton,
+    box: Box | Mapping[str, Box],
+    *,
+    rates: Mapping[str, float] | None = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    tol: float = 1e-9,
+    max_cycles: int = 5000,
+    zeno: bool = True,
+) -> Decision:
+    """Decide the structural questions of the module docstring with an SMT solver.
+
+    Parameters
+    ----------
+    model : HybridSystem or HybridAutomaton
+        Its symbolic functions are decided; the others are listed in
+        :attr:`Decision.sampled_modes` (``hybrid.check`` samples them).
+    box : Box or Mapping[str, Box]
+        The region of every mode (or per mode), over the state names (system) or variables (automaton).
+    rates : Mapping[str, float] or None
+        Declared bounds ``|dx_j/dt| <= rates[j]`` (per second) of coordinates, for the dwell bounds.
+    timeout_s : float
+        Timeout of each solver call [s].
+    tol : float
+        Margin of the deadlock and reset questions (as :func:`hybrid.check`) and of witness re-checks.
+    max_cycles : int
+        Most cycles of transitions examined for Zeno.
+    zeno : bool
+        Whether to examine the cycles.
+
+    Returns
+    -------
+    Decision
+
+    Raises
+    ------
+    ModelDefinitionError
+        A box that does not match the model, a rate that is not a number >= 0, bad arguments.
+    """
+    from .check import _boxes
+
+    if not (isinstance(timeout_s, (int, float)) and not isinstance(timeout_s, bool)
+            and math.isfinite(timeout_s) and timeout_s > 0):
+        raise ModelDefinitionError(f"decide(): timeout_s = {timeout_s!r}; expected a number of seconds > 0")
+    view = _View(model)
+    boxes = _boxes(view.oracle, box)
+    if boxes is None:
+        raise ModelDefinitionError("decide(): box = None; give the Box (or a mapping mode -> Box) to decide over")
+    for n, r in dict(rates or {}).items():
+        if n not in view.coords:
+            raise ModelDefinitionError(f"decide(): rates names {n!r}, not a coordinate; coordinates: {list(view.coords)}")
+        if isinstance(r, bool) or not isinstance(r, (int, float)) or not (r >= 0.0):
+            raise ModelDefinitionError(f"decide(): rates[{n!r}] = {r!r}; expected a rate >= 0 per second")
+    qs = _Questions(view, boxes, rates=rates, timeout_s=float(timeout_s), tol=float(tol),
+                    max_cycles=int(max_cycles))
+    return _assemble(qs, zeno)
+
+
+def _assemble(qs: _Questions, zeno: bool) -> Decision:
+    a = qs.a
+    findings: list[Finding] = []
+    pairs: list[PairVerdict] = []
+    sampled: dict[str, str] = {}
+    status: dict[str, list[str]] = {k: [] for k in ("nondeterminism", "deadlock", "reset_outside_invariant")}
+    searched = [q for q in a.mode_names if q in qs.boxes and qs.hulls[q] is not None]
+    for q in searched:
+        out = a.outgoing(q)
+        for t1, t2 in itertools.combinations(out, 2):
+            p = qs.pair(q, t1, t2)
+            pairs.append(p)
+            if p.verdict == "undecided":
+                if "not symbolic" in p.detail:
+                    sampled[q] = p.detail
+                else:
+                    status["nondeterminism"].append("undecided")
+            elif p.verdict == "overlap":
+                kind = "nondeterminism" if p.same_priority else "priority_overlap"
+                findings.append(_overlap_finding(qs, p, kind))
+                if p.same_priority:
+                    status["nondeterminism"].append("found")
+        s, finding, detail = qs.deadlock(q)
+        status["deadlock"].append(s)
+        if s == "skipped":
+            sampled.setdefault(q, detail)
+        if finding is not None:
+            findings.append(finding)
+        for t in out:
+            s, finding, detail = qs.reset_outside(t)
+            status["reset_outside_invariant"].append(s)
+            if s == "skipped":
+                sampled.setdefault(q, detail)
+            if finding is not None:
+                findings.append(finding)
+    summary = None
+    if zeno:
+        z = _Zeno(qs)
+        summary = z.summary()
+        findings += z.findings
+    claims = _claims(qs, status, summary, sampled, findings)
+    return Decision(findings=tuple(findings), claims=MappingProxyType(claims), pairs=tuple(pairs), zeno=summary,
+                    memory_hulls=MappingProxyType({q: None if h is None else MappingProxyType(h)
+                                                   for q, h in qs.hulls.items()}),
+                    sampled_modes=MappingProxyType(sampled), queries=qs.queries, solver_s=qs.solver_s,
+                    solver=solver_version())
+
+
+def _overlap_finding(qs: _Questions, p: PairVerdict, kind: str) -> Finding:
+    assert p.witness is not None
+    w = p.witness
+    where = qs.v.oracle.where(tuple(w.state.values()), w.memory)
+    if kind == "nondeterminism":
+        text = (f"transitions {p.first!r} and {p.second!r} of mode {p.mode!r} have the same priority and are both "
+                f"enabled at {where}; SMT witness, re-checked; give them distinct priorities or exclusive guards")
+    else:
+        text = (f"transitions {p.first!r} and {p.second!r} of mode {p.mode!r} are both enabled at {where}; "
+                "their priorities decide which fires (SMT witness, re-checked)")
+    return Finding(kind=kind, severity=KIND_SEVERITY[kind], message=text, modes=(p.mode,),
+                   transitions=(p.first, p.second), witness=w)
+
+
+MEMORY_ASSUMPTION = ("memory ranges over what the transitions entering each mode can write "
+                     "(interval hulls by fixpoint, the entering reset stated exactly)")
+BOX_ASSUMPTION = "every state of the declared box (reachable or not)"
+
+
+def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummary | None,
+            sampled: Mapping[str, str], findings: Sequence[Finding]) -> dict[str, Claim]:
+    method = f"{solver_version()} on the symbolic model; witnesses re-evaluated on the model's functions"
+    kinds = {f.kind for f in findings}
+    assumptions = (BOX_ASSUMPTION, MEMORY_ASSUMPTION)
+    out = {}
+    note = "" if not sampled else f"modes left to sampling: {sorted(sampled)}"
+    for check, results in status.items():
+        found = check in kinds
+        if found:
+            s = "found"
+        elif sampled and check in ("nondeterminism", "deadlock", "reset_outside_invariant") and \
+                ("skipped" in results or check == "nondeterminism"):
+            s = "sampled"
+        elif "undecided" in results:
+            s = "undecided"
+        else:
+            s = "proven"
+        out[check] = Claim(check=check, status=s, method=method, assumptions=assumptions, detail=note)
+    retrig = "reset_retriggers" in kinds
+    if summary is not None:
+        c = summary.counts
+        undecided = c["undecided"]
+        zs = "found" if c["instantaneous"] else ("undecided" if undecided or summary.capped else "proven")
+        detail = (f"{summary.cycles} cycles: {c['non_zeno']} with a proven dwell bound, {c['infeasible']} "
+                  f"infeasible, {c['instantaneous']} instantaneous, {c['zeno_point']} with a Zeno point, "
+                  f"{undecided} undecided")
+        if summary.min_dwell_s is not None:
+            detail += f"; smallest dwell bound {_g(summary.min_dwell_s)} s ({summary.binding})"
+        out["zeno"] = Claim(check="zeno", status=zs, method=method, detail=detail,
+                            assumptions=assumptions + ("rate bounds |dx/dt| <= R per mode (declared or from the flow)",))
+        out["reset_retriggers"] = Claim(check="reset_retriggers", status="found" if retrig else zs,
+                                        method=method, assumptions=assumptions, detail="instantaneous laps of cycles")
+    return out

@@ -1,0 +1,1305 @@
+"""Symbolic guards, invariants, resets, jump maps, flows and outputs: one definition, four readings.
+
+An expression of this module is a small tree of piecewise polynomial terms
+(``+ - *``, division by a constant, integer powers, ``min``, ``max``, ``abs``,
+``ite`` and ``select``) over named coordinates, memory variables, time and
+named parameters, plus a few transcendental functions (``sin``, ``cos``,
+``exp``, ``log``, ``sqrt``, ``atan2``).  The same tree is
+
+* **evaluated with floats** by the executors: it is compiled once to a Python
+  function (``lambda v, m: ...``) as fast as a hand-written lambda;
+* **differentiated**: exactly, by :func:`diff` (an expression again, used by
+  the checker for the rate of an invariant along a flow), and through CasADi by
+  :func:`to_casadi` (an ``SX`` expression, for Jacobians);
+* **enclosed** by interval arithmetic with outward rounding (:func:`enclose`):
+  a sound range over a box;
+* **decided** by an SMT solver: :mod:`hybrid.smt` translates it to z3.
+
+Writing a model
+---------------
+>>> from hybrid.symbolic import coordinates, memory, minimum, ite
+>>> v = coordinates("T", "T_out")
+>>> m = memory("T_set")
+>>> guard = minimum(m.T_set - v.T, v.T_out - 5.0)     # T <= T_set and T_out >= 5
+>>> guard((18.0, 10.0), {"T_set": 19.0})
+1.0
+>>> (v.T >= 21.0).level()((22.0, 0.0), {})            # a comparison becomes its level form T - 21
+1.0
+
+A comparison is a :class:`Condition`, not a number: used as a guard or an
+invariant it is turned into its *level form* (``a >= b`` into ``a - b``,
+``a <= b`` into ``b - a``, ``&`` into ``min``, ``|`` into ``max``).  Guards
+are closed sets, so ``a > b`` and ``a >= b`` have the same level form; the
+strict comparison keeps its strictness inside :func:`ite` conditions, where it
+decides a branch.  Python's ``if``, ``and``, ``or`` and the built-in ``min``
+cannot be applied to a condition (its truth is unknown until evaluated): that
+raises :class:`SymbolicError` with the function to use instead.
+
+Semantics of the pieces that Python does not define
+---------------------------------------------------
+``select(i, (o_0, ..., o_{n-1}))`` is ``o_k`` with ``k = int(i)`` (truncation,
+as Python's ``int``), for ``-1 < i < n``; outside that range evaluation raises
+and the checker treats the point as outside the model's domain.
+``x ** n`` needs an integer ``n >= 0``; division needs a non-zero constant
+divisor (multiply through, or write ``ite``, otherwise).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from types import MappingProxyType
+from typing import Any
+
+from .errors import ExecutionError, ModelDefinitionError
+
+__all__ = [
+    "SymbolicError",
+    "Expr",
+    "Const",
+    "Coordinate",
+    "MemoryRef",
+    "Time",
+    "Param",
+    "Apply",
+    "Ite",
+    "Select",
+    "Condition",
+    "Compare",
+    "Logic",
+    "Coordinates",
+    "MemoryRefs",
+    "coordinates",
+    "memory",
+    "param",
+    "time",
+    "const",
+    "as_expr",
+    "minimum",
+    "maximum",
+    "ite",
+    "select",
+    "sin",
+    "cos",
+    "exp",
+    "log",
+    "sqrt",
+    "atan2",
+    "all_true",
+    "any_true",
+    "level_form",
+    "evaluate",
+    "diff",
+    "enclose",
+    "free_symbols",
+    "transcendental_terms",
+    "substitute",
+    "to_casadi",
+    "render",
+    "depth",
+    "exact",
+    "SymbolicReset",
+    "SymbolicVector",
+    "reset",
+    "jump_map",
+    "flow_map",
+    "output_map",
+    "is_symbolic",
+    "MAX_COMPILED_DEPTH",
+]
+
+TRANSCENDENTAL = ("sin", "cos", "exp", "log", "sqrt", "atan2")
+"""Operations an SMT solver cannot decide exactly: the checker bounds them by interval enclosure."""
+
+_ARITY = {"add": 2, "sub": 2, "mul": 2, "div": 2, "neg": 1, "abs": 1, "pow": 2, "min": None, "max": None,
+          "sin": 1, "cos": 1, "exp": 1, "log": 1, "sqrt": 1, "atan2": 2}
+
+MAX_COMPILED_DEPTH = 60
+"""Deeper trees are evaluated by the interpreter instead of a compiled lambda (Python's parser nests ~200)."""
+
+
+class SymbolicError(ModelDefinitionError):
+    """An expression uses an operation this module cannot represent, or is used where it cannot be."""
+
+
+# ====================================================================== nodes
+class Expr:
+    """A real-valued symbolic term; build with :func:`coordinates`, :func:`memory` and the operators.
+
+    Called as ``expr(v, m)`` it is a guard or invariant value (``v`` the
+    coordinate vector, ``m`` the memory mapping), compiled on first use.
+    """
+
+    __slots__ = ()
+
+    # --- arithmetic -------------------------------------------------------------------
+    def __add__(self, other: Any) -> Expr:
+        return _apply("add", self, other)
+
+    def __radd__(self, other: Any) -> Expr:
+        return _apply("add", other, self)
+
+    def __sub__(self, other: Any) -> Expr:
+        return _apply("sub", self, other)
+
+    def __rsub__(self, other: Any) -> Expr:
+        return _apply("sub", other, self)
+
+    def __mul__(self, other: Any) -> Expr:
+        return _apply("mul", self, other)
+
+    def __rmul__(self, other: Any) -> Expr:
+        return _apply("mul", other, self)
+
+    def __truediv__(self, other: Any) -> Expr:
+        divisor = as_expr(other)
+        if not isinstance(divisor, (Const, Param)) or _value(divisor) == 0.0:
+            raise SymbolicError(
+                f"unsupported operation: division by {render(divisor)}; a symbolic expression may only be "
+                "divided by a non-zero constant: multiply both sides of the comparison through by the divisor "
+                "(or write ite(divisor > 0, ..., ...)) instead"
+            )
+        return _apply("div", self, divisor)
+
+    def __rtruediv__(self, other: Any) -> Expr:
+        return as_expr(other) / self
+
+    def __neg__(self) -> Expr:
+        return _apply("neg", self)
+
+    def __pos__(self) -> Expr:
+        return self
+
+    def __abs__(self) -> Expr:
+        return _apply("abs", self)
+
+    def __pow__(self, exponent: Any) -> Expr:
+        if isinstance(exponent, bool) or not isinstance(exponent, int) or exponent < 0:
+            raise SymbolicError(
+                f"unsupported operation: power {exponent!r}; a symbolic power needs an integer exponent >= 0 "
+                "(write sqrt(x) for x ** 0.5, or multiply out)"
+            )
+        return Apply("pow", (self, Const(float(exponent))))
+
+    def __rpow__(self, base: Any) -> Expr:
+        raise SymbolicError(
+            f"unsupported operation: {base!r} ** <expression>; write exp(log(base) * x) for a variable exponent"
+        )
+
+    # --- comparisons -------------------------------------------------------------------
+    def __ge__(self, other: Any) -> Compare:
+        return Compare(">=", self, as_expr(other))
+
+    def __gt__(self, other: Any) -> Compare:
+        return Compare(">", self, as_expr(other))
+
+    def __le__(self, other: Any) -> Compare:
+        return Compare("<=", self, as_expr(other))
+
+    def __lt__(self, other: Any) -> Compare:
+        return Compare("<", self, as_expr(other))
+
+    def __bool__(self) -> bool:
+        """An expression object is always "given" (``inv or default`` keeps it); comparisons have no truth value."""
+        return True
+
+    def __float__(self) -> float:
+        raise SymbolicError(
+            f"the symbolic expression {render(self)} has no numeric value until evaluated; call it with "
+            "(v, m) or use hybrid.symbolic.evaluate()"
+        )
+
+    def __round__(self, ndigits: int | None = None) -> Any:
+        raise SymbolicError(f"unsupported operation: round() of {render(self)}; rounding is not piecewise polynomial")
+
+    def __floor__(self) -> Any:
+        raise SymbolicError(f"unsupported operation: math.floor() of {render(self)}; use select() on an index")
+
+    def __index__(self) -> int:
+        raise SymbolicError(
+            f"unsupported operation: indexing with {render(self)}; use select(index, (option_0, option_1, ...))"
+        )
+
+    __hash__ = object.__hash__
+
+    # --- use as a guard / invariant ----------------------------------------------------------
+    def __call__(self, v: Sequence[float], m: Mapping[str, float]) -> float:
+        return _compiled(self, "condition")(v, m)
+
+    def __repr__(self) -> str:
+        return f"<expr {render(self)}>"
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Const(Expr):
+    """A real constant (finite, or ±inf; NaN is refused)."""
+
+    value: float
+
+    def __post_init__(self) -> None:
+        if isinstance(self.value, bool) or not isinstance(self.value, (int, float)) or math.isnan(self.value):
+            raise SymbolicError(f"Const(value = {self.value!r}): expected a real number (not NaN, not a bool)")
+        object.__setattr__(self, "value", float(self.value))
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Coordinate(Expr):
+    """Component ``index`` (called ``name``) of the vector argument: a signal of a guard, a state of a flow."""
+
+    name: str
+    index: int
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class MemoryRef(Expr):
+    """The memory variable ``name``."""
+
+    name: str
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Time(Expr):
+    """Time ``t`` [s] (flows and outputs only)."""
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Param(Expr):
+    """A named constant: evaluated as ``value``, left free by a parametric question of the checker."""
+
+    name: str
+    value: float
+
+    def __post_init__(self) -> None:
+        if isinstance(self.value, bool) or not isinstance(self.value, (int, float)) or not math.isfinite(self.value):
+            raise SymbolicError(f"param {self.name!r}: value = {self.value!r}; expected a finite real number")
+        object.__setattr__(self, "value", float(self.value))
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Apply(Expr):
+    """An arithmetic operation or function ``op`` applied to ``args``."""
+
+    op: str
+    args: tuple[Expr, ...]
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Ite(Expr):
+    """``then`` where ``condition`` holds, ``otherwise`` elsewhere."""
+
+    condition: Condition
+    then: Expr
+    otherwise: Expr
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Select(Expr):
+    """``options[int(index)]`` (the module docstring gives the domain)."""
+
+    index: Expr
+    options: tuple[Expr, ...]
+
+
+class Condition:
+    """A comparison or a logical combination of comparisons (use ``&``, ``|``, ``~``)."""
+
+    __slots__ = ()
+
+    def __and__(self, other: Condition) -> Condition:
+        return Logic("and", (self, _condition(other, "&")))
+
+    def __or__(self, other: Condition) -> Condition:
+        return Logic("or", (self, _condition(other, "|")))
+
+    def __invert__(self) -> Condition:
+        return Logic("not", (self,))
+
+    def __bool__(self) -> bool:
+        raise SymbolicError(
+            f"the symbolic condition {render(self)} has no truth value until evaluated; combine conditions "
+            "with &, | and ~ (not Python's and, or, not), choose values with ite(), and pass a condition as a "
+            "guard or invariant directly (its level form is used)"
+        )
+
+    def level(self) -> Expr:
+        """The level form: an expression that is ``>= 0`` exactly where the (closed) condition holds."""
+        return level_form(self)
+
+    def __call__(self, v: Sequence[float], m: Mapping[str, float]) -> float:
+        return _compiled(self, "level")(v, m)
+
+    __hash__ = object.__hash__
+
+    def __repr__(self) -> str:
+        return f"<condition {render(self)}>"
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Compare(Condition):
+    """``left op right`` with ``op`` one of ``>=, >, <=, <, ==, !=``."""
+
+    op: str
+    left: Expr
+    right: Expr
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Logic(Condition):
+    """``and`` / ``or`` of several conditions, or ``not`` of one."""
+
+    op: str
+    args: tuple[Condition, ...]
+
+
+def _condition(value: Any, where: str) -> Condition:
+    if not isinstance(value, Condition):
+        raise SymbolicError(f"{where}: {value!r} is not a symbolic condition; compare expressions (x >= 1) first")
+    return value
+
+
+# ====================================================================== builders
+def const(value: float) -> Const:
+    """A constant node."""
+    return Const(value)
+
+
+def as_expr(value: Any) -> Expr:
+    """``value`` as an expression (numbers become :class:`Const`)."""
+    if isinstance(value, Expr):
+        return value
+    if isinstance(value, Condition):
+        raise SymbolicError(
+            f"the condition {render(value)} is used as a number; use ite(condition, a, b) or its .level()"
+        )
+    if isinstance(value, bool):
+        raise SymbolicError(f"the bool {value!r} is used as a number in a symbolic expression; write 1.0 or 0.0")
+    try:
+        import numpy as np
+
+        if isinstance(value, np.generic):
+            value = value.item()
+    except ImportError:  # pragma: no cover - numpy is a dependency
+        pass
+    if isinstance(value, (int, float)):
+        return Const(float(value))
+    raise SymbolicError(
+        f"unsupported operand {value!r} ({type(value).__name__}) in a symbolic expression; expected a number or "
+        "an expression of hybrid.symbolic"
+    )
+
+
+def _value(node: Expr) -> float:
+    return node.value  # type: ignore[attr-defined]
+
+
+def _apply(op: str, *args: Any) -> Expr:
+    nodes = tuple(as_expr(a) for a in args)
+    return _fold(Apply(op, nodes))
+
+
+def _fold(node: Apply) -> Expr:
+    """Light simplification: constants folded, ``0 +``, ``1 *``, ``0 *`` removed (keeps trees small)."""
+    op, args = node.op, node.args
+    if all(isinstance(a, Const) for a in args) and op not in TRANSCENDENTAL:
+        return Const(_FLOAT_OPS[op](*(a.value for a in args)))  # type: ignore[attr-defined]
+    if op == "add":
+        if _is(args[0], 0.0):
+            return args[1]
+        if _is(args[1], 0.0):
+            return args[0]
+    elif op == "sub":
+        if _is(args[1], 0.0):
+            return args[0]
+        if _is(args[0], 0.0):
+            return _fold(Apply("neg", (args[1],)))
+    elif op == "mul":
+        if _is(args[0], 0.0) or _is(args[1], 0.0):
+            return Const(0.0)
+        if _is(args[0], 1.0):
+            return args[1]
+        if _is(args[1], 1.0):
+            return args[0]
+    elif op == "neg" and isinstance(args[0], Apply) and args[0].op == "neg":
+        return args[0].args[0]
+    return node
+
+
+def _is(node: Expr, value: float) -> bool:
+    return isinstance(node, Const) and node.value == value
+
+
+class Coordinates:
+    """Named coordinates of a vector argument: ``v.T`` or ``v["T"]`` is a :class:`Coordinate`."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        names = tuple(names)
+        for n in names:
+            if not isinstance(n, str) or not n:
+                raise SymbolicError(f"coordinates(): name {n!r}; expected non-empty strings")
+        if len(set(names)) != len(names):
+            raise SymbolicError(f"coordinates(): duplicate names in {list(names)}")
+        object.__setattr__(self, "_nodes", {n: Coordinate(n, i) for i, n in enumerate(names)})
+        object.__setattr__(self, "names", names)
+
+    def __getattr__(self, name: str) -> Coordinate:
+        nodes = object.__getattribute__(self, "_nodes")
+        try:
+            return nodes[name]
+        except KeyError:
+            raise SymbolicError(f"no coordinate {name!r}; the coordinates are {list(nodes)}") from None
+
+    __getitem__ = __getattr__
+
+    def __iter__(self):
+        return iter(object.__getattribute__(self, "_nodes").values())
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError("Coordinates are read-only")
+
+
+class MemoryRefs(Coordinates):
+    """Named memory variables: ``m.dL`` is a :class:`MemoryRef`."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        super().__init__(names)
+        object.__setattr__(self, "_nodes", {n: MemoryRef(n) for n in self.names})
+
+    def __getattr__(self, name: str) -> MemoryRef:  # type: ignore[override]
+        nodes = object.__getattribute__(self, "_nodes")
+        try:
+            return nodes[name]
+        except KeyError:
+            raise SymbolicError(f"no memory variable {name!r}; declared: {list(nodes)}") from None
+
+    __getitem__ = __getattr__
+
+
+def coordinates(*names: str) -> Coordinates:
+    """Coordinates named ``names`` in vector order (the automaton's variables, or a system's state names)."""
+    if len(names) == 1 and not isinstance(names[0], str):
+        names = tuple(names[0])
+    return Coordinates(names)
+
+
+def memory(*names: str) -> MemoryRefs:
+    """Memory variables named ``names``."""
+    if len(names) == 1 and not isinstance(names[0], str):
+        names = tuple(names[0])
+    return MemoryRefs(names)
+
+
+def param(name: str, value: float) -> Param:
+    """A named constant (see :class:`Param`)."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise SymbolicError(f"param(): name {name!r}; expected an identifier")
+    return Param(name, value)
+
+
+def time() -> Time:
+    """The time symbol of flows and outputs."""
+    return Time()
+
+
+def minimum(*args: Any) -> Expr:
+    """``min`` of one or more terms."""
+    return _nary("min", args)
+
+
+def maximum(*args: Any) -> Expr:
+    """``max`` of one or more terms."""
+    return _nary("max", args)
+
+
+def _nary(op: str, args: tuple[Any, ...]) -> Expr:
+    if len(args) == 1 and isinstance(args[0], (list, tuple)):
+        args = tuple(args[0])
+    if not args:
+        raise SymbolicError(f"{'minimum' if op == 'min' else 'maximum'}(): give at least one term")
+    nodes: list[Expr] = []
+    for a in args:
+        e = as_expr(a)
+        nodes.extend(e.args if isinstance(e, Apply) and e.op == op else (e,))
+    if len(nodes) == 1:
+        return nodes[0]
+    return Apply(op, tuple(nodes))
+
+
+def ite(condition: Condition, then: Any, otherwise: Any) -> Expr:
+    """``then`` where ``condition`` holds, else ``otherwise``."""
+    return Ite(_condition(condition, "ite()"), as_expr(then), as_expr(otherwise))
+
+
+def select(index: Any, options: Sequence[Any]) -> Expr:
+    """``options[int(index)]``: a latched index choosing among terms (e.g. the distance to obstacle ``i``)."""
+    opts = tuple(as_expr(o) for o in options)
+    if not opts:
+        raise SymbolicError("select(): no options; give at least one term to choose from")
+    return Select(as_expr(index), opts)
+
+
+def sin(x: Any) -> Expr:
+    """Sine (transcendental: enclosed by intervals in the checker)."""
+    return _apply("sin", x)
+
+
+def cos(x: Any) -> Expr:
+    """Cosine (transcendental)."""
+    return _apply("cos", x)
+
+
+def exp(x: Any) -> Expr:
+    """Exponential (transcendental)."""
+    return _apply("exp", x)
+
+
+def log(x: Any) -> Expr:
+    """Natural logarithm, ``x > 0`` (transcendental)."""
+    return _apply("log", x)
+
+
+def sqrt(x: Any) -> Expr:
+    """Square root, ``x >= 0`` (enclosed by intervals in the checker)."""
+    return _apply("sqrt", x)
+
+
+def atan2(y: Any, x: Any) -> Expr:
+    """Four-quadrant arctangent (transcendental)."""
+    return _apply("atan2", y, x)
+
+
+def all_true(*conditions: Condition) -> Condition:
+    """Conjunction of conditions."""
+    if not conditions:
+        raise SymbolicError("all_true(): give at least one condition")
+    return Logic("and", tuple(_condition(c, "all_true()") for c in conditions))
+
+
+def any_true(*conditions: Condition) -> Condition:
+    """Disjunction of conditions."""
+    if not conditions:
+        raise SymbolicError("any_true(): give at least one condition")
+    return Logic("or", tuple(_condition(c, "any_true()") for c in conditions))
+
+
+def level_form(condition: Condition | Expr) -> Expr:
+    """An expression ``>= 0`` exactly on the closure of ``condition`` (an expression is returned as it is)."""
+    if isinstance(condition, Expr):
+        return condition
+    if isinstance(condition, Compare):
+        a, b = condition.left, condition.right
+        if condition.op in (">=", ">"):
+            return a - b
+        if condition.op in ("<=", "<"):
+            return b - a
+        if condition.op == "==":
+            return -abs(a - b)
+        raise SymbolicError(
+            f"the condition {render(condition)} (!=) has no closed level form: its closure is everything; "
+            "write the two sides as (a > b) | (a < b) with a margin"
+        )
+    if isinstance(condition, Logic):
+        if condition.op == "and":
+            return minimum(*(level_form(c) for c in condition.args))
+        if condition.op == "or":
+            return maximum(*(level_form(c) for c in condition.args))
+        return level_form(_negate(condition.args[0]))
+    raise SymbolicError(f"level_form(): {condition!r} is not a condition")
+
+
+def _negate(c: Condition) -> Condition:
+    """``not c`` pushed inside (``not (a >= b)`` is ``a < b``), so its level form is defined."""
+    if isinstance(c, Compare):
+        flipped = {">=": "<", ">": "<=", "<=": ">", "<": ">=", "==": "!=", "!=": "=="}[c.op]
+        return Compare(flipped, c.left, c.right)
+    assert isinstance(c, Logic)
+    if c.op == "not":
+        return c.args[0]
+    return Logic("or" if c.op == "and" else "and", tuple(_negate(a) for a in c.args))
+
+
+# ====================================================================== rendering
+_INFIX = {"add": "+", "sub": "-", "mul": "*", "div": "/"}
+
+
+def render(node: Expr | Condition) -> str:
+    """Human-readable text of an expression or condition."""
+    if isinstance(node, Const):
+        return f"{node.value:g}"
+    if isinstance(node, Coordinate):
+        return node.name
+    if isinstance(node, MemoryRef):
+        return node.name
+    if isinstance(node, Param):
+        return node.name
+    if isinstance(node, Time):
+        return "t"
+    if isinstance(node, Apply):
+        if node.op in _INFIX:
+            return f"({render(node.args[0])} {_INFIX[node.op]} {render(node.args[1])})"
+        if node.op == "neg":
+            return f"-{render(node.args[0])}"
+        if node.op == "pow":
+            return f"{render(node.args[0])}^{int(_value(node.args[1]))}"
+        return f"{node.op}({', '.join(render(a) for a in node.args)})"
+    if isinstance(node, Ite):
+        return f"ite({render(node.condition)}, {render(node.then)}, {render(node.otherwise)})"
+    if isinstance(node, Select):
+        return f"select({render(node.index)}, [{', '.join(render(o) for o in node.options)}])"
+    if isinstance(node, Compare):
+        return f"{render(node.left)} {node.op} {render(node.right)}"
+    if isinstance(node, Logic):
+        if node.op == "not":
+            return f"not ({render(node.args[0])})"
+        return "(" + f" {node.op} ".join(render(a) for a in node.args) + ")"
+    return repr(node)
+
+
+# ====================================================================== float evaluation
+_FLOAT_OPS: dict[str, Callable[..., float]] = {
+    "add": lambda a, b: a + b,
+    "sub": lambda a, b: a - b,
+    "mul": lambda a, b: a * b,
+    "div": lambda a, b: a / b,
+    "neg": lambda a: -a,
+    "abs": abs,
+    "pow": lambda a, n: a ** int(n),
+    "min": min,
+    "max": max,
+    "sin": math.sin,
+    "cos": math.cos,
+    "exp": math.exp,
+    "log": math.log,
+    "sqrt": math.sqrt,
+    "atan2": math.atan2,
+}
+_COMPARE = {">=": lambda a, b: a >= b, ">": lambda a, b: a > b, "<=": lambda a, b: a <= b,
+            "<": lambda a, b: a < b, "==": lambda a, b: a == b, "!=": lambda a, b: a != b}
+
+
+def _pick(index: float, options: Sequence[float]) -> float:
+    n = len(options)
+    if not (-1.0 < index < n):
+        raise ExecutionError(
+            f"select(): index {index!r} is outside -1 < index < {n}; it chooses among {n} option(s)"
+        )
+    return options[int(index)]
+
+
+def evaluate(node: Expr | Condition, v: Sequence[float] = (), m: Mapping[str, float] | None = None,
+             t: float = 0.0) -> Any:
+    """Interpret ``node`` with floats (the reference of the compiled form; a condition gives a bool)."""
+    m = {} if m is None else m
+    if isinstance(node, Const):
+        return node.value
+    if isinstance(node, Coordinate):
+        return v[node.index]
+    if isinstance(node, MemoryRef):
+        return m[node.name]
+    if isinstance(node, Param):
+        return node.value
+    if isinstance(node, Time):
+        return t
+    if isinstance(node, Apply):
+        return _FLOAT_OPS[node.op](*(evaluate(a, v, m, t) for a in node.args))
+    if isinstance(node, Ite):
+        return evaluate(node.then if evaluate(node.condition, v, m, t) else node.otherwise, v, m, t)
+    if isinstance(node, Select):
+        return _pick(evaluate(node.index, v, m, t), [evaluate(o, v, m, t) for o in node.options])
+    if isinstance(node, Compare):
+        return _COMPARE[node.op](evaluate(node.left, v, m, t), evaluate(node.right, v, m, t))
+    if isinstance(node, Logic):
+        if node.op == "and":
+            return all(evaluate(c, v, m, t) for c in node.args)
+        if node.op == "or":
+            return any(evaluate(c, v, m, t) for c in node.args)
+        return not evaluate(node.args[0], v, m, t)
+    raise SymbolicError(f"evaluate(): {node!r} is not an expression")
+
+
+_NAMESPACE = {"min": min, "max": max, "abs": abs, "inf": math.inf, "_pick": _pick,
+              "sin": math.sin, "cos": math.cos, "exp": math.exp, "log": math.log, "sqrt": math.sqrt,
+              "atan2": math.atan2, "__builtins__": {}}
+
+
+def _source(node: Expr | Condition, vec: str) -> str:
+    """Python source of ``node`` reading coordinates from ``vec``, memory from ``m`` and time from ``t``."""
+    if isinstance(node, (Const, Param)):
+        value = node.value
+        return repr(value) if math.isfinite(value) else ("inf" if value > 0 else "(-inf)")
+    if isinstance(node, Coordinate):
+        return f"{vec}[{node.index}]"
+    if isinstance(node, MemoryRef):
+        return f"m[{node.name!r}]"
+    if isinstance(node, Time):
+        return "t"
+    if isinstance(node, Apply):
+        args = [_source(a, vec) for a in node.args]
+        if node.op in _INFIX:
+            return f"({args[0]} {_INFIX[node.op]} {args[1]})"
+        if node.op == "neg":
+            return f"(-{args[0]})"
+        if node.op == "pow":
+            base = f"({args[0]})" if args[0].startswith("-") else args[0]  # -2.0 ** 2 would be -(2.0 ** 2)
+            return f"({base} ** {int(_value(node.args[1]))})"
+        if node.op == "inv":
+            return f"(1.0 / {args[0]})"
+        return f"{node.op}({', '.join(args)})"
+    if isinstance(node, Ite):
+        return f"({_source(node.then, vec)} if {_source(node.condition, vec)} else {_source(node.otherwise, vec)})"
+    if isinstance(node, Select):
+        return f"_pick({_source(node.index, vec)}, ({', '.join(_source(o, vec) for o in node.options)},))"
+    if isinstance(node, Compare):
+        return f"({_source(node.left, vec)} {node.op} {_source(node.right, vec)})"
+    if isinstance(node, Logic):
+        if node.op == "not":
+            return f"(not {_source(node.args[0], vec)})"
+        return "(" + f" {node.op} ".join(_source(a, vec) for a in node.args) + ")"
+    raise SymbolicError(f"{node!r} is not an expression")
+
+
+def depth(node: Expr | Condition) -> int:
+    """Height of the tree."""
+    children = _children(node)
+    return 1 + max((depth(c) for c in children), default=0)
+
+
+def _children(node: Expr | Condition) -> tuple[Any, ...]:
+    if isinstance(node, Apply):
+        return node.args
+    if isinstance(node, Ite):
+        return (node.condition, node.then, node.otherwise)
+    if isinstance(node, Select):
+        return (node.index, *node.options)
+    if isinstance(node, Compare):
+        return (node.left, node.right)
+    if isinstance(node, Logic):
+        return node.args
+    return ()
+
+
+_SIGNATURES = {"condition": ("v, m", "v"), "reset": ("v, m", "v"), "jump": ("x, m", "x"),
+               "flow": ("t, x, m", "x"), "output": ("t, x", "x")}
+_CACHE: dict[tuple[int, str], tuple[Any, Callable[..., Any]]] = {}
+_ROLE = {"condition": "the guard or invariant", "reset": "the reset term", "jump": "the jump map term"}
+_CACHE_LIMIT = 50_000
+
+
+def _compiled(node: Any, kind: str) -> Callable[..., Any]:
+    """The compiled float function of ``node`` (an expression, a reset mapping or a vector) for a signature."""
+    key = (id(node), kind)
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit[1]
+    if kind == "level":
+        fn = _compiled(level_form(node), "condition")
+        _CACHE[key] = (node, fn)
+        return fn
+    params, vec = _SIGNATURES[kind]
+    parts = _parts(node)
+    if kind in ("condition", "reset", "jump"):
+        for _, p in parts:
+            if any(isinstance(n, Time) for n in _walk(p)):
+                raise SymbolicError(
+                    f"{_ROLE[kind]} {render(p)} reads time t; "
+                    "time is available in flows and outputs only"
+                )
+    if max((depth(p) for _, p in parts), default=0) > MAX_COMPILED_DEPTH:
+        fn = _interpreted(node, kind)
+    else:
+        if kind == "condition":
+            body = _source(node, vec)
+        elif kind == "reset":
+            body = "{" + ", ".join(f"{name!r}: {_source(p, vec)}" for name, p in parts) + "}"
+        else:
+            body = "(" + "".join(f"{_source(p, vec)}, " for _, p in parts) + ")"
+        fn = eval(compile(f"lambda {params}: {body}", f"<symbolic {kind}>", "eval"), dict(_NAMESPACE))  # noqa: S307
+    if len(_CACHE) >= _CACHE_LIMIT:
+        _CACHE.clear()
+    _CACHE[key] = (node, fn)  # the node is kept alive with its function, so its id stays unique
+    return fn
+
+
+def _parts(node: Any) -> list[tuple[str, Expr]]:
+    if isinstance(node, SymbolicReset):
+        return list(node.assignments.items())
+    if isinstance(node, SymbolicVector):
+        return [(str(i), e) for i, e in enumerate(node.components)]
+    return [("", node)]
+
+
+def _interpreted(node: Any, kind: str) -> Callable[..., Any]:
+    if kind == "condition":
+        return lambda v, m: evaluate(node, v, m)
+    if kind == "reset":
+        return lambda v, m: {k: evaluate(e, v, m) for k, e in node.assignments.items()}
+    if kind == "jump":
+        return lambda x, m: tuple(evaluate(e, x, m) for e in node.components)
+    if kind == "flow":
+        return lambda t, x, m: tuple(evaluate(e, x, m, t) for e in node.components)
+    return lambda t, x: tuple(evaluate(e, x, {}, t) for e in node.components)
+
+
+# ====================================================================== maps
+@dataclass(frozen=True, eq=False, slots=True)
+class SymbolicReset:
+    """A memory reset ``{name: expression}``, callable as ``r(v, m) -> dict``."""
+
+    assignments: Mapping[str, Expr]
+
+    def __post_init__(self) -> None:
+        items = {}
+        for name, e in dict(self.assignments).items():
+            if not isinstance(name, str) or not name:
+                raise SymbolicError(f"reset(): memory name {name!r}; expected a non-empty string")
+            items[name] = as_expr(e)
+        object.__setattr__(self, "assignments", MappingProxyType(items))
+
+    @property
+    def writes(self) -> tuple[str, ...]:
+        """The memory variables assigned, in order."""
+        return tuple(self.assignments)
+
+    def __call__(self, v: Sequence[float], m: Mapping[str, float]) -> dict[str, float]:
+        return _compiled(self, "reset")(v, m)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class SymbolicVector:
+    """A vector of expressions used as a jump map ``(x, m)``, flow ``(t, x, m)`` or output ``(t, x)``."""
+
+    components: tuple[Expr, ...]
+    kind: str
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("jump", "flow", "output"):
+            raise SymbolicError(f"SymbolicVector.kind = {self.kind!r}; expected 'jump', 'flow' or 'output'")
+        comps = tuple(as_expr(c) for c in self.components)
+        if not comps:
+            raise SymbolicError(f"{self.kind} map: no components; give one expression per coordinate")
+        if self.kind == "output" and any(isinstance(n, MemoryRef) for c in comps for n in _walk(c)):
+            raise SymbolicError("output map: an output reads the state and time only, not memory")
+        object.__setattr__(self, "components", comps)
+
+    def __call__(self, *args: Any) -> tuple[float, ...]:
+        return _compiled(self, self.kind)(*args)
+
+    def __len__(self) -> int:
+        return len(self.components)
+
+
+def reset(assignments: Mapping[str, Any] | None = None, **named: Any) -> SymbolicReset:
+    """A symbolic memory reset: ``reset(dL=v.d, d_end=...)``."""
+    return SymbolicReset({**dict(assignments or {}), **named})
+
+
+def jump_map(*components: Any) -> SymbolicVector:
+    """A symbolic continuous-state reset ``x⁺ = r(x, m)``, one expression per state."""
+    return SymbolicVector(_flatten(components), "jump")
+
+
+def flow_map(*components: Any) -> SymbolicVector:
+    """A symbolic flow ``ẋ = f(t, x, m)``, one expression per state."""
+    return SymbolicVector(_flatten(components), "flow")
+
+
+def output_map(*components: Any) -> SymbolicVector:
+    """A symbolic output ``v = h(t, x)``, one expression per automaton variable."""
+    return SymbolicVector(_flatten(components), "output")
+
+
+def _flatten(components: tuple[Any, ...]) -> tuple[Any, ...]:
+    if len(components) == 1 and isinstance(components[0], (list, tuple)):
+        return tuple(components[0])
+    return components
+
+
+def is_symbolic(function: Any) -> bool:
+    """Whether a guard, invariant, reset or map is symbolic (decidable by the checker)."""
+    return isinstance(function, (Expr, Condition, SymbolicReset, SymbolicVector))
+
+
+# ====================================================================== structure
+def _walk(node: Any) -> Iterable[Any]:
+    stack = [node]
+    seen: set[int] = set()
+    while stack:
+        n = stack.pop()
+        if id(n) in seen:
+            continue
+        seen.add(id(n))
+        yield n
+        stack.extend(_children(n))
+
+
+def free_symbols(node: Expr | Condition) -> dict[str, set[str]]:
+    """``{"coordinates": ..., "memory": ..., "params": ..., "time": {"t"} or empty}`` used by ``node``."""
+    out: dict[str, set[str]] = {"coordinates": set(), "memory": set(), "params": set(), "time": set()}
+    for n in _walk(node):
+        if isinstance(n, Coordinate):
+            out["coordinates"].add(n.name)
+        elif isinstance(n, MemoryRef):
+            out["memory"].add(n.name)
+        elif isinstance(n, Param):
+            out["params"].add(n.name)
+        elif isinstance(n, Time):
+            out["time"].add("t")
+    return out
+
+
+def transcendental_terms(node: Expr | Condition) -> list[str]:
+    """Names of the transcendental operations in ``node`` (sorted, unique)."""
+    return sorted({n.op for n in _walk(node) if isinstance(n, Apply) and n.op in TRANSCENDENTAL})
+
+
+def substitute(node: Any, coordinates: Mapping[str, Expr] | None = None,
+               memory: Mapping[str, Expr] | None = None, params: Mapping[str, Expr] | None = None) -> Any:
+    """``node`` with coordinates, memory variables or parameters (by name) replaced by expressions."""
+    cmap, mmap, pmap = dict(coordinates or {}), dict(memory or {}), dict(params or {})
+    memo: dict[int, Any] = {}
+
+    def sub(n: Any) -> Any:
+        key = id(n)
+        if key in memo:
+            return memo[key]
+        if isinstance(n, Coordinate):
+            out = cmap.get(n.name, n)
+        elif isinstance(n, MemoryRef):
+            out = mmap.get(n.name, n)
+        elif isinstance(n, Param):
+            out = pmap.get(n.name, n)
+        elif isinstance(n, Apply):
+            out = Apply(n.op, tuple(sub(a) for a in n.args))
+        elif isinstance(n, Ite):
+            out = Ite(sub(n.condition), sub(n.then), sub(n.otherwise))
+        elif isinstance(n, Select):
+            out = Select(sub(n.index), tuple(sub(o) for o in n.options))
+        elif isinstance(n, Compare):
+            out = Compare(n.op, sub(n.left), sub(n.right))
+        elif isinstance(n, Logic):
+            out = Logic(n.op, tuple(sub(a) for a in n.args))
+        else:
+            out = n
+        memo[key] = out
+        return out
+
+    return sub(node)
+
+
+# ====================================================================== exact derivative
+def diff(node: Expr, wrt: Coordinate | MemoryRef | Time | str) -> Expr:
+    """The derivative of ``node`` with respect to a coordinate (by node or name), memory variable or time.
+
+    Piecewise terms differentiate branch by branch (``d min(a, b) = ite(a <= b, da, db)``,
+    ``d |a| = ite(a >= 0, da, -da)``), which is the derivative wherever it exists.
+    """
+    def same(n: Expr) -> bool:
+        if isinstance(wrt, str):
+            return isinstance(n, Coordinate) and n.name == wrt
+        if isinstance(wrt, Coordinate):
+            return isinstance(n, Coordinate) and n.name == wrt.name
+        if isinstance(wrt, MemoryRef):
+            return isinstance(n, MemoryRef) and n.name == wrt.name
+        return isinstance(n, Time)
+
+    memo: dict[int, Expr] = {}
+
+    def d(n: Expr) -> Expr:
+        if id(n) in memo:
+            return memo[id(n)]
+        if isinstance(n, (Coordinate, MemoryRef, Time)):
+            out: Expr = Const(1.0 if same(n) else 0.0)
+        elif isinstance(n, (Const, Param)):
+            out = Const(0.0)
+        elif isinstance(n, Ite):
+            out = _ite_or_same(n.condition, d(n.then), d(n.otherwise))
+        elif isinstance(n, Select):
+            out = Select(n.index, tuple(d(o) for o in n.options))
+        else:
+            out = _diff_apply(n, d)  # type: ignore[arg-type]
+        memo[id(n)] = out
+        return out
+
+    return d(as_expr(node))
+
+
+def _ite_or_same(c: Condition, a: Expr, b: Expr) -> Expr:
+    if isinstance(a, Const) and isinstance(b, Const) and a.value == b.value:
+        return a
+    return Ite(c, a, b)
+
+
+def _diff_apply(n: Apply, d: Callable[[Expr], Expr]) -> Expr:
+    op, args = n.op, n.args
+    a = args[0]
+    if op == "add":
+        return d(a) + d(args[1])
+    if op == "sub":
+        return d(a) - d(args[1])
+    if op == "mul":
+        return d(a) * args[1] + a * d(args[1])
+    if op == "div":
+        return d(a) / args[1]
+    if op == "neg":
+        return -d(a)
+    if op == "abs":
+        return _ite_or_same(a >= 0.0, d(a), -d(a))
+    if op == "pow":
+        k = int(_value(args[1]))
+        return Const(0.0) if k == 0 else Const(float(k)) * a ** (k - 1) * d(a)
+    if op in ("min", "max"):
+        first, rest = args[0], (args[1:] if len(args) > 2 else args[1])
+        other = _nary(op, rest) if isinstance(rest, tuple) else rest
+        cond = first <= other if op == "min" else first >= other
+        return _ite_or_same(cond, d(first), d(other))
+    if op == "sin":
+        return cos(a) * d(a)
+    if op == "cos":
+        return -sin(a) * d(a)
+    if op == "exp":
+        return n * d(a)
+    if op == "log":
+        return d(a) * _reciprocal(a)
+    if op == "sqrt":
+        return d(a) * _reciprocal(Const(2.0) * n)
+    if op == "atan2":
+        y, x = args
+        return (x * d(y) - y * d(x)) * _reciprocal(x * x + y * y)
+    if op == "inv":
+        return -(d(a) * _reciprocal(a * a))
+    raise SymbolicError(f"diff(): no derivative for operation {op!r}")
+
+
+def _reciprocal(e: Expr) -> Expr:
+    """``1 / e`` as a node (internal: derivatives of transcendental terms only)."""
+    return Apply("inv", (e,))
+
+
+_FLOAT_OPS["inv"] = lambda a: 1.0 / a
+_ARITY["inv"] = 1
+
+
+# ====================================================================== interval enclosure
+def _down(x: float) -> float:
+    return math.nextafter(x, -math.inf) if math.isfinite(x) else x
+
+
+def _up(x: float) -> float:
+    return math.nextafter(x, math.inf) if math.isfinite(x) else x
+
+
+Interval = tuple[float, float]
+_MAX = 1.7976931348623157e308  # the largest finite float
+
+
+def _mul_iv(a: Interval, b: Interval) -> Interval:
+    products = []
+    for x, y in itertools.product(a, b):
+        if (x == 0.0 and math.isinf(y)) or (y == 0.0 and math.isinf(x)):
+            products.append(0.0)
+        else:
+            products.append(x * y)
+    return _down(min(products)), _up(max(products))
+
+
+def _trig_iv(op: str, a: Interval) -> Interval:
+    lo, hi = a
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi - lo >= 2.0 * math.pi:
+        return -1.0, 1.0
+    f = math.sin if op == "sin" else math.cos
+    shift = 0.5 * math.pi if op == "sin" else 0.0  # extremes of f at shift + k pi
+    values = [f(lo), f(hi)]
+    k = math.ceil((lo - shift) / math.pi - 1e-12)
+    while shift + k * math.pi <= hi + 1e-12:
+        values.append(f(shift + k * math.pi))
+        k += 1
+    return max(-1.0, _down(min(values)) - 1e-15), min(1.0, _up(max(values)) + 1e-15)
+
+
+def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[str, Interval] | None = None,
+            time_bounds: Interval = (0.0, 0.0)) -> Interval:
+    """A sound interval containing ``node`` over a box (coordinates by name, memory, time).
+
+    Rounding is outward (one ulp per operation); a function outside its domain
+    (``log`` of an interval reaching 0, ``sqrt`` below 0, ``select`` out of range)
+    gives ``(-inf, inf)``.  A coordinate or memory variable missing from the
+    bounds is unbounded.
+    """
+    mb = memory_bounds or {}
+    memo: dict[int, Interval] = {}
+
+    def iv(n: Expr) -> Interval:
+        if id(n) in memo:
+            return memo[id(n)]
+        if isinstance(n, (Const, Param)):
+            out = (n.value, n.value)
+        elif isinstance(n, Coordinate):
+            out = tuple(bounds.get(n.name, (-math.inf, math.inf)))  # type: ignore[assignment]
+        elif isinstance(n, MemoryRef):
+            out = tuple(mb.get(n.name, (-math.inf, math.inf)))  # type: ignore[assignment]
+        elif isinstance(n, Time):
+            out = time_bounds
+        elif isinstance(n, Ite):
+            a, b = iv(n.then), iv(n.otherwise)
+            out = (min(a[0], b[0]), max(a[1], b[1]))
+        elif isinstance(n, Select):
+            k = iv(n.index)
+            # option i is chosen on [i, i + 1), option 0 on (-1, 1) (int() truncates towards zero)
+            options = [iv(o) for i, o in enumerate(n.options)
+                       if k[0] < i + 1 and (k[1] > -1.0 if i == 0 else i <= k[1])]
+            if k[0] <= -1.0 or k[1] >= len(n.options) or not options:
+                out = (-math.inf, math.inf)
+            else:
+                out = (min(o[0] for o in options), max(o[1] for o in options))
+        else:
+            out = _apply_iv(n, [iv(a) for a in n.args])  # type: ignore[attr-defined]
+        if out[0] == math.inf:  # a real value is finite: never [inf, inf] (inf - inf would give NaN bounds)
+            out = (_MAX, math.inf)
+        elif out[1] == -math.inf:
+            out = (-math.inf, -_MAX)
+        memo[id(n)] = out
+        return out
+
+    lo, hi = iv(as_expr(node))
+    if lo != lo or hi != hi:
+        return -math.inf, math.inf
+    return lo, hi
+
+
+def _pow_or_inf(x: float, k: int) -> float:
+    try:
+        return x ** k
+    except OverflowError:
+        return -math.inf if (x < 0.0 and k % 2 == 1) else math.inf
+
+
+def _apply_iv(n: Apply, a: list[Interval]) -> Interval:
+    op = n.op
+    if op == "add":
+        return _down(a[0][0] + a[1][0]), _up(a[0][1] + a[1][1])
+    if op == "sub":
+        return _down(a[0][0] - a[1][1]), _up(a[0][1] - a[1][0])
+    if op == "neg":
+        return -a[0][1], -a[0][0]
+    if op == "mul":
+        return _mul_iv(a[0], a[1])
+    if op == "div":
+        c = a[1][0]
+        return _mul_iv(a[0], (_down(1.0 / c), _up(1.0 / c)) if c > 0 else (_down(1.0 / c), _up(1.0 / c)))
+    if op == "inv":
+        lo, hi = a[0]
+        if lo <= 0.0 <= hi:
+            return -math.inf, math.inf
+        return _down(1.0 / hi), _up(1.0 / lo)
+    if op == "abs":
+        lo, hi = a[0]
+        if lo >= 0.0:
+            return lo, hi
+        if hi <= 0.0:
+            return -hi, -lo
+        return 0.0, max(-lo, hi)
+    if op == "pow":
+        k = int(n.args[1].value)  # type: ignore[attr-defined]
+        lo, hi = a[0]
+        if k == 0:
+            return 1.0, 1.0
+        ends = [_pow_or_inf(lo, k), _pow_or_inf(hi, k)]
+        low = 0.0 if (k % 2 == 0 and lo <= 0.0 <= hi) else min(ends)
+        return _down(_down(low)), _up(_up(max(ends)))
+    if op == "min":
+        return min(x[0] for x in a), min(x[1] for x in a)
+    if op == "max":
+        return max(x[0] for x in a), max(x[1] for x in a)
+    if op in ("sin", "cos"):
+        return _trig_iv(op, a[0])
+    if op == "exp":
+        lo, hi = a[0]  # math.exp overflows (OverflowError) above ~709.78
+        low = 0.0 if lo <= -745.0 else max(0.0, _down(_down(math.exp(min(lo, 709.0)))))
+        return low, (_up(_up(math.exp(hi))) if hi < 709.0 else math.inf)
+    if op == "log":
+        lo, hi = a[0]
+        if lo <= 0.0:
+            return -math.inf, math.inf
+        return _down(_down(math.log(lo))), _up(_up(math.log(hi))) if math.isfinite(hi) else math.inf
+    if op == "sqrt":
+        lo, hi = a[0]
+        if lo < 0.0:
+            return -math.inf, math.inf
+        return max(0.0, _down(_down(math.sqrt(lo)))), _up(_up(math.sqrt(hi))) if math.isfinite(hi) else math.inf
+    if op == "atan2":
+        return -math.pi - 1e-15, math.pi + 1e-15
+    raise SymbolicError(f"enclose(): no interval rule for operation {op!r}")
+
+
+# ====================================================================== CasADi
+def to_casadi(node: Expr | Condition, coords: Mapping[str, Any], memory: Mapping[str, Any] | None = None,
+              t: Any = 0.0) -> Any:
+    """``node`` as a CasADi expression in the given symbols (``coords[name]``, ``memory[name]``, ``t``).
+
+    Example: the gradient of an invariant is ``casadi.gradient(to_casadi(inv, {...}), x)``.
+    """
+    import casadi as ca
+
+    mem = memory or {}
+    memo: dict[int, Any] = {}
+    ops = {"add": lambda a, b: a + b, "sub": lambda a, b: a - b, "mul": lambda a, b: a * b,
+           "div": lambda a, b: a / b, "neg": lambda a: -a, "abs": ca.fabs, "inv": lambda a: 1 / a,
+           "sin": ca.sin, "cos": ca.cos, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt, "atan2": ca.atan2}
+
+    def cs(n: Any) -> Any:
+        if id(n) in memo:
+            return memo[id(n)]
+        if isinstance(n, (Const, Param)):
+            out = n.value
+        elif isinstance(n, Coordinate):
+            out = coords[n.name]
+        elif isinstance(n, MemoryRef):
+            out = mem[n.name]
+        elif isinstance(n, Time):
+            out = t
+        elif isinstance(n, Apply):
+            args = [cs(a) for a in n.args]
+            if n.op == "pow":
+                out = args[0] ** int(n.args[1].value)
+            elif n.op in ("min", "max"):
+                f = ca.fmin if n.op == "min" else ca.fmax
+                out = args[0]
+                for a in args[1:]:
+                    out = f(out, a)
+            else:
+                out = ops[n.op](*args)
+        elif isinstance(n, Ite):
+            out = ca.if_else(cs(n.condition), cs(n.then), cs(n.otherwise))
+        elif isinstance(n, Select):
+            idx = cs(n.index)
+            out = cs(n.options[-1])
+            for i in range(len(n.options) - 2, -1, -1):
+                out = ca.if_else(idx < i + 1, cs(n.options[i]), out)
+        elif isinstance(n, Compare):
+            a, b = cs(n.left), cs(n.right)
+            out = {">=": a >= b, ">": a > b, "<=": a <= b, "<": a < b, "==": a == b, "!=": a != b}[n.op]
+        elif isinstance(n, Logic):
+            args = [cs(c) for c in n.args]
+            if n.op == "not":
+                out = ca.logic_not(args[0])
+            else:
+                f = ca.logic_and if n.op == "and" else ca.logic_or
+                out = args[0]
+                for a in args[1:]:
+                    out = f(out, a)
+        else:
+            raise SymbolicError(f"to_casadi(): {n!r} is not an expression")
+        memo[id(n)] = out
+        return out
+
+    return cs(node)
+
+
+def exact(value: float) -> Fraction:
+    """The exact rational value of a finite float."""
+    return Fraction(value)
