@@ -358,17 +358,36 @@ class CheckReport:
         ``"system"`` (a HybridSystem, searched over its state) or
         ``"automaton"`` (searched over its signals).
     findings : tuple of Finding
-        Graph findings first, then state-space findings mode by mode.
+        Graph findings first, then state-space findings (decided, then sampled).
     searched : SearchSummary
+    claims : Mapping[str, Claim]
+        Per state-space check and ``"zeno"``: how it was answered
+        (:class:`hybrid.decide.Claim`: ``proven``, ``found``, ``sampled``, ``undecided``, ``skipped``).
+    zeno : ZenoSummary or None
+        The cycles grouped by verdict, when decided.
+    pairs : tuple of PairVerdict
+        Every decided pair of transitions sharing a source mode.
+    solver : str
+        The SMT solver used (empty when none).
     """
 
     automaton: str
     model: str
     findings: tuple[Finding, ...]
     searched: SearchSummary
+    claims: Mapping[str, Any] = field(default_factory=dict)
+    zeno: Any = None
+    pairs: tuple[Any, ...] = ()
+    solver: str = ""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "findings", tuple(self.findings))
+        object.__setattr__(self, "claims", MappingProxyType(dict(self.claims)))
+        object.__setattr__(self, "pairs", tuple(self.pairs))
+
+    def claim(self, check: str) -> str:
+        """``"proven"``, ``"found"``, ``"sampled"``, ``"undecided"`` or ``"skipped"`` for one check."""
+        return self.claims[check].status if check in self.claims else "sampled"
 
     @property
     def errors(self) -> tuple[Finding, ...]:
@@ -415,6 +434,10 @@ class CheckReport:
             "counts": {s: sum(f.severity == s for f in self.findings) for s in SEVERITIES},
             "findings": [f.as_dict() for f in self.findings],
             "searched": self.searched.as_dict(),
+            "claims": {k: c.as_dict() for k, c in self.claims.items()},
+            "zeno": None if self.zeno is None else self.zeno.as_dict(verdicts=False),
+            "pairs": [p.as_dict() for p in self.pairs],
+            "solver": self.solver,
         }
 
 
@@ -1328,26 +1351,36 @@ def _graph_findings(a: HybridAutomaton, max_cycles: int) -> tuple[list[Finding],
     for cycle in cycles:
         start = min(range(len(cycle)), key=lambda i: index[cycle[i]])
         normalised.append(tuple(cycle[start:] + cycle[:start]))
+    listed = []
     for cycle in sorted(set(normalised), key=lambda c: (len(c), [index[q] for q in c])):
         names: list[str] = []
         for i, q in enumerate(cycle):
             nxt = cycle[(i + 1) % len(cycle)]
             names += sorted(graph[q][nxt], key=order.__getitem__)
-        loop = " -> ".join((*cycle, cycle[0]))
-        findings.append(
-            Finding(
-                kind="zeno_candidate",
-                severity=KIND_SEVERITY["zeno_candidate"],
-                message=(
-                    f"cycle {loop} of the mode graph (transitions {names}): if its jumps can follow one another "
-                    "without time passing, executions are Zeno or chatter; a reset that leaves every guard of "
-                    "the cycle, hysteresis or a dwell time rules it out"
-                ),
-                modes=cycle,
-                transitions=tuple(names),
-            )
-        )
-    return findings, len(cycles), capped
+        listed.append((cycle, tuple(names)))
+    return findings, listed, capped
+
+
+def _zeno_group(cycles: Sequence[tuple[tuple[str, ...], tuple[str, ...]]], capped: bool, why: str) -> Finding:
+    """One finding for every cycle left undecided (never one row per cycle)."""
+    (first, names) = cycles[0]
+    examples = "; ".join(f"{' -> '.join((*c, c[0]))} (transitions {list(n)})" for c, n in cycles[:3])
+    more = f" and {len(cycles) - 3} more" if len(cycles) > 3 else ""
+    count = f"{len(cycles)}{'+' if capped else ''} cycle{'s' if len(cycles) != 1 else ''}"
+    return Finding(
+        kind="zeno_candidate",
+        severity=KIND_SEVERITY["zeno_candidate"],
+        message=(
+            f"{count} of the mode graph not decided for Zeno ({why}): {examples}{more}; if the jumps of a cycle "
+            "can follow one another without time passing, executions are Zeno or chatter; a reset that leaves "
+            "every guard of the cycle, hysteresis or a dwell time rules it out"
+        ),
+        modes=first,
+        transitions=names,
+    )
+
+
+
 
 
 # ====================================================================== entry point
@@ -1392,8 +1425,19 @@ def check(
     seed: int = 0,
     max_cycles: int = 200,
     tol: float = 1e-9,
+    method: str = "auto",
+    rates: Mapping[str, float] | None = None,
+    timeout_s: float = 5.0,
 ) -> CheckReport:
     """Structural checks of a hybrid system or automaton, each finding with a witness.
+
+    With ``method="auto"`` (the default), every mode whose guards, invariant,
+    resets and jump maps are symbolic (:mod:`hybrid.symbolic`) is decided by an
+    SMT solver (:func:`hybrid.decide.decide`: each finding's witness re-checked,
+    each clean answer PROVEN), and the others are searched by sampling (SAMPLED);
+    :attr:`CheckReport.claims` says which, per check.  ``method="sampled"``
+    samples every mode; ``method="smt"`` decides only (the modes it cannot take
+    are reported, not sampled).
 
     Parameters
     ----------
@@ -1416,6 +1460,12 @@ def check(
         Seed of ``numpy.random.default_rng``; a fixed seed gives an identical report.
     max_cycles : int
         Most simple cycles enumerated as Zeno candidates.
+    method : {"auto", "sampled", "smt"}
+        How the state-space questions are answered (above).
+    rates : Mapping[str, float] or None
+        Declared rate bounds ``|dx_j/dt| <= rates[j]`` of coordinates, for the Zeno dwell bounds.
+    timeout_s : float
+        Timeout of one solver call [s]; a call that times out makes its answer "undecided".
     tol : float
         Tolerance: a boundary point has ``0 <= inv <= tol``; a deadlock needs
         every guard ``< -tol`` and ``d/dt inv < -tol``; a reset lands outside
@@ -1457,40 +1507,47 @@ def check(
         raise ExecutionError(f"check(): seed = {seed!r}; expected an int")
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol >= 0.0):
         raise ExecutionError(f"check(): tol = {tol!r}; expected a finite number >= 0")
+    if method not in CHECK_METHODS:
+        raise ExecutionError(f"check(): method = {method!r}; expected one of {list(CHECK_METHODS)}")
     oracle = _Oracle(model)
     a = oracle.automaton
     boxes = _boxes(oracle, box)
 
-    findings, n_cycles, capped = _graph_findings(a, int(max_cycles))
+    findings, cycles, capped = _graph_findings(a, int(max_cycles))
     checks: dict[str, str] = {
         "unreachable": "ran",
         "sink_mode": "ran",
         "zeno_candidate": f"ran: capped at max_cycles = {max_cycles} cycles" if capped else "ran",
     }
-    mode_summaries: list[ModeSearch] = []
+    decision = None
+    if boxes is not None and method != "sampled":
+        from .decide import decide
+
+        decision = decide(model, boxes, rates=rates, timeout_s=timeout_s, tol=tol,
+                          max_cycles=max(int(max_cycles), 5000))
+    sampled_modes = set(a.mode_names) if decision is None else (
+        set() if method == "smt" else set(decision.sampled_modes))
+    mode_summaries, state_findings = _sample_modes(oracle, boxes, sampled_modes, samples=int(samples),
+                                                   starts=int(starts), seed=int(seed), tol=float(tol))
+    if decision is not None:
+        findings += [f for f in decision.findings
+                     if not (set(f.modes) & set(decision.sampled_modes)) or method == "smt"]
+    findings += state_findings
     if boxes is None:
         reason = "skipped: no box given; pass a Box (or a mapping mode -> Box) to search the state space"
         checks.update({c: reason for c in STATE_CHECKS})
-        mode_summaries = [ModeSearch(mode=q, box=None, notes=("not searched: no box given",)) for q in a.mode_names]
     else:
-        checker = _Checker(oracle, samples=int(samples), starts=int(starts), tol=float(tol))
-        rngs = np.random.default_rng(int(seed)).spawn(len(a.mode_names))
-        initial = a.initial_memory()
-        for q, rng in zip(a.mode_names, rngs):
-            if q not in boxes:
-                mode_summaries.append(
-                    ModeSearch(mode=q, box=None, notes=("not searched: the box mapping has no entry for this mode",))
-                )
-                continue
-            space = _Space.build(q, boxes[q], oracle.coords, initial)
-            found, summary = checker.search_mode(space, rng)
-            findings += found
-            mode_summaries.append(summary)
         missing = [q for q in a.mode_names if q not in boxes]
         remark = f"ran: modes {missing} not searched (no box)" if missing else "ran"
         checks.update({c: remark for c in STATE_CHECKS})
         if not any(t.direction == 0 for t in a.transitions):
             checks["reset_retriggers"] = "ran: no level-triggered transition (crossing guards do not re-fire)"
+    undecided = _undecided_cycles(cycles, decision)
+    if undecided:
+        why = ("the guards, resets or jump maps are not symbolic" if decision is None or decision.zeno is None
+               else "no dwell bound and no instantaneous lap")
+        findings.append(_zeno_group(undecided, capped, why))
+    claims = _claims(decision, sampled_modes, boxes, findings, method)
     summary = SearchSummary(
         seed=int(seed),
         samples=int(samples),
@@ -1499,7 +1556,7 @@ def check(
         tol=float(tol),
         checks=checks,
         modes=tuple(mode_summaries),
-        cycles_found=n_cycles,
+        cycles_found=len(cycles) if decision is None or decision.zeno is None else decision.zeno.cycles,
         cycles_capped=capped,
     )
     return CheckReport(
@@ -1507,4 +1564,81 @@ def check(
         model="system" if oracle.system is not None else "automaton",
         findings=tuple(findings),
         searched=summary,
+        claims=claims,
+        zeno=None if decision is None else decision.zeno,
+        pairs=() if decision is None else decision.pairs,
+        solver="" if decision is None else decision.solver,
     )
+
+
+CHECK_METHODS = ("auto", "sampled", "smt")
+"""How :func:`check` answers the state-space questions."""
+
+
+def _sample_modes(oracle: _Oracle, boxes: dict[str, Box] | None, modes: set[str], *, samples: int, starts: int,
+                  seed: int, tol: float) -> tuple[list[ModeSearch], list[Finding]]:
+    """The sampled searches of the modes in ``modes`` (the others: decided, or not searched)."""
+    a = oracle.automaton
+    if boxes is None:
+        return [ModeSearch(mode=q, box=None, notes=("not searched: no box given",)) for q in a.mode_names], []
+    checker = _Checker(oracle, samples=samples, starts=starts, tol=tol)
+    rngs = np.random.default_rng(seed).spawn(len(a.mode_names))
+    initial = a.initial_memory()
+    summaries, findings = [], []
+    for q, rng in zip(a.mode_names, rngs):
+        if q not in boxes:
+            summaries.append(ModeSearch(mode=q, box=None,
+                                        notes=("not searched: the box mapping has no entry for this mode",)))
+            continue
+        if q not in modes:
+            summaries.append(ModeSearch(mode=q, box=boxes[q].describe(),
+                                        notes=("decided by the SMT solver (not sampled)",)))
+            continue
+        space = _Space.build(q, boxes[q], oracle.coords, initial)
+        found, summary = checker.search_mode(space, rng)
+        findings += found
+        summaries.append(summary)
+    return summaries, findings
+
+
+def _undecided_cycles(cycles: list[tuple[tuple[str, ...], tuple[str, ...]]], decision: Any
+                      ) -> list[tuple[tuple[str, ...], tuple[str, ...]]]:
+    if decision is None or decision.zeno is None:
+        return cycles
+    return [(v.modes, v.transitions) for v in decision.zeno.verdicts if v.verdict == "undecided"]
+
+
+def _claims(decision: Any, sampled: set[str], boxes: dict[str, Box] | None, findings: Sequence[Finding],
+            method: str) -> dict[str, Any]:
+    """Per check: PROVEN (decided everywhere, nothing found), FOUND, SAMPLED (a mode was sampled), UNDECIDED."""
+    from .decide import Claim
+
+    kinds = {f.kind for f in findings}
+    out: dict[str, Any] = {}
+    if boxes is None:
+        return {c: Claim(check=c, status="skipped", method="no box given") for c in (*STATE_CHECKS, "zeno")}
+    sampled_method = "sampling (uniform samples, corners, faces, Nelder-Mead); a search that finds nothing is evidence"
+    for c in (*STATE_CHECKS, "zeno"):
+        decided = None if decision is None else decision.claims.get(c)
+        found = c in kinds or (c == "zeno" and "reset_retriggers" in kinds)
+        if decided is None:
+            status = "found" if found else ("sampled" if c != "zeno" else "undecided")
+            out[c] = Claim(check=c, status=status, method=sampled_method,
+                           detail="" if c != "zeno" else "cycles not decided: functions not symbolic")
+            continue
+        if found:
+            status = "found"
+        elif decided.status == "undecided":
+            status = "undecided"
+        elif sampled and method != "smt":
+            status = "sampled"
+        elif sampled:
+            status = "undecided"
+        else:
+            status = decided.status
+        detail = decided.detail
+        if sampled:
+            detail = (detail + "; " if detail else "") + f"modes sampled, not decided: {sorted(sampled)}"
+        out[c] = Claim(check=c, status=status, method=decided.method if not sampled else
+                       decided.method + "; " + sampled_method, assumptions=decided.assumptions, detail=detail)
+    return out

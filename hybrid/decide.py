@@ -112,6 +112,9 @@ DWELL_REL = 1e-9
 """Relative safety margin taken off a minimised dwell before it is verified as a lower bound."""
 BISECTIONS = 12
 """Bisection steps of a dwell bound when the optimiser's value cannot be verified."""
+RETRIGGER_PROBE = 1e-3
+"""Half-width (fraction of each coordinate's width) of the neighbourhood of a re-triggering state examined
+to tell a modelling defect (every neighbour re-triggers) from a Zeno point (one does not), as :mod:`hybrid.check`."""
 
 
 # ====================================================================== results
@@ -689,6 +692,26 @@ def _close(a: float, b: float) -> bool:
 class _Questions(_Decider):
     """The checks of the module docstring, one method each."""
 
+    def not_symbolic(self, q: str) -> str:
+        """Why mode ``q`` cannot be decided (empty when every function the checks read is symbolic)."""
+        v = self.v
+        if v.signals is None:
+            return "the output map is not symbolic"
+        if v.invariant(q) is None:
+            return "the invariant is not symbolic"
+        for t in self.a.outgoing(q):
+            if v.guard(t) is None:
+                return f"the guard of {t.name!r} is not symbolic"
+            if v.reset(t) is None:
+                return f"the reset of {t.name!r} is not symbolic"
+            if v.jump(t) is None:
+                return f"the jump map of {t.name!r} is not symbolic"
+            if t.target in self.boxes and v.invariant(t.target) is None:
+                return f"the invariant of {t.target!r} is not symbolic"
+        if v.invariant(q) is not True and v.system is not None and v.flow(q) is None:
+            return "the flow is not symbolic (needed for the deadlock question)"
+        return ""
+
     # ------------------------------------------------------------------ overlaps
     def pair(self, q: str, t1: Transition, t2: Transition) -> PairVerdict:
         same = t1.priority == t2.priority
@@ -806,21 +829,26 @@ class _Questions(_Decider):
                                 witness=self.witness(x, m, values)), how
 
     # ------------------------------------------------------------------ instantaneous laps
-    def lap(self, cycle: Sequence[Transition], strict: bool) -> tuple[str, Any, _Frame | None, list[Any]]:
+    def lap(self, cycle: Sequence[Transition], role: str = "lap"
+            ) -> tuple[str, Any, _Frame | None, list[Any]]:
         """Can the jumps of ``cycle`` follow one another at one instant and enable its first one again?"""
         if any(t.direction != 0 for t in cycle):
             return "unsat", None, None, []
-        first = cycle[0]
-        q0 = first.source
         if any(self.v.guard(t) is None or self.v.jump(t) is None or self.v.reset(t) is None for t in cycle):
             return "unknown", None, None, []
-        f, cons, tr, disjuncts = self.state(q0, strict=strict, role="lap")
-        x_terms = dict(f.x)
+        f, cons, tr, disjuncts = self.state(cycle[0].source, role=role)
+        cons += self.lap_formula(f, tr, cycle)
+        status, model = self.solve(cons, "instantaneous lap " + " -> ".join(t.name for t in cycle))
+        return status, model, f, disjuncts
+
+    def lap_formula(self, f: _Frame, tr: Translation, cycle: Sequence[Transition]) -> list[Any]:
+        """The lap's conditions from state ``f``: each jump wins in turn (priorities), then the first is enabled."""
+        cons: list[Any] = []
         m_terms = dict(f.m)
-        sequence = list(cycle) + [first]
+        sequence = list(cycle) + [cycle[0]]
         current = tr
         for i, t in enumerate(sequence):
-            cons.append(self.enabled(current, t, strict))
+            cons.append(self.enabled(current, t))
             cons += [self.disabled(current, u) for u in self.a.outgoing(t.source)
                      if u.direction == 0 and u.priority < t.priority and self.v.guard(u) is not None]
             if i == len(sequence) - 1:
@@ -829,12 +857,35 @@ class _Questions(_Decider):
             x_terms = {n: current.term(e) for n, e in zip(self.v.coords, jump)}  # type: ignore[arg-type]
             m_terms = {k: (current.term(written[k]) if k in written else m_terms[k])  # type: ignore[index]
                        for k in self.v.memory_names}
+            cons += current.side
             current = Translation(coordinates=x_terms, memory=m_terms, bounds=_unbounded(self.v.coords),
                                   prefix=f"{f.tag}.j{i}")
-            cons += current.side
-        cons += current.side
-        status, model = self.solve(cons, "instantaneous lap " + " -> ".join(t.name for t in cycle))
-        return status, model, f, disjuncts
+        return cons + current.side
+
+    def isolated(self, cycle: Sequence[Transition], w: Witness) -> tuple[str, dict[str, float]]:
+        """Is there, within :data:`RETRIGGER_PROBE` of ``w`` (per coordinate width), a state enabling the
+        cycle's first transition from which the lap does *not* happen?  ``("isolated", neighbour)``,
+        ``("robust", {})`` (proven: every such state re-triggers) or ``("undecided", {})``."""
+        import z3
+
+        q0 = cycle[0].source
+        f, cons, tr, _ = self.state(q0, role="neighbour")
+        cons.append(self.enabled(tr, cycle[0]))
+        cons.append(z3.Not(z3.And(*self.lap_formula(f, tr, cycle))))
+        for n, (lo, hi) in self.boxes[q0].bounds.items():
+            step = RETRIGGER_PROBE * (float(hi) - float(lo))
+            c = w.state[n]
+            cons += [f.x[n] >= rational(c - step), f.x[n] <= rational(c + step)]
+        for n in self.boxes[q0].choices:
+            cons.append(f.x[n] == rational(w.state[n]))
+        for k, c in w.memory.items():
+            cons.append(f.m[k] == rational(c))
+        cons += tr.side
+        status, model = self.solve(cons, "neighbourhood of a re-triggering state")
+        if status == "sat":
+            x, _ = self.point(model, f)
+            return "isolated", {f"neighbour {n}": c for n, c in zip(self.v.coords, x)}
+        return ("robust", {}) if status == "unsat" else ("undecided", {})
 
     def lap_witness(self, cycle: Sequence[Transition], model: Any, f: _Frame,
                     disjuncts: list[Any]) -> Witness | None:
@@ -1107,32 +1158,33 @@ class _Zeno:
     def instantaneous(self, cycle: tuple[Transition, ...], modes: tuple[str, ...], names: tuple[str, ...]
                       ) -> CycleVerdict:
         qs = self.qs
-        for strict in (True, False):
-            status, model, f, disjuncts = qs.lap(cycle, strict)
-            if status == "sat":
-                w = qs.lap_witness(cycle, model, f, disjuncts)  # type: ignore[arg-type]
-                if w is None:
-                    continue
-                kind = "reset_retriggers" if strict else "zeno_point"
-                verdict = "instantaneous" if strict else "zeno_point"
-                chain = " -> ".join(names)
-                text = ("on an open set of states" if strict else
-                        "only on a set of states without interior (a Zeno point of the dynamics)")
-                self.findings.append(Finding(
-                    kind=kind, severity=KIND_SEVERITY[kind],
-                    message=(f"the jumps {chain} can follow one another at one instant and enable "
-                             f"{names[0]!r} again, {text}: from {qs.v.oracle.where(tuple(w.state.values()), w.memory)}"
-                             "; SMT witness, re-checked on the executors' instant rule"
-                             + ("; make the reset leave the guard (hysteresis) or use a crossing guard"
-                                if strict else "")),
-                    modes=modes, transitions=names, witness=w))
-                return CycleVerdict(modes=modes, transitions=names, verdict=verdict, dwell_s=0.0,
-                                    binding="instantaneous lap", witness=w)
-            if status == "unknown":
-                break
-        reason = ("no instantaneous lap (proven) but no positive dwell bound from the guards and rates: "
-                  "declare rate bounds, or this cycle may accumulate (Zeno behaviour over time)")
-        return CycleVerdict(modes=modes, transitions=names, verdict="undecided", dwell_s=0.0, binding=reason)
+        status, model, f, disjuncts = qs.lap(cycle)
+        w = qs.lap_witness(cycle, model, f, disjuncts) if status == "sat" else None  # type: ignore[arg-type]
+        if w is None:
+            reason = ("no instantaneous lap (proven) but no positive dwell bound from the guards and rates: "
+                      "declare rate bounds, or this cycle may accumulate (Zeno behaviour over time)")
+            if status != "unsat":
+                reason = ("undecided: " + (f"the solver timed out ({qs.timeout_s:g} s)" if status == "unknown"
+                                           else "a lap witness did not re-check"))
+            return CycleVerdict(modes=modes, transitions=names, verdict="undecided", dwell_s=0.0, binding=reason)
+        shape, neighbour = qs.isolated(cycle, w)
+        robust = shape != "isolated"
+        kind = "reset_retriggers" if robust else "zeno_point"
+        chain = " -> ".join(names)
+        text = ("and so does every state near it that enables the first jump (proven)" if shape == "robust" else
+                "(its neighbourhood undecided)" if shape == "undecided" else
+                "but a state next to it does not (a Zeno point of the dynamics, not a modelling defect)")
+        if neighbour:
+            w = Witness(state=w.state, memory=w.memory, signals=w.signals, values={**w.values, **neighbour})
+        self.findings.append(Finding(
+            kind=kind, severity=KIND_SEVERITY[kind],
+            message=(f"the jumps {chain} can follow one another at one instant and enable {names[0]!r} again from "
+                     f"{qs.v.oracle.where(tuple(w.state.values()), w.memory)}, {text}; SMT witness, re-checked on "
+                     "the executors' instant rule"
+                     + ("; make the reset leave the guard (hysteresis) or use a crossing guard" if robust else "")),
+            modes=modes, transitions=names, witness=w))
+        return CycleVerdict(modes=modes, transitions=names, verdict="instantaneous" if robust else "zeno_point",
+                            dwell_s=0.0, binding="instantaneous lap", witness=w)
 
     def summary(self) -> ZenoSummary:
         qs = self.qs
@@ -1223,6 +1275,10 @@ def _assemble(qs: _Questions, zeno: bool) -> Decision:
     status: dict[str, list[str]] = {k: [] for k in ("nondeterminism", "deadlock", "reset_outside_invariant")}
     searched = [q for q in a.mode_names if q in qs.boxes and qs.hulls[q] is not None]
     for q in searched:
+        reason = qs.not_symbolic(q)
+        if reason:
+            sampled[q] = reason
+    for q in searched:
         out = a.outgoing(q)
         for t1, t2 in itertools.combinations(out, 2):
             p = qs.pair(q, t1, t2)
@@ -1305,7 +1361,8 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
     if summary is not None:
         c = summary.counts
         undecided = c["undecided"]
-        zs = "found" if c["instantaneous"] else ("undecided" if undecided or summary.capped else "proven")
+        zs = ("found" if c["instantaneous"] or c["zeno_point"] else
+              ("undecided" if undecided or summary.capped else "proven"))
         detail = (f"{summary.cycles} cycles: {c['non_zeno']} with a proven dwell bound, {c['infeasible']} "
                   f"infeasible, {c['instantaneous']} instantaneous, {c['zeno_point']} with a Zeno point, "
                   f"{undecided} undecided")
@@ -1313,6 +1370,7 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
             detail += f"; smallest dwell bound {_g(summary.min_dwell_s)} s ({summary.binding})"
         out["zeno"] = Claim(check="zeno", status=zs, method=method, detail=detail,
                             assumptions=assumptions + ("rate bounds |dx/dt| <= R per mode (declared or from the flow)",))
-        out["reset_retriggers"] = Claim(check="reset_retriggers", status="found" if retrig else zs,
+        rs = "found" if retrig else ("undecided" if undecided or summary.capped else "proven")
+        out["reset_retriggers"] = Claim(check="reset_retriggers", status=rs,
                                         method=method, assumptions=assumptions, detail="instantaneous laps of cycles")
     return out

@@ -32,7 +32,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .errors import ExecutionError, ModelDefinitionError
-from .symbolic import Condition, SymbolicReset, level_form
+from .symbolic import Condition, SymbolicReset, level_form, unsupported_terms
 
 __all__ = [
     "Guard",
@@ -61,6 +61,13 @@ def refuse_bool(value: Any, what: str) -> None:
     """Raise :class:`ExecutionError` when a guard or invariant returned a bool (it would read as 0.0 or 1.0)."""
     if value.__class__ is bool or value.__class__.__name__ == "bool_":
         raise ExecutionError(f"{what} returned the bool {value!r}; {BOOL_GUARD_HINT}")
+
+
+def refuse_unsupported(function: Any, what: str) -> None:
+    """Raise :class:`ModelDefinitionError` when a symbolic function uses an unsupported operation (naming it)."""
+    bad = unsupported_terms(function)
+    if bad:
+        raise ModelDefinitionError(f"{what}: {bad[0].message()}")
 
 
 def _as_level(function: Any) -> Any:
@@ -109,6 +116,7 @@ class Mode:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Mode.name = {self.name!r}: expected a non-empty string")
         object.__setattr__(self, "invariant", _as_level(self.invariant))
+        refuse_unsupported(self.invariant, f"mode {self.name!r}: invariant")
         if self.invariant is not None and not callable(self.invariant):
             raise ModelDefinitionError(
                 f"mode {self.name!r}: invariant = {self.invariant!r} is not callable; "
@@ -160,6 +168,8 @@ class Transition:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Transition.name = {self.name!r}: expected a non-empty string")
         object.__setattr__(self, "guard", _as_level(self.guard))
+        refuse_unsupported(self.guard, f"transition {self.name!r}: guard")
+        refuse_unsupported(self.reset, f"transition {self.name!r}: reset")
         if isinstance(self.reset, SymbolicReset):
             if not self.writes:
                 object.__setattr__(self, "writes", self.reset.writes)

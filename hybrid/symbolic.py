@@ -96,6 +96,8 @@ __all__ = [
     "enclose",
     "free_symbols",
     "transcendental_terms",
+    "unsupported_terms",
+    "Unsupported",
     "substitute",
     "to_casadi",
     "render",
@@ -119,6 +121,8 @@ _ARITY = {"add": 2, "sub": 2, "mul": 2, "div": 2, "neg": 1, "abs": 1, "pow": 2, 
 
 MAX_COMPILED_DEPTH = 60
 """Deeper trees are evaluated by the interpreter instead of a compiled lambda (Python's parser nests ~200)."""
+MAX_COMPILED_SIZE = 5000
+"""Trees whose written-out size exceeds this (shared subtrees repeated) are interpreted with a memo instead."""
 
 
 class SymbolicError(ModelDefinitionError):
@@ -157,11 +161,12 @@ class Expr:
     def __truediv__(self, other: Any) -> Expr:
         divisor = as_expr(other)
         if not isinstance(divisor, (Const, Param)) or _value(divisor) == 0.0:
-            raise SymbolicError(
-                f"unsupported operation: division by {render(divisor)}; a symbolic expression may only be "
-                "divided by a non-zero constant: multiply both sides of the comparison through by the divisor "
-                "(or write ite(divisor > 0, ..., ...)) instead"
-            )
+            return Unsupported(
+                "division by a non-constant" if not isinstance(divisor, (Const, Param)) else "division by zero",
+                f"{render(self)} / {render(divisor)}",
+                "a symbolic expression may only be divided by a non-zero constant: multiply both sides of the "
+                "comparison through by the divisor (g = a - b * c for a / c >= b with c > 0), or use ite() on "
+                "the divisor's sign")
         return _apply("div", self, divisor)
 
     def __rtruediv__(self, other: Any) -> Expr:
@@ -178,16 +183,13 @@ class Expr:
 
     def __pow__(self, exponent: Any) -> Expr:
         if isinstance(exponent, bool) or not isinstance(exponent, int) or exponent < 0:
-            raise SymbolicError(
-                f"unsupported operation: power {exponent!r}; a symbolic power needs an integer exponent >= 0 "
-                "(write sqrt(x) for x ** 0.5, or multiply out)"
-            )
+            return Unsupported("a power that is not a non-negative integer", f"{render(self)} ** {exponent!r}",
+                               "write sqrt(x) for x ** 0.5, multiply out x * x, or use exp(log(x) * p)")
         return Apply("pow", (self, Const(float(exponent))))
 
     def __rpow__(self, base: Any) -> Expr:
-        raise SymbolicError(
-            f"unsupported operation: {base!r} ** <expression>; write exp(log(base) * x) for a variable exponent"
-        )
+        return Unsupported("a variable exponent", f"{base!r} ** {render(self)}",
+                           "write exp(log(base) * x) (transcendental: enclosed by intervals in the checker)")
 
     # --- comparisons -------------------------------------------------------------------
     def __ge__(self, other: Any) -> Compare:
@@ -284,6 +286,23 @@ class Apply(Expr):
 
     op: str
     args: tuple[Expr, ...]
+
+
+@dataclass(frozen=True, eq=False, slots=True, repr=False)
+class Unsupported(Expr):
+    """An operation the module cannot represent; the model that uses it is refused, naming where.
+
+    Built instead of raising at once, so that the transition or mode that uses
+    it can be named (:func:`unsupported_terms`, checked by :mod:`hybrid.model`).
+    """
+
+    op: str
+    text: str
+    hint: str
+
+    def message(self) -> str:
+        """``unsupported operation: <op> in <text>; <how to rewrite>``."""
+        return f"unsupported operation: {self.op} in {self.text}; {self.hint}"
 
 
 @dataclass(frozen=True, eq=False, slots=True, repr=False)
@@ -627,8 +646,20 @@ def _negate(c: Condition) -> Condition:
 _INFIX = {"add": "+", "sub": "-", "mul": "*", "div": "/"}
 
 
+RENDER_LIMIT = 400
+"""Written-out size above which :func:`render` abbreviates an expression (shared subtrees repeat when written)."""
+
+
 def render(node: Expr | Condition) -> str:
-    """Human-readable text of an expression or condition."""
+    """Human-readable text of an expression or condition (abbreviated beyond :data:`RENDER_LIMIT` nodes)."""
+    if isinstance(node, (Apply, Ite, Select, Logic)):
+        size = expanded_size(node)
+        if size > RENDER_LIMIT:
+            return f"<expression of {size} nodes, depth {depth(node)}>"
+    return _render(node)
+
+
+def _render(node: Expr | Condition) -> str:
     if isinstance(node, Const):
         return f"{node.value:g}"
     if isinstance(node, Coordinate):
@@ -647,6 +678,8 @@ def render(node: Expr | Condition) -> str:
         if node.op == "pow":
             return f"{render(node.args[0])}^{int(_value(node.args[1]))}"
         return f"{node.op}({', '.join(render(a) for a in node.args)})"
+    if isinstance(node, Unsupported):
+        return f"<unsupported: {node.text}>"
     if isinstance(node, Ite):
         return f"ite({render(node.condition)}, {render(node.then)}, {render(node.otherwise)})"
     if isinstance(node, Select):
@@ -693,8 +726,26 @@ def _pick(index: float, options: Sequence[float]) -> float:
 
 def evaluate(node: Expr | Condition, v: Sequence[float] = (), m: Mapping[str, float] | None = None,
              t: float = 0.0) -> Any:
-    """Interpret ``node`` with floats (the reference of the compiled form; a condition gives a bool)."""
+    """Interpret ``node`` with floats (the reference of the compiled form; a condition gives a bool).
+
+    Each distinct node is evaluated at most once (a memo), and ``ite`` evaluates only its taken branch.
+    """
     m = {} if m is None else m
+    memo: dict[int, Any] = {}
+
+    def ev(n: Any) -> Any:
+        key = id(n)
+        if key in memo:
+            return memo[key]
+        out = _evaluate_node(n, ev, v, m, t)
+        memo[key] = out
+        return out
+
+    return ev(node)
+
+
+def _evaluate_node(node: Any, ev: Callable[[Any], Any], v: Sequence[float], m: Mapping[str, float],
+                   t: float) -> Any:
     if isinstance(node, Const):
         return node.value
     if isinstance(node, Coordinate):
@@ -706,19 +757,21 @@ def evaluate(node: Expr | Condition, v: Sequence[float] = (), m: Mapping[str, fl
     if isinstance(node, Time):
         return t
     if isinstance(node, Apply):
-        return _FLOAT_OPS[node.op](*(evaluate(a, v, m, t) for a in node.args))
+        return _FLOAT_OPS[node.op](*(ev(a) for a in node.args))
+    if isinstance(node, Unsupported):
+        raise SymbolicError(node.message())
     if isinstance(node, Ite):
-        return evaluate(node.then if evaluate(node.condition, v, m, t) else node.otherwise, v, m, t)
+        return ev(node.then if ev(node.condition) else node.otherwise)
     if isinstance(node, Select):
-        return _pick(evaluate(node.index, v, m, t), [evaluate(o, v, m, t) for o in node.options])
+        return _pick(ev(node.index), [ev(o) for o in node.options])
     if isinstance(node, Compare):
-        return _COMPARE[node.op](evaluate(node.left, v, m, t), evaluate(node.right, v, m, t))
+        return _COMPARE[node.op](ev(node.left), ev(node.right))
     if isinstance(node, Logic):
         if node.op == "and":
-            return all(evaluate(c, v, m, t) for c in node.args)
+            return all(ev(c) for c in node.args)
         if node.op == "or":
-            return any(evaluate(c, v, m, t) for c in node.args)
-        return not evaluate(node.args[0], v, m, t)
+            return any(ev(c) for c in node.args)
+        return not ev(node.args[0])
     raise SymbolicError(f"evaluate(): {node!r} is not an expression")
 
 
@@ -750,6 +803,8 @@ def _source(node: Expr | Condition, vec: str) -> str:
         if node.op == "inv":
             return f"(1.0 / {args[0]})"
         return f"{node.op}({', '.join(args)})"
+    if isinstance(node, Unsupported):
+        raise SymbolicError(node.message())
     if isinstance(node, Ite):
         return f"({_source(node.then, vec)} if {_source(node.condition, vec)} else {_source(node.otherwise, vec)})"
     if isinstance(node, Select):
@@ -764,9 +819,38 @@ def _source(node: Expr | Condition, vec: str) -> str:
 
 
 def depth(node: Expr | Condition) -> int:
-    """Height of the tree."""
-    children = _children(node)
-    return 1 + max((depth(c) for c in children), default=0)
+    """Height of the tree (shared subtrees counted once: linear in the number of distinct nodes)."""
+    memo: dict[int, int] = {}
+    order = _postorder(node)
+    for n in order:
+        memo[id(n)] = 1 + max((memo[id(c)] for c in _children(n)), default=0)
+    return memo[id(node)]
+
+
+def expanded_size(node: Any) -> int:
+    """Number of nodes of the tree written out (shared subtrees counted every time they appear)."""
+    memo: dict[int, int] = {}
+    for n in _postorder(node):
+        memo[id(n)] = 1 + sum(memo[id(c)] for c in _children(n))
+    return memo[id(node)]
+
+
+def _postorder(node: Any) -> list[Any]:
+    """Distinct nodes, children before parents (iterative: deep trees do not hit the recursion limit)."""
+    out: list[Any] = []
+    seen: set[int] = set()
+    stack: list[tuple[Any, bool]] = [(node, False)]
+    while stack:
+        n, done = stack.pop()
+        if done:
+            out.append(n)
+            continue
+        if id(n) in seen:
+            continue
+        seen.add(id(n))
+        stack.append((n, True))
+        stack.extend((c, False) for c in _children(n) if id(c) not in seen)
+    return out
 
 
 def _children(node: Expr | Condition) -> tuple[Any, ...]:
@@ -809,7 +893,8 @@ def _compiled(node: Any, kind: str) -> Callable[..., Any]:
                     f"{_ROLE[kind]} {render(p)} reads time t; "
                     "time is available in flows and outputs only"
                 )
-    if max((depth(p) for _, p in parts), default=0) > MAX_COMPILED_DEPTH:
+    if (max((depth(p) for _, p in parts), default=0) > MAX_COMPILED_DEPTH
+            or sum(expanded_size(p) for _, p in parts) > MAX_COMPILED_SIZE):
         fn = _interpreted(node, kind)
     else:
         if kind == "condition":
@@ -950,6 +1035,17 @@ def free_symbols(node: Expr | Condition) -> dict[str, set[str]]:
         elif isinstance(n, Time):
             out["time"].add("t")
     return out
+
+
+def unsupported_terms(node: Any) -> list[Unsupported]:
+    """The :class:`Unsupported` operations inside an expression, condition, reset or vector."""
+    if isinstance(node, SymbolicReset):
+        return [u for e in node.assignments.values() for u in unsupported_terms(e)]
+    if isinstance(node, SymbolicVector):
+        return [u for e in node.components for u in unsupported_terms(e)]
+    if not isinstance(node, (Expr, Condition)):
+        return []
+    return [n for n in _walk(node) if isinstance(n, Unsupported)]
 
 
 def transcendental_terms(node: Expr | Condition) -> list[str]:

@@ -136,6 +136,13 @@ class HybridSystem:
                 )
         elif not callable(self.output):
             raise ModelDefinitionError(f"system {a.name!r}: output = {self.output!r} is not callable")
+        from .model import refuse_unsupported
+
+        for mode, f in flows.items():
+            refuse_unsupported(f, f"system {a.name!r}: flow of mode {mode!r}")
+        for name, r in jumps.items():
+            refuse_unsupported(r, f"system {a.name!r}: jump map of transition {name!r}")
+        refuse_unsupported(self.output, f"system {a.name!r}: output")
         object.__setattr__(self, "flows", MappingProxyType(flows))
         object.__setattr__(self, "jumps", MappingProxyType(jumps))
 
