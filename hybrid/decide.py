@@ -646,17 +646,14 @@ class _Decider:
     def provenance(self, model: Any, disjuncts: list[tuple[str, Any, _Frame]], m: Mapping[str, float]
                    ) -> tuple[bool, dict[str, float], str]:
         """Re-check that ``m`` is written by an entering transition at the solver's pre-jump state."""
-        import z3
-
         if not disjuncts:
             return True, {}, ""
-        for name, formula, pre in disjuncts:
-            if not z3.is_true(model.eval(formula, model_completion=True)):
-                continue
+        for name, _formula, pre in disjuncts:  # each candidate checked numerically (no solver evaluation)
             if pre is None:
                 init = self.a.initial_memory()
-                ok = all(_close(m[k], c) for k, c in init.items())
-                return ok, {}, "initial memory"
+                if all(_close(m[k], c) for k, c in init.items()):
+                    return True, {}, "initial memory"
+                continue
             t = next(tr for tr in self.a.transitions if tr.name == name)
             x0, m0 = self.point(model, pre)
             o = self.v.oracle
@@ -665,6 +662,8 @@ class _Decider:
             _, post = o.jump(t, x0, v0, m0)
             enabled = g >= -self.tol * (1.0 + abs(g)) if t.direction >= 0 else g <= self.tol
             ok = enabled and all(_close(post[k], m[k]) for k in self.v.memory_names)
+            if not ok:
+                continue
             values = {f"entry {name} guard": g}
             values.update({f"entry {name} pre {n}": c for n, c in zip(self.v.coords, x0)})
             return ok, values, f"memory written by {name}"

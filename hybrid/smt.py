@@ -85,7 +85,7 @@ def to_float(value: Any) -> float:
     import z3
 
     if z3.is_rational_value(value):
-        return float(Fraction(value.numerator_as_long(), value.denominator_as_long()))
+        return float(value.as_fraction())
     if z3.is_algebraic_value(value):
         return float(Fraction(value.approx(20).as_fraction()))
     return float(Fraction(str(z3.simplify(value))))
