@@ -98,6 +98,8 @@ __all__ = [
     "ZenoSummary",
     "Decision",
     "decide",
+    "ParameterSpace",
+    "exclusive_for_all",
 ]
 
 CLAIM_STATUSES = ("proven", "found", "sampled", "undecided", "skipped")
@@ -118,6 +120,43 @@ to tell a modelling defect (every neighbour re-triggers) from a Zeno point (one 
 
 
 # ====================================================================== results
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ParameterSpace:
+    """Named parameters (:func:`hybrid.symbolic.param`) left free for a parametric question.
+
+    Attributes
+    ----------
+    bounds : Mapping[str, (lo, hi)]
+        The range of every free parameter (closed; ``inf`` allowed).
+    assumptions : tuple of Condition
+        Symbolic conditions over the parameters (e.g. ``d_minus < d_zero``), the model's validation rules.
+    description : str
+        The assumptions in words, for reports.
+    """
+
+    bounds: Mapping[str, tuple[float, float]]
+    assumptions: tuple[Condition, ...] = ()
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        bounds = {}
+        for name, pair in dict(self.bounds).items():
+            try:
+                lo, hi = (float(pair[0]), float(pair[1]))
+            except (TypeError, ValueError, IndexError):
+                raise ModelDefinitionError(f"ParameterSpace.bounds[{name!r}] = {pair!r}; expected (lower, upper)") from None
+            if not lo <= hi:
+                raise ModelDefinitionError(f"ParameterSpace.bounds[{name!r}] = {pair!r}: expected lower <= upper")
+            bounds[name] = (lo, hi)
+        if not bounds:
+            raise ModelDefinitionError("ParameterSpace: no free parameter; name at least one in bounds")
+        for c in self.assumptions:
+            if not isinstance(c, Condition):
+                raise ModelDefinitionError(f"ParameterSpace.assumptions: {c!r} is not a symbolic condition")
+        object.__setattr__(self, "bounds", MappingProxyType(bounds))
+        object.__setattr__(self, "assumptions", tuple(self.assumptions))
+
+
 @dataclass(frozen=True, kw_only=True, slots=True)
 class Claim:
     """The answer to one check over the whole model.
@@ -415,7 +454,7 @@ class _Frame:
 
 class _Decider:
     def __init__(self, view: _View, boxes: Mapping[str, Box], *, rates: Mapping[str, float] | None,
-                 timeout_s: float, tol: float, max_cycles: int) -> None:
+                 timeout_s: float, tol: float, max_cycles: int, parameters: ParameterSpace | None = None) -> None:
         self.v = view
         self.a = view.automaton
         self.boxes = boxes
@@ -429,7 +468,29 @@ class _Decider:
         self.count = itertools.count()
         self._states: dict[tuple[Any, ...], Any] = {}
         self.timing: dict[str, float] = {}
+        self.param_vars: dict[str, Any] = {}
+        self.param_bounds: dict[str, tuple[float, float]] = {}
+        self.param_constraints: list[Any] = []
+        if parameters is not None:
+            self._free(parameters)
         self.hulls = self._memory_hulls()
+
+    def _free(self, parameters: ParameterSpace) -> None:
+        """Parameters as solver variables, within their bounds and under the assumptions."""
+        import z3
+
+        self.param_vars = {n: z3.Real(f"param.{n}") for n in parameters.bounds}
+        self.param_bounds = dict(parameters.bounds)
+        for n, (lo, hi) in parameters.bounds.items():
+            if math.isfinite(lo):
+                self.param_constraints.append(self.param_vars[n] >= rational(lo))
+            if math.isfinite(hi):
+                self.param_constraints.append(self.param_vars[n] <= rational(hi))
+        tr = Translation(coordinates={}, memory={}, params=self.param_vars, param_bounds=self.param_bounds,
+                         prefix="param.aux")
+        for c in parameters.assumptions:
+            self.param_constraints.append(tr.term(c))
+        self.param_constraints += tr.side
 
     # ------------------------------------------------------------------ solver
     def solve(self, constraints: list[Any], what: str) -> tuple[str, Any]:
@@ -437,7 +498,7 @@ class _Decider:
 
         s = z3.Solver()
         s.set("timeout", max(1, int(round(self.timeout_s * 1000))))
-        s.add(*constraints)
+        s.add(*constraints, *self.param_constraints)
         start = _time.perf_counter()
         r = s.check()
         self.solver_s += _time.perf_counter() - start
@@ -496,7 +557,8 @@ class _Decider:
                 for k in self.v.memory_names:
                     if k in t.writes:
                         e = None if written is None else written.get(k)
-                        new[k] = (-math.inf, math.inf) if e is None else enclose(e, bounds, src)
+                        new[k] = ((-math.inf, math.inf) if e is None else
+                                  enclose(e, bounds, src, param_bounds=self.param_bounds))
                     else:
                         new[k] = src[k]
                 old = hulls[t.target]
@@ -522,8 +584,8 @@ class _Decider:
         return _Frame(f"{hint}#{next(self.count)}", self.v.coords, self.v.memory_names)
 
     def translation(self, f: _Frame, q: str) -> Translation:
-        return Translation(coordinates=f.x, memory=f.m, bounds=self._box_bounds(q),
-                           memory_bounds=self.hulls[q] or {}, prefix=f"{f.tag}.aux")
+        return Translation(coordinates=f.x, memory=f.m, params=self.param_vars, bounds=self._box_bounds(q),
+                           memory_bounds=self.hulls[q] or {}, param_bounds=self.param_bounds, prefix=f"{f.tag}.aux")
 
     def box(self, f: _Frame, q: str) -> list[Any]:
         import z3
@@ -600,6 +662,57 @@ class _Decider:
             return [z3.BoolVal(False)], []
         return [z3.Or(*(d for _, d, _ in disjuncts))], disjuncts  # type: ignore[misc]
 
+    def last_writers(self, q: str, k: str) -> list[Transition | None]:
+        """Transitions that can have written memory ``k`` last when in ``q`` (``None``: its initial value)."""
+        key = ("writers", q, k)
+        if key not in self._states:
+            out: list[Transition | None] = []
+            starts: list[tuple[Transition | None, str]] = [(None, self.a.initial_mode)]
+            starts += [(t, t.target) for t in self.a.transitions if k in t.writes and self.hulls[t.source] is not None]
+            for writer, mode in starts:
+                seen, stack = {mode}, [mode]
+                while stack:
+                    here = stack.pop()
+                    for u in self.a.outgoing(here):
+                        if k not in u.writes and u.target not in seen:
+                            seen.add(u.target)
+                            stack.append(u.target)
+                if q in seen:
+                    out.append(writer)
+            self._states[key] = out
+        return self._states[key]
+
+    def written(self, f: _Frame, q: str) -> list[Any]:
+        """Each memory variable equals what one of its last writers can write (parametric questions only).
+
+        Sound like the hulls, but relational to the free parameters: a value carried through modes
+        that do not write it is still an image of its writer's reset under the same parameters.
+        """
+        import z3
+
+        if not self.param_vars:
+            return []
+        out = []
+        for k in self.v.memory_names:
+            options = []
+            for t in self.last_writers(q, k):
+                if t is None:
+                    options.append(f.m[k] == rational(self.a.initial_memory()[k]))
+                    continue
+                reset = self.v.reset(t)
+                if reset is None or t.source not in self.boxes:
+                    options.append(z3.BoolVal(True))
+                    continue
+                p = self.frame(f"{f.tag}<{t.name}.{k}")
+                tr = self.translation(p, t.source)
+                parts = self.box(p, t.source) + self.hull(p, t.source) + self.inside(tr, t.source)
+                if self.v.guard(t) is not None:
+                    parts.append(self.enabled(tr, t))
+                parts.append(f.m[k] == tr.term(reset[k]))
+                options.append(z3.And(*parts, *tr.side))
+            out.append(z3.Or(*options) if options else z3.BoolVal(False))
+        return out
+
     def state(self, q: str, only: Transition | None = None, strict: bool = False, role: str = "main",
               entry: bool = True) -> tuple[_Frame, list[Any], Translation, list[tuple[str, Any, _Frame]]]:
         """A point of ``q``: in its box, its memory reachable by the abstraction, inside its invariant.
@@ -615,8 +728,8 @@ class _Decider:
             memory, disjuncts = self.entry(f, q, only) if entry else ([], [])
             tr.begin()
             inside = self.inside(tr, q, strict)
-            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + memory + inside + list(tr.side))], tr,
-                   disjuncts)
+            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + memory + self.written(f, q) + inside
+                                + list(tr.side))], tr, disjuncts)
             self._states[key] = hit
         f, cons, tr, disjuncts = hit
         tr.begin()
@@ -726,6 +839,8 @@ class _Questions(_Decider):
             return PairVerdict(**base, verdict="undecided",
                                detail=f"undecided within {self.timeout_s:g} s")
         x, m = self.point(model, f)
+        if self.param_vars:
+            return self._parametric_pair(base, model, x, m, t1, t2, disjuncts)
         o = self.v.oracle
         vv = o.signals(x, m)
         g1, g2 = o.guard(t1, x, vv, m), o.guard(t2, x, vv, m)
@@ -740,6 +855,45 @@ class _Questions(_Decider):
             return PairVerdict(**base, verdict="undecided", witness=w,
                                detail=f"the solver's witness does not re-check ({_approx_note(tr)}); {how}")
         return PairVerdict(**base, verdict="overlap", witness=w, detail=f"witness re-checked; {how}")
+
+    def _parametric_pair(self, base: dict[str, Any], model: Any, x: tuple[float, ...], m: Mapping[str, float],
+                         t1: Transition, t2: Transition, disjuncts: list[Any]) -> PairVerdict:
+        """Re-check an overlap found with free parameters: the symbolic guards (and the memory's provenance:
+        the entering transition's guard and reset) evaluated with the witness's parameter values."""
+        from .symbolic import Const, evaluate
+
+        values = {n: to_float(model.eval(z, model_completion=True)) for n, z in self.param_vars.items()}
+        fixed = {n: Const(c) for n, c in values.items()}
+
+        def at(e: Any, xx: Sequence[float], mm: Mapping[str, float]) -> float:
+            return float(evaluate(substitute(e, params=fixed), xx, mm))
+
+        g = [at(self.v.guard(t), x, m) for t in (t1, t2)]
+        ok = _on(g[0], t1, self.tol) and _on(g[1], t2, self.tol)
+        provenance = not disjuncts
+        for name, _formula, pre in disjuncts:
+            if pre is None:
+                init = self.a.initial_memory()
+                provenance = all(_close(m[k], c) for k, c in init.items())
+            else:
+                t = next(tr for tr in self.a.transitions if tr.name == name)
+                x0, m0 = self.point(model, pre)
+                written = self.v.reset(t) or {}
+                post = {k: (at(written[k], x0, m0) if k in written else m0[k]) for k in self.v.memory_names}
+                provenance = (_on(at(self.v.guard(t), x0, m0), t, self.tol)  # type: ignore[arg-type]
+                              and all(_close(post[k], m[k]) for k in self.v.memory_names))
+            if provenance:
+                break
+        w = self.witness(x, m, {f"guard {t1.name}": g[0], f"guard {t2.name}": g[1],
+                                **{f"param {n}": c for n, c in values.items()}})
+        if not ok or not provenance:
+            why = "the guards do not re-check" if not ok else (
+                "its memory is not written by an entering transition with these parameters (the interval hull of "
+                "the memory loses its relation to the free parameters)")
+            return PairVerdict(**base, verdict="undecided", witness=w, detail=f"the parametric witness: {why}")
+        return PairVerdict(**base, verdict="overlap", witness=w,
+                           detail="witness re-checked with the parameter values " +
+                           ", ".join(f"{n} = {_g(c)}" for n, c in values.items()))
 
     # ------------------------------------------------------------------ deadlock
     def deadlock(self, q: str) -> tuple[str, Finding | None, str]:
@@ -1264,6 +1418,50 @@ def decide(
     qs = _Questions(view, boxes, rates=rates, timeout_s=float(timeout_s), tol=float(tol),
                     max_cycles=int(max_cycles))
     return _assemble(qs, zeno)
+
+
+def exclusive_for_all(
+    model: HybridSystem | HybridAutomaton,
+    box: Box | Mapping[str, Box],
+    parameters: ParameterSpace,
+    *,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    tol: float = 1e-9,
+    modes: Sequence[str] | None = None,
+) -> tuple[PairVerdict, ...]:
+    """Which pairs of transitions sharing a source mode are exclusive for *every* admissible parameter value.
+
+    ``modes`` restricts the question to those source modes (default: every mode with a box).
+
+    The named parameters of :class:`ParameterSpace` are free solver variables
+    (within their bounds, under the assumptions); every other constant keeps its
+    value.  ``exclusive`` is then a proof for the whole parameter space; an
+    ``overlap`` witness gives the parameter values too, and is re-checked by
+    evaluating the model's symbolic functions with those values substituted.
+
+    Examples
+    --------
+    "exclusive for every d− < d0 < d+ and every hysteresis h > 0" is
+    ``exclusive_for_all(system, box, ParameterSpace(bounds=..., assumptions=(d_minus < d_zero, ...)))``.
+    """
+    from .check import _boxes
+
+    view = _View(model)
+    boxes = _boxes(view.oracle, box)
+    if boxes is None:
+        raise ModelDefinitionError("exclusive_for_all(): box = None; give the Box to decide over")
+    qs = _Questions(view, boxes, rates=None, timeout_s=float(timeout_s), tol=float(tol), max_cycles=0,
+                    parameters=parameters)
+    out = []
+    unknown = [q for q in (modes or ()) if q not in view.automaton.mode_names]
+    if unknown:
+        raise ModelDefinitionError(f"exclusive_for_all(): unknown mode(s) {unknown}; modes: {list(view.automaton.mode_names)}")
+    for q in view.automaton.mode_names:
+        if q not in boxes or qs.hulls[q] is None or (modes is not None and q not in modes):
+            continue
+        for t1, t2 in itertools.combinations(view.automaton.outgoing(q), 2):
+            out.append(qs.pair(q, t1, t2))
+    return tuple(out)
 
 
 def _assemble(qs: _Questions, zeno: bool) -> Decision:

@@ -241,7 +241,7 @@ class Translation:
         """A fresh real within the interval enclosure of a transcendental term (an over-approximation)."""
         import z3
 
-        lo, hi = enclose(node, self.bounds, self.memory_bounds)
+        lo, hi = enclose(node, self.bounds, self.memory_bounds, param_bounds=self.param_bounds)
         fresh = z3.Real(f"{self.prefix}!{len(self.approximated)}")
         self.approximated.append(render(node))
         if math.isfinite(lo):

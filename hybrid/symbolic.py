@@ -1218,21 +1218,24 @@ def _trig_iv(op: str, a: Interval) -> Interval:
 
 
 def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[str, Interval] | None = None,
-            time_bounds: Interval = (0.0, 0.0)) -> Interval:
+            time_bounds: Interval = (0.0, 0.0), param_bounds: Mapping[str, Interval] | None = None) -> Interval:
     """A sound interval containing ``node`` over a box (coordinates by name, memory, time).
 
     Rounding is outward (one ulp per operation); a function outside its domain
     (``log`` of an interval reaching 0, ``sqrt`` below 0, ``select`` out of range)
     gives ``(-inf, inf)``.  A coordinate or memory variable missing from the
-    bounds is unbounded.
+    bounds is unbounded; a parameter named in ``param_bounds`` ranges over its interval (else its value).
     """
     mb = memory_bounds or {}
+    pb = param_bounds or {}
     memo: dict[int, Interval] = {}
 
     def iv(n: Expr) -> Interval:
         if id(n) in memo:
             return memo[id(n)]
-        if isinstance(n, (Const, Param)):
+        if isinstance(n, Param) and n.name in pb:
+            out = tuple(pb[n.name])  # type: ignore[assignment]
+        elif isinstance(n, (Const, Param)):
             out = (n.value, n.value)
         elif isinstance(n, Coordinate):
             out = tuple(bounds.get(n.name, (-math.inf, math.inf)))  # type: ignore[assignment]

@@ -33,6 +33,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from hybrid import Box, HybridAutomaton, HybridSystem, MemoryVariable, Mode, Transition
+from hybrid.decide import ParameterSpace
 from hybrid.symbolic import (
     Expr,
     coordinates,
@@ -59,6 +60,7 @@ __all__ = [
     "measurement_system",
     "measurement_box",
     "measurement_rates",
+    "parameter_space",
 ]
 
 COLLISION_PHASES = ("FAR", "APPROACH", "AVOID", "ARMED", "PASSED", "LEAVE")
@@ -343,6 +345,31 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
         state_names=names,
         flows={mode: (lambda t, x, m: zero) for mode in model.automaton.mode_names},
         output=output,
+    )
+
+
+def parameter_space(model: SupervisorModel) -> ParameterSpace:
+    """The envelopes and settings left free under the scenario's validation rules, for parametric questions.
+
+    ``0 < d− < d0 < d+`` (each at most the measurement box's largest distance),
+    ``0 < D− < D0 < D+`` (at most its largest ``d_occ``), ``h > 0`` (at most
+    1 m) and ``0 < arm < π/2``: the rules :func:`visnav.scenario.load_scenario`
+    enforces.  :func:`hybrid.decide.exclusive_for_all` then answers "exclusive
+    for every admissible envelope", over the measurement box of ``model``.
+    """
+    env = model.envelopes
+    d_high, D_high = env.d_plus_m + 1.0, 2.0 * env.D_plus_px
+    p = {n: param(n, 0.0) for n in ("d_minus", "d_zero", "d_plus", "D_minus", "D_zero", "D_plus", "hysteresis",
+                                     "arm")}
+    return ParameterSpace(
+        bounds={"d_minus": (0.0, d_high), "d_zero": (0.0, d_high), "d_plus": (0.0, d_high),
+                "D_minus": (0.0, D_high), "D_zero": (0.0, D_high), "D_plus": (0.0, D_high),
+                "hysteresis": (0.0, 1.0), "arm": (0.0, 0.5 * math.pi)},
+        assumptions=(p["d_minus"] > 0.0, p["d_minus"] < p["d_zero"], p["d_zero"] < p["d_plus"],
+                     p["D_minus"] > 0.0, p["D_minus"] < p["D_zero"], p["D_zero"] < p["D_plus"],
+                     p["hysteresis"] > 0.0, p["arm"] > 0.0, p["arm"] < 0.5 * math.pi),
+        description=(f"every 0 < d- < d0 < d+ <= {d_high:g} m, 0 < D- < D0 < D+ <= {D_high:g} px, "
+                     "0 < hysteresis <= 1 m and 0 < arm < pi/2 (the scenario's validation rules)"),
     )
 
 
