@@ -230,17 +230,27 @@ class HybridSimulation:
 
 @dataclass(frozen=True, slots=True)
 class StructuralChecks:
-    """``() -> hybrid.check.CheckReport`` of a system over a box (graph checks only without one); picklable."""
+    """``() -> hybrid.check.CheckReport`` of a system over a box (graph checks only without one); picklable.
+
+    The modes whose guards, invariants, resets and jump maps are symbolic (:mod:`hybrid.symbolic`)
+    are decided by the SMT solver with ``method="auto"`` (their claims PROVEN), the others sampled;
+    ``method``, ``rates`` (declared ``|dx_j/dt|`` bounds per second, for the Zeno dwell bounds) and
+    ``timeout_s`` (per solver call) are :func:`hybrid.check`'s.
+    """
 
     model: Any
     box: Any = None
     samples: int = 300
     seed: int = 0
+    method: str = "auto"
+    rates: Mapping[str, float] | None = None
+    timeout_s: float = 5.0
 
     def __call__(self) -> Any:
         from hybrid.check import check
 
-        return check(self.model, self.box, samples=self.samples, seed=self.seed)
+        return check(self.model, self.box, samples=self.samples, seed=self.seed, method=self.method,
+                     rates=None if self.rates is None else dict(self.rates), timeout_s=self.timeout_s)
 
 
 @dataclass(frozen=True, slots=True)

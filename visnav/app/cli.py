@@ -18,7 +18,15 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_OK, EXIT_TASK_FAILED, non_negative_int, positive_int
+from visnav.app.cli_types import (
+    EXIT_BAD_INPUT,
+    EXIT_DIVERGED,
+    EXIT_OK,
+    EXIT_TASK_FAILED,
+    non_negative_int,
+    positive_int,
+    positive_seconds,
+)
 
 __all__ = ["main", "build_parser"]
 
@@ -79,6 +87,12 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--json", action="store_true", help="print the report as one JSON object")
     chk.add_argument("--problem", default=None, metavar="SPEC",
                      help="check a verification problem's automaton instead (its own box; PKG.MOD:OBJ or FILE.py:OBJ)")
+    chk.add_argument("--method", choices=("auto", "sampled", "smt"), default=None,
+                     help="auto: decide the symbolic modes with the SMT solver (PROVEN), sample the others "
+                          "(SAMPLED); sampled: sample every mode; smt: decide only (default: auto)")
+    chk.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
+                     help="timeout of one solver call [s]; a call that times out leaves its answer undecided "
+                          "(default: 5)")
     chk.set_defaults(func=_cmd_check_model)
     from visnav.app.cli_sweep import add_parser as _add_sweep; _add_sweep(sub)
     from visnav.app.cli_stiffness import add_parser as _add_stiffness; _add_stiffness(sub)
@@ -294,26 +308,83 @@ def _cmd_mode_graph(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _check_human(report: Any, source: str, elapsed: float) -> str:
-    """The check report in words; ``source`` says where the automaton comes from (``"scenario paper"``)."""
+CHECK_DEFAULT_METHOD, CHECK_DEFAULT_TIMEOUT_S = "auto", 5.0
+"""``visnav check-model``'s ``--method`` and ``--timeout`` when not given."""
+_MOST_FINDINGS = 20
+"""Errors and warnings written out one per line in the human summary (``--json`` has them all)."""
+
+
+def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeout_s: float | None,
+                 box: str = "declared box") -> str:
+    """The check report in words; ``source`` says where the automaton comes from (``"scenario paper"``).
+
+    One line per check with its claim (PROVEN, FOUND, SAMPLED, UNDECIDED, SKIPPED) and how it was
+    answered, the pairs of transitions sharing a mode, the Zeno cycles grouped in one line, then the
+    errors and warnings (the first :data:`_MOST_FINDINGS`) and the infos counted by kind.
+    ``timeout_s`` is ``None`` when the problem's own structural callable chose it.
+    """
+    from visnav.app.structural import claim_label, claims_table, pairs_line, zeno_line
+
     counts = {sev: sum(1 for f in report.findings if f.severity == sev) for sev in ("error", "warning", "info")}
-    automaton_modes = len(report.searched.modes)
+    modes = report.searched.modes
+    sampled = [m for m in modes if m.samples > 0]
+    decided = [m for m in modes if any(note.startswith("decided by the SMT solver") for note in m.notes)]
+    solver = getattr(report, "solver", "")
+    how = [f"method {method}"]
+    if decided:
+        how.append(f"{len(decided)} decided by {solver or 'the SMT solver'}"
+                   + ("" if timeout_s is None else f" (timeout {timeout_s:g} s per solver call)"))
+    if sampled:
+        how.append(f"{len(sampled)} sampled (seed {report.searched.seed}, {report.searched.samples} samples + "
+                   f"corners + face samples per mode, {report.searched.starts} optimiser starts per question)")
     lines = [
         f"check-model {report.automaton} ({source}): "
         + ("CLEAN" if report.clean else f"{counts['error']} error(s), {counts['warning']} warning(s)"),
-        f"  searched {automaton_modes} modes over the declared measurement box; seed {report.searched.seed}, "
-        f"{report.searched.samples} samples + corners + face samples per mode, {report.searched.starts} optimiser "
-        f"starts per question, {elapsed:.1f} s",
+        f"  checked {len(modes)} modes over the {box}: " + "; ".join(how) + f"; {elapsed:.1f} s",
     ]
-    if report.searched.modes:
-        lines.append(f"  box: {report.searched.modes[0].box}")
-    for name, status in report.searched.checks.items():
-        lines.append(f"  {name:<24} {status}")
-    lines.append("  memory held at its initial value except what resets write along a chain of jumps")
-    for finding in report.findings:
-        if finding.severity == "info":
-            continue
+    if modes and modes[0].box is not None:
+        lines.append(f"  box: {modes[0].box}")
+    claims = claims_table(report)
+    claimed = {row["check"] for row in claims}
+    for name, status in report.searched.checks.items():  # the graph checks, exact
+        if name not in claimed and name != "zeno_candidate":
+            lines.append(f"  {name:<24} {status}")
+    for row in claims:
+        extra = f" ({row['detail']})" if row["detail"] and row["check"] != "zeno" else ""
+        lines.append(f"  {row['check']:<24} {claim_label(row['status']):<9} {row['method']}{extra}")
+    if not claims:  # a report without claims (a user's own structural callable)
+        lines += [f"  {name:<24} {status}" for name, status in report.searched.checks.items()
+                  if name == "zeno_candidate"]
+    pairs = pairs_line(getattr(report, "pairs", ()))
+    if pairs:
+        lines.append(f"  pairs: {pairs}")
+    zeno = zeno_line(getattr(report, "zeno", None))
+    if zeno:
+        lines.append(f"  Zeno: {zeno}")
+        rates: dict[str, float] = {}
+        for per_mode in report.zeno.rates.values():
+            for name, rate in per_mode.items():
+                rates[name] = max(rates.get(name, 0.0), rate)
+        finite = {name: rate for name, rate in rates.items() if rate < float("inf")}
+        if finite:
+            lines.append("  rate bounds of the dwell times [unit/s]: "
+                         + ", ".join(f"{name} {rate:.4g}" for name, rate in finite.items()))
+    elif report.searched.cycles_found:
+        capped = "+" if report.searched.cycles_capped else ""
+        lines.append(f"  Zeno: {report.searched.cycles_found}{capped} cycle(s) of the mode graph not decided "
+                     f"(method {method}): one zeno_candidate info")
+    assumptions = list(dict.fromkeys(a for name in claimed for a in report.claims[name].assumptions
+                                     if report.claims[name].status == "proven"))
+    if assumptions:
+        lines.append("  PROVEN over: " + "; ".join(assumptions))
+    if sampled:
+        lines.append("  sampled modes: memory held at its initial value except what resets write along a chain "
+                     "of jumps")
+    serious = [f for f in report.findings if f.severity != "info"]
+    for finding in serious[:_MOST_FINDINGS]:
         lines.append(f"  [{finding.severity}] {finding.kind}: {finding.message}")
+    if len(serious) > _MOST_FINDINGS:
+        lines.append(f"  ... and {len(serious) - _MOST_FINDINGS} more error(s)/warning(s) (--json lists them all)")
     by_kind: dict[str, int] = {}
     for finding in report.findings:
         if finding.severity == "info":
@@ -416,49 +487,63 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
 
 
 def _check_problem(args: argparse.Namespace) -> int:
+    import dataclasses
     import time
+
+    from analysis.problems import StructuralChecks
 
     problem = _user_problem(args.problem)
     if isinstance(problem, int):
         return problem
-    if problem.structural is None:
+    structural = problem.structural
+    if structural is None:
         print(f"visnav: error: problem {problem.name!r} has no structural checks (VerificationProblem.structural); "
               "give hybrid_problem(..., check_box=Box(...)) or structural=...", file=sys.stderr)
         return EXIT_BAD_INPUT
+    method, timeout_s = args.method or CHECK_DEFAULT_METHOD, args.timeout or CHECK_DEFAULT_TIMEOUT_S
+    if isinstance(structural, StructuralChecks):
+        structural = dataclasses.replace(structural, method=method, timeout_s=timeout_s)
+    else:
+        if args.method is not None or args.timeout is not None:
+            print(f"visnav: note: problem {problem.name!r} has its own structural checks (not "
+                  "analysis.problems.StructuralChecks): --method and --timeout do not apply to them",
+                  file=sys.stderr)
+        method, timeout_s = "of the problem", None
     start = time.perf_counter()
-    report = problem.structural()
+    report = structural()
     elapsed = time.perf_counter() - start
     if args.json:
-        print(json.dumps({"problem": problem.name, "clean": report.clean, **report.as_dict()}, sort_keys=True))
+        out = {"problem": problem.name, "clean": report.clean, **report.as_dict()}
+        if timeout_s is not None:
+            out.update(method=method, timeout_s=timeout_s)
+        print(json.dumps(out, sort_keys=True))
     else:
-        print(_check_human(report, f"problem {problem.name}", elapsed))
+        print(_check_human(report, f"problem {problem.name}", elapsed, method=method, timeout_s=timeout_s))
     return EXIT_OK if report.clean else EXIT_TASK_FAILED
 
 
 def _cmd_check_model(args: argparse.Namespace) -> int:
     import time
 
-    from hybrid import check
-
+    from visnav.app.structural import check_supervisor, supervisor_rates
     from visnav.scenario import load_scenario, scenario_digest
-    from visnav.supervisor import build_supervisor, measurement_box, measurement_system
 
     if args.problem is not None:
         return _check_problem(args)
     scenario = load_scenario(args.scenario)
-    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+    method, timeout_s = args.method or CHECK_DEFAULT_METHOD, args.timeout or CHECK_DEFAULT_TIMEOUT_S
     start = time.perf_counter()
-    report = check(
-        measurement_system(model), measurement_box(model, scenario.camera.half_width_px),
-        samples=args.samples, starts=args.starts, seed=args.seed,
-    )
+    report = check_supervisor(scenario, samples=args.samples, starts=args.starts, seed=args.seed, method=method,
+                              timeout_s=timeout_s)
     elapsed = time.perf_counter() - start
     if args.json:
-        out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario), "clean": report.clean}
+        out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario), "clean": report.clean,
+               "method": method, "timeout_s": timeout_s, "rates": {name: float(f"{rate:.12g}") for name, rate in supervisor_rates(scenario).items()}}
         out.update(report.as_dict())
         print(json.dumps(out, sort_keys=True))
     else:
-        print(_check_human(report, f"scenario {scenario.name}", elapsed))
+        print(_check_human(report, f"scenario {scenario.name}", elapsed, method=method, timeout_s=timeout_s,
+                           box="declared measurement box"))
     return EXIT_OK if report.clean else EXIT_TASK_FAILED
 
 

@@ -22,6 +22,13 @@ Every claim of the report is a :class:`Claim` marked
 * ``sampled`` — a statement that generalises from samples and can miss
   cases (a requirement not falsified, structural checks by sampling,
   fuzzing, Monte-Carlo campaigns, entry angles from one run).
+
+The structural checks make one claim per check
+(:func:`visnav.app.structural.report_claims`): ``proven`` when the SMT
+solver proved it over the measurement box (the supervisor is symbolic),
+``measured`` when it found a defect whose witness re-checks on the model,
+``sampled`` when it was searched by sampling; plus one for the graph checks
+(exact).
 """
 
 from __future__ import annotations
@@ -129,17 +136,21 @@ def automaton_digest(scenario: Scenario) -> str:
 
 
 def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
-    from hybrid import check
-
     from visnav.app.figures import mode_graph_figure
+    from visnav.app.structural import (
+        DEFAULT_TIMEOUT_S,
+        check_supervisor,
+        report_claims,
+        supervisor_rates,
+    )
     from visnav.app.verification_report import findings_summary
     from visnav.scenario import scenario_to_toml
-    from visnav.supervisor import build_supervisor, measurement_box, measurement_system
+    from visnav.supervisor import build_supervisor
 
     model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
     automaton = model.automaton
-    report = check(measurement_system(model), measurement_box(model, scenario.camera.half_width_px),
-                   samples=options.check_samples, starts=8 if not options.quick else 2, seed=options.seed)
+    report = check_supervisor(scenario, samples=options.check_samples, starts=8 if not options.quick else 2,
+                              seed=options.seed, method="auto", timeout_s=DEFAULT_TIMEOUT_S)
     checks = report.as_dict()
     checks["summary"] = findings_summary(checks["findings"])
     data = {
@@ -151,17 +162,12 @@ def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str
             "digest": automaton_digest(scenario),
         },
         "structural_checks": {"clean": report.clean, "samples_per_mode": options.check_samples,
-                              "seed": options.seed, **checks},
+                              "seed": options.seed, "method": "auto", "timeout_s": DEFAULT_TIMEOUT_S,
+                              "rates": {k: float(f"{r:.12g}") for k, r in supervisor_rates(scenario).items()},
+                              **checks},
         "figures": ["mode_graph"],
     }
-    n_err, n_warn = len(report.errors), len(report.warnings)
-    claims = [Claim(
-        section="model", status="sampled",
-        text=(f"structural checks of the {len(automaton.modes)}-mode supervisor: "
-              + ("clean" if report.clean else f"{n_err} error(s), {n_warn} warning(s)")
-              + f" ({options.check_samples} samples per mode + corners and faces, seed {options.seed}; graph "
-              "checks exact)"),
-    )]
+    claims = report_claims(report, section="model", subject=f"the {len(automaton.modes)}-mode supervisor")
     return data, claims, {"mode_graph": mode_graph_figure(automaton)}
 
 

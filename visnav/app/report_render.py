@@ -21,7 +21,8 @@ from typing import Any
 
 from visnav.app.verification_report import VERDICT_LABELS
 
-__all__ = ["Block", "report_blocks", "findings_blocks", "render_markdown", "render_html", "SECTION_RENDERERS"]
+__all__ = ["Block", "report_blocks", "findings_blocks", "structural_blocks", "render_markdown", "render_html",
+           "SECTION_RENDERERS"]
 
 _BADGE = {"proven": "PROVEN", "measured": "MEASURED", "sampled": "SAMPLED"}
 
@@ -78,12 +79,60 @@ def _model_blocks(data: dict[str, Any]) -> list[Block]:
     blocks.append(Block("figure", ("mode_graph", "Mode graph of the supervisor automaton")))
     checks = model["structural_checks"]
     blocks.append(Block("h3", "Structural checks (hybrid.check)"))
+    if checks.get("rates"):
+        blocks.append(Block("p", (f"Over the measurement box, method {checks.get('method', 'auto')} (SMT solver "
+                                  f"{checks.get('solver') or '—'}, timeout {_fmt(checks.get('timeout_s'))} s per "
+                                  "call; modes it cannot take sampled, "
+                                  f"{checks['samples_per_mode']} samples per mode, seed {checks['seed']}). Rate "
+                                  "bounds of the dwell times, from the fuzzer's measurement space [unit/s]: "
+                                  + ", ".join(f"{k} {_fmt(v)}" for k, v in checks["rates"].items()) + ".")))
+    blocks += structural_blocks(checks, checks["searched"]["checks"])
     if checks["clean"] and not checks.get("findings"):
         blocks.append(Block("p", "Clean: no unreachable or sink mode, no non-determinism, no deadlock, no reset "
                                  "outside an invariant or re-triggering its guard."))
     else:
         blocks += findings_blocks(checks["findings"], checks["summary"], clean=checks["clean"])
     blocks.append(Block("claims", _claims_of(data, "model")))
+    return blocks
+
+
+_CHECK_ORDER = ("nondeterminism", "deadlock", "reset_outside_invariant", "reset_retriggers", "zeno")
+_GRAPH_FINDINGS = {"unreachable": ("unreachable_mode", "unreachable_transition"), "sink_mode": ("sink_mode",)}
+
+
+def structural_blocks(checks: dict[str, Any], ran: dict[str, str]) -> list[Block]:
+    """The claims table of the structural checks (one row per check: its claim in capitals, how, what),
+    the pairs of transitions sharing a mode and the Zeno cycles grouped in one line.
+
+    ``checks`` holds :meth:`hybrid.check.CheckReport.as_dict`'s ``claims``, ``zeno``, ``pairs`` and
+    ``findings``; ``ran`` is its ``searched.checks`` (the graph checks' rows).  Never one row per cycle.
+    """
+    from visnav.app.structural import pairs_line, zeno_line
+
+    claims = checks.get("claims") or {}
+    kinds = {f["kind"] for f in checks.get("findings") or ()}
+    rows = []
+    for name, graph_kinds in _GRAPH_FINDINGS.items():
+        if name in ran:
+            found = any(k in kinds for k in graph_kinds)
+            rows.append([name, "FOUND" if found else "PROVEN", "exact, on the mode graph", ran[name]])
+    zeno = zeno_line(checks.get("zeno"))
+    for name in [c for c in _CHECK_ORDER if c in claims] + [c for c in claims if c not in _CHECK_ORDER]:
+        claim = claims[name]
+        detail = zeno if name == "zeno" and zeno else claim.get("detail") or ""
+        rows.append([name, claim["status"].upper(), claim["method"], detail])
+    if not claims:  # a report without claims: the rows of searched.checks as they are
+        return [Block("table", (["check", "status"], [[k, v] for k, v in ran.items()]))] if ran else []
+    blocks = [Block("table", (["check", "claim", "how", "detail"], rows))]
+    assumptions = list(dict.fromkeys(a for c in claims.values() if c["status"] == "proven"
+                                     for a in c.get("assumptions") or ()))
+    if assumptions:
+        blocks.append(Block("p", "PROVEN over: " + "; ".join(assumptions) + "."))
+    pairs = pairs_line(checks.get("pairs"))
+    if pairs:
+        blocks.append(Block("p", f"Pairs: {pairs}."))
+    if zeno:
+        blocks.append(Block("p", f"Zeno: {zeno}."))
     return blocks
 
 
@@ -203,8 +252,7 @@ def _verification_blocks(data: dict[str, Any]) -> list[Block]:
 def _structure_blocks(data: dict[str, Any]) -> list[Block]:
     st = data["structure"]
     blocks = [Block("h2", f"Structural checks of `{st['automaton']}`")]
-    if st["checks"]:
-        blocks.append(Block("table", (["check", "status"], [[k, v] for k, v in st["checks"].items()])))
+    blocks += structural_blocks(st, st["checks"])
     blocks += findings_blocks(st["findings"], st["summary"], clean=st["clean"])
     blocks.append(Block("claims", _claims_of(data, "structure")))
     return blocks

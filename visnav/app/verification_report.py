@@ -14,7 +14,10 @@ sections:
     (:mod:`visnav.app.figures_verification`) of the nominal run, of every
     counterexample and of the robustness against the simulations.
 ``structure`` (:func:`structure_section`, when the problem has ``structural``)
-    the structural checks summarised (:func:`findings_summary`): counts by
+    the structural checks: one claim per check (PROVEN when the SMT solver
+    decided the problem's symbolic model, SAMPLED when searched by sampling,
+    MEASURED when a defect's witness re-checks), the Zeno cycles grouped in one
+    line, and the findings summarised (:func:`findings_summary`): counts by
     severity and kind, the worst few findings, and the full list (collapsed
     when rendered).
 
@@ -26,8 +29,10 @@ wall-clock time, no date; infinite robustness written as ``"inf"``/``"-inf"``).
 
 Claims (:class:`Claim`) are marked ``proven`` (a sound certificate or an exact
 identity, re-checkable), ``measured`` (deterministic numerics on the model: a
-simulation that violates a requirement is one) or ``sampled`` (generalised
-from samples: a requirement not falsified, structural checks by sampling).
+simulation that violates a requirement is one; so is a structural defect
+with a re-checked witness) or ``sampled`` (generalised from samples: a
+requirement not falsified, structural checks by sampling); a structural
+check decided by the SMT solver is ``proven``.
 """
 
 from __future__ import annotations
@@ -402,8 +407,13 @@ def structure_section(problem: Any) -> Section | None:
 
     Data: ``automaton``, ``clean``, ``summary`` (:func:`findings_summary`), ``findings`` (all), and,
     from a :class:`hybrid.check.CheckReport`, ``checks`` (each check ran or skipped, and why),
-    ``samples`` and ``seed``.
+    ``samples``, ``seed``, ``claims`` (per check: proven, found, sampled, undecided or skipped, how and
+    under which assumptions), ``zeno`` (the cycles grouped by verdict), ``pairs`` (every decided pair of
+    transitions sharing a mode) and ``solver``.  Claims: one for the graph checks and one per check
+    with a claim (:func:`visnav.app.structural.report_claims`).
     """
+    from visnav.app.structural import report_claims, structural_data
+
     if problem.structural is None:
         return None
     report = problem.structural()
@@ -411,17 +421,13 @@ def structure_section(problem: Any) -> Section | None:
     summary = findings_summary(findings)
     errors, warnings = summary["by_severity"]["error"], summary["by_severity"]["warning"]
     searched = getattr(report, "searched", None)
-    data = {"automaton": str(getattr(report, "automaton", problem.name)), "clean": not (errors or warnings),
+    automaton = str(getattr(report, "automaton", problem.name))
+    data = {"automaton": automaton, "clean": not (errors or warnings),
             "summary": summary, "findings": findings,
             "checks": dict(getattr(searched, "checks", {})), "samples": getattr(searched, "samples", None),
-            "seed": getattr(searched, "seed", None)}
-    how = ("" if searched is None else f"{searched.samples} samples per mode, seed {searched.seed}; ")
-    claim = Claim(section="structure", status="sampled",
-                  text=(f"structural checks of {data['automaton']}: "
-                        + ("clean" if data["clean"] else f"{errors} error(s), {warnings} warning(s)")
-                        + f" ({summary['total']} finding(s) in all; {how}state-space checks by sampling, graph "
-                          "checks exact)"))
-    return Section(data=to_jsonable(data, nonfinite="string"), claims=(claim,))
+            "seed": getattr(searched, "seed", None), **structural_data(report)}
+    claims = report_claims(report, section="structure", subject=automaton)
+    return Section(data=to_jsonable(data, nonfinite="string"), claims=tuple(claims))
 
 
 # --------------------------------------------------------------------------- the document

@@ -114,6 +114,26 @@ class MeasurementSpace:
             Channel(name="visible", low=0.0, high=1.0, max_step=self.max_step_visible, landmarks=(0.0, 1.0)),
         )
 
+    def rates_per_s(self) -> dict[str, float]:
+        """Rate bounds [unit/s] of the coordinates of :func:`visnav.supervisor.measurement_system`.
+
+        The per-sample bounds ``max_step_d_m`` (every obstacle distance), ``max_step_d_occ_px``,
+        ``max_step_d_bord_px`` and ``max_step_pan_rad`` divided by ``period_s``
+        (:func:`visnav.supervisor.measurement_rates`): the fuzzer's bounded-rate runs and the
+        dwell bounds of the structural Zeno check read the same numbers.  ``bypass_side`` is
+        discrete and has no rate.
+
+        Examples
+        --------
+        >>> {k: round(r, 9) for k, r in MeasurementSpace(n_obstacles=1).rates_per_s().items()}
+        {'d_coll_0_m': 0.2, 'd_occ_px': 80.0, 'd_bord_px': 120.0, 'pan_wrapped_rad': 0.8}
+        """
+        from visnav.supervisor import measurement_rates
+
+        steps = {"d": self.max_step_d_m, "d_occ": self.max_step_d_occ_px, "d_bord": self.max_step_d_bord_px,
+                 "pan": self.max_step_pan_rad}
+        return measurement_rates(steps, self.period_s, self.n_obstacles)
+
     def lipschitz_mu_coll(self) -> float:
         """Bound on ``|Δµ_coll| / max_i |Δd_coll_i|`` claimed by ``docs/supervisor.md`` [1/m]."""
         env = self.envelopes
