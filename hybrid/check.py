@@ -1511,6 +1511,9 @@ def check(
         raise ExecutionError(f"check(): method = {method!r}; expected one of {list(CHECK_METHODS)}")
     oracle = _Oracle(model)
     a = oracle.automaton
+    from .decide import validate_options
+
+    validate_options(oracle.coords, rates, timeout_s)
     boxes = _boxes(oracle, box)
 
     findings, cycles, capped = _graph_findings(a, int(max_cycles))

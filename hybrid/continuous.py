@@ -58,7 +58,7 @@ except ImportError:  # pragma: no cover - private names moved: fall back to inte
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import Transition, crossed, refuse_bool
+from .model import _BOOL_TYPES, Transition, crossed, refuse_bool
 from .system import HybridSystem
 from .system import format_state as _fmt
 
@@ -524,13 +524,13 @@ class _Run:
                 if w.role == "guard":
                     tr = w.transition
                     raw = tr.guard(v, memory)  # type: ignore[union-attr]
-                    if raw.__class__ is bool:
+                    if isinstance(raw, _BOOL_TYPES):
                         raise ValueError  # the careful pass names it
                     g = float(raw)
                     out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
                 elif w.role == "invariant":
                     raw = self.invariants[mode](v, memory)  # type: ignore[misc]
-                    if raw.__class__ is bool:
+                    if isinstance(raw, _BOOL_TYPES):
                         raise ValueError
                     out.append(-float(raw))
                 else:

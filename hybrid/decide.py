@@ -100,6 +100,8 @@ __all__ = [
     "decide",
     "ParameterSpace",
     "exclusive_for_all",
+    "validate_options",
+    "MIN_TIMEOUT_S",
 ]
 
 CLAIM_STATUSES = ("proven", "found", "sampled", "undecided", "skipped")
@@ -545,7 +547,8 @@ class _Decider:
         hulls: dict[str, dict[str, tuple[float, float]] | None] = {q: None for q in a.mode_names}
         hulls[a.initial_mode] = {k: (c, c) for k, c in a.initial_memory().items()}
         growth: dict[tuple[str, str], int] = {}
-        for _ in range(HULL_ROUNDS + 2):
+        changed = True
+        while changed:  # terminates: a (mode, variable) grows at most HULL_ROUNDS times before it is widened
             changed = False
             for t in a.transitions:
                 src = hulls[t.source]
@@ -575,8 +578,6 @@ class _Decider:
                                 joined[k] = (-math.inf, math.inf)
                     hulls[t.target] = joined
                     changed = True
-            if not changed:
-                break
         return hulls
 
     # ------------------------------------------------------------------ constraints
@@ -682,18 +683,22 @@ class _Decider:
             self._states[key] = out
         return self._states[key]
 
-    def written(self, f: _Frame, q: str) -> list[Any]:
-        """Each memory variable equals what one of its last writers can write (parametric questions only).
+    def written(self, f: _Frame, q: str, always: bool = False, names: Sequence[str] | None = None) -> list[Any]:
+        """Each memory variable equals what one of its last writers can write.
 
-        Sound like the hulls, but relational to the free parameters: a value carried through modes
-        that do not write it is still an image of its writer's reset under the same parameters.
+        Sound like the hulls, and tighter for carried values: a value carried through modes that do
+        not write it is still an image of its writer's reset, at a state where the writer was
+        enabled (and, with free parameters, under the same parameters).  Used by parametric
+        questions, and (``always``) to confirm a witness whose memory was carried.
         """
         import z3
 
-        if not self.param_vars:
+        if not self.param_vars and not always:
             return []
         out = []
         for k in self.v.memory_names:
+            if names is not None and k not in names:
+                continue
             options = []
             for t in self.last_writers(q, k):
                 if t is None:
@@ -714,13 +719,14 @@ class _Decider:
         return out
 
     def state(self, q: str, only: Transition | None = None, strict: bool = False, role: str = "main",
-              entry: bool = True) -> tuple[_Frame, list[Any], Translation, list[tuple[str, Any, _Frame]]]:
+              entry: bool = True, writers: frozenset[str] = frozenset()
+              ) -> tuple[_Frame, list[Any], Translation, list[tuple[str, Any, _Frame]]]:
         """A point of ``q``: in its box, its memory reachable by the abstraction, inside its invariant.
 
         Frames and their constraints are built once per (mode, role) and reused by every query
         (each query is a fresh solver); the translation's domain conditions restart per query.
         """
-        key = (q, None if only is None else only.name, strict, role, entry)
+        key = (q, None if only is None else only.name, strict, role, entry, writers)
         hit = self._states.get(key)
         if hit is None:
             f = self.frame(f"{role} {q}")
@@ -728,8 +734,9 @@ class _Decider:
             memory, disjuncts = self.entry(f, q, only) if entry else ([], [])
             tr.begin()
             inside = self.inside(tr, q, strict)
-            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + memory + self.written(f, q) + inside
-                                + list(tr.side))], tr, disjuncts)
+            last = self.written(f, q, bool(writers), sorted(writers) if writers else None)
+            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + memory + last + inside + list(tr.side))], tr,
+                   disjuncts)
             self._states[key] = hit
         f, cons, tr, disjuncts = hit
         tr.begin()
@@ -825,14 +832,33 @@ class _Questions(_Decider):
         return ""
 
     # ------------------------------------------------------------------ overlaps
+    def carried(self, q: str, reads: Sequence[Any]) -> frozenset[str]:
+        """The memory the functions ``reads`` read that some transition entering ``q`` only carries."""
+        names: set[str] = set()
+        for e in reads:
+            if isinstance(e, (Expr, Condition)):
+                names |= free_symbols(e)["memory"]
+        out: set[str] = set()
+        for t in self.a.transitions:
+            if t.target == q:
+                out |= names - set(t.writes)
+        return frozenset(out)
+
     def pair(self, q: str, t1: Transition, t2: Transition) -> PairVerdict:
         same = t1.priority == t2.priority
         base = dict(mode=q, first=t1.name, second=t2.name, same_priority=same)
         if self.v.guard(t1) is None or self.v.guard(t2) is None or self.v.invariant(q) is None:
             return PairVerdict(**base, verdict="undecided", detail="a guard or the invariant is not symbolic")
+        what = f"overlap of {t1.name} and {t2.name} in {q}"
         f, cons, tr, disjuncts = self.state(q)
         cons = cons + [self.enabled(tr, t1), self.enabled(tr, t2)] + tr.side
-        status, model = self.solve(cons, f"overlap of {t1.name} and {t2.name} in {q}")
+        status, model = self.solve(cons, what)
+        carried = self.carried(q, [self.v.guard(t1), self.v.guard(t2), self.v.invariant(q)])
+        if status == "sat" and not self.param_vars and carried:
+            # the memory it reads may have been carried from a looser hull: confirm under its last writers
+            f, cons, tr, disjuncts = self.state(q, role="confirm", writers=carried)
+            cons = cons + [self.enabled(tr, t1), self.enabled(tr, t2)] + tr.side
+            status, model = self.solve(cons, what)
         if status == "unsat":
             return PairVerdict(**base, verdict="exclusive", detail="proven: no state of the box enables both")
         if status == "unknown":
@@ -1403,21 +1429,35 @@ def decide(
     """
     from .check import _boxes
 
-    if not (isinstance(timeout_s, (int, float)) and not isinstance(timeout_s, bool)
-            and math.isfinite(timeout_s) and timeout_s > 0):
-        raise ModelDefinitionError(f"decide(): timeout_s = {timeout_s!r}; expected a number of seconds > 0")
     view = _View(model)
+    validate_options(view.coords, rates, timeout_s)
     boxes = _boxes(view.oracle, box)
     if boxes is None:
         raise ModelDefinitionError("decide(): box = None; give the Box (or a mapping mode -> Box) to decide over")
-    for n, r in dict(rates or {}).items():
-        if n not in view.coords:
-            raise ModelDefinitionError(f"decide(): rates names {n!r}, not a coordinate; coordinates: {list(view.coords)}")
-        if isinstance(r, bool) or not isinstance(r, (int, float)) or not (r >= 0.0):
-            raise ModelDefinitionError(f"decide(): rates[{n!r}] = {r!r}; expected a rate >= 0 per second")
     qs = _Questions(view, boxes, rates=rates, timeout_s=float(timeout_s), tol=float(tol),
                     max_cycles=int(max_cycles))
     return _assemble(qs, zeno)
+
+
+MIN_TIMEOUT_S = 0.001
+"""The solver's clock counts milliseconds: a shorter timeout is refused rather than silently lengthened."""
+
+
+def validate_options(coords: Sequence[str], rates: Mapping[str, float] | None, timeout_s: float) -> None:
+    """Refuse rates that are not ``{coordinate: number >= 0}`` and a timeout below :data:`MIN_TIMEOUT_S`."""
+    if (isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not math.isfinite(timeout_s)
+            or timeout_s < MIN_TIMEOUT_S):
+        raise ModelDefinitionError(
+            f"timeout_s = {timeout_s!r}; expected a number of seconds >= {MIN_TIMEOUT_S} (the solver counts ms)")
+    if rates is None:
+        return
+    if not isinstance(rates, Mapping):
+        raise ModelDefinitionError(f"rates = {rates!r}; expected a mapping coordinate name -> rate bound per second")
+    for n, r in rates.items():
+        if n not in coords:
+            raise ModelDefinitionError(f"rates names {n!r}, not a coordinate; coordinates: {list(coords)}")
+        if isinstance(r, bool) or not isinstance(r, (int, float)) or not (r >= 0.0):
+            raise ModelDefinitionError(f"rates[{n!r}] = {r!r}; expected a rate >= 0 per second (inf: unbounded)")
 
 
 def exclusive_for_all(
@@ -1447,6 +1487,7 @@ def exclusive_for_all(
     from .check import _boxes
 
     view = _View(model)
+    validate_options(view.coords, None, timeout_s)
     boxes = _boxes(view.oracle, box)
     if boxes is None:
         raise ModelDefinitionError("exclusive_for_all(): box = None; give the Box to decide over")

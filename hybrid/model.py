@@ -31,8 +31,10 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
+import numpy as np
+
 from .errors import ExecutionError, ModelDefinitionError
-from .symbolic import Condition, SymbolicReset, level_form, unsupported_terms
+from .symbolic import Condition, Expr, SymbolicReset, free_symbols, level_form, unsupported_terms
 
 __all__ = [
     "Guard",
@@ -57,17 +59,31 @@ BOOL_GUARD_HINT = (
 )
 
 
+_BOOL_TYPES = (bool, np.bool_)
+
+
 def refuse_bool(value: Any, what: str) -> None:
     """Raise :class:`ExecutionError` when a guard or invariant returned a bool (it would read as 0.0 or 1.0)."""
-    if value.__class__ is bool or value.__class__.__name__ == "bool_":
+    if isinstance(value, _BOOL_TYPES):
         raise ExecutionError(f"{what} returned the bool {value!r}; {BOOL_GUARD_HINT}")
 
 
-def refuse_unsupported(function: Any, what: str) -> None:
-    """Raise :class:`ModelDefinitionError` when a symbolic function uses an unsupported operation (naming it)."""
+def refuse_unsupported(function: Any, what: str, timed: bool = True) -> None:
+    """Raise :class:`ModelDefinitionError` when a symbolic function uses an unsupported operation (naming it).
+
+    ``timed=False`` (guards, invariants, resets: they read ``(v, m)``) also refuses the time symbol.
+    """
     bad = unsupported_terms(function)
     if bad:
         raise ModelDefinitionError(f"{what}: {bad[0].message()}")
+    if timed:
+        return
+    parts = list(function.assignments.values()) if isinstance(function, SymbolicReset) else [function]
+    if any(isinstance(p, (Expr, Condition)) and free_symbols(p)["time"] for p in parts):
+        raise ModelDefinitionError(
+            f"{what} reads the time t, which guards, invariants and resets do not receive (they read the "
+            "signals v and the memory m); give time as a state (a clock with flow 1) or a signal of the output"
+        )
 
 
 def _as_level(function: Any) -> Any:
@@ -116,7 +132,7 @@ class Mode:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Mode.name = {self.name!r}: expected a non-empty string")
         object.__setattr__(self, "invariant", _as_level(self.invariant))
-        refuse_unsupported(self.invariant, f"mode {self.name!r}: invariant")
+        refuse_unsupported(self.invariant, f"mode {self.name!r}: invariant", timed=False)
         if self.invariant is not None and not callable(self.invariant):
             raise ModelDefinitionError(
                 f"mode {self.name!r}: invariant = {self.invariant!r} is not callable; "
@@ -168,8 +184,8 @@ class Transition:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Transition.name = {self.name!r}: expected a non-empty string")
         object.__setattr__(self, "guard", _as_level(self.guard))
-        refuse_unsupported(self.guard, f"transition {self.name!r}: guard")
-        refuse_unsupported(self.reset, f"transition {self.name!r}: reset")
+        refuse_unsupported(self.guard, f"transition {self.name!r}: guard", timed=False)
+        refuse_unsupported(self.reset, f"transition {self.name!r}: reset", timed=False)
         if isinstance(self.reset, SymbolicReset):
             if not self.writes:
                 object.__setattr__(self, "writes", self.reset.writes)
@@ -321,7 +337,7 @@ class HybridAutomaton:
                 value = function(zeros, memory)
             except Exception:  # noqa: BLE001 - a probe only looks for bools
                 continue
-            if value.__class__ is bool or value.__class__.__name__ == "bool_":
+            if isinstance(value, _BOOL_TYPES):
                 raise ModelDefinitionError(f"automaton {self.name!r}: {what} returns a bool ({value!r}); "
                                            f"{BOOL_GUARD_HINT}")
 

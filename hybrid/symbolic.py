@@ -1108,6 +1108,8 @@ def diff(node: Expr, wrt: Coordinate | MemoryRef | Time | str) -> Expr:
     def d(n: Expr) -> Expr:
         if id(n) in memo:
             return memo[id(n)]
+        if isinstance(n, Unsupported):
+            raise SymbolicError(n.message())
         if isinstance(n, (Coordinate, MemoryRef, Time)):
             out: Expr = Const(1.0 if same(n) else 0.0)
         elif isinstance(n, (Const, Param)):
@@ -1233,6 +1235,8 @@ def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[s
     def iv(n: Expr) -> Interval:
         if id(n) in memo:
             return memo[id(n)]
+        if isinstance(n, Unsupported):
+            raise SymbolicError(n.message())
         if isinstance(n, Param) and n.name in pb:
             out = tuple(pb[n.name])  # type: ignore[assignment]
         elif isinstance(n, (Const, Param)):

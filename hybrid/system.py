@@ -141,7 +141,7 @@ class HybridSystem:
         for mode, f in flows.items():
             refuse_unsupported(f, f"system {a.name!r}: flow of mode {mode!r}")
         for name, r in jumps.items():
-            refuse_unsupported(r, f"system {a.name!r}: jump map of transition {name!r}")
+            refuse_unsupported(r, f"system {a.name!r}: jump map of transition {name!r}", timed=False)
         refuse_unsupported(self.output, f"system {a.name!r}: output")
         object.__setattr__(self, "flows", MappingProxyType(flows))
         object.__setattr__(self, "jumps", MappingProxyType(jumps))
