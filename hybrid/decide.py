@@ -64,7 +64,7 @@ from typing import Any
 
 import networkx as nx
 
-from .check import KIND_SEVERITY, Finding, Witness, _Oracle
+from .check import KIND_SEVERITY, Finding, Witness, _g, _num, _Oracle
 from .errors import ExecutionError, ModelDefinitionError
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
@@ -349,17 +349,6 @@ class Decision:
             "queries": self.queries,
             "solver": self.solver,
         }
-
-
-def _num(x: float) -> float | str:
-    x = float(x)
-    if not math.isfinite(x):
-        return str(x)
-    return float(f"{x + 0.0:.12g}")
-
-
-def _g(x: float) -> str:
-    return f"{x + 0.0:.10g}"
 
 
 # ====================================================================== the symbolic view of a model
