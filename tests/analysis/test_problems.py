@@ -126,3 +126,29 @@ def test_hybrid_problem_refuses_a_formula_on_a_signal_the_system_does_not_have()
                        requirements=(Requirement(name="r", formula="always[0, 1] (Temp > 0)"),))
     text = str(info.value)
     assert "Temp" in text and "T" in text and "^" in text
+
+
+def test_structural_checks_of_a_symbolic_system_are_proven_with_the_options_passed_through():
+    """hybrid_problem(check_box=...) of a symbolic model: PROVEN claims; method, rates, timeout passed through."""
+    import dataclasses
+    import pickle
+
+    from analysis.problems import StructuralChecks
+    from hybrid import Box
+
+    problem = hybrid_problem(name="room", system=thermostat().system, initial={"T": 20.0}, horizon=10.0,
+                             check_box=Box(bounds={"T": (15.0, 25.0)}),
+                             requirements=(Requirement(name="r", formula="always[0, 1] (T > 0)"),))
+    checks = problem.structural
+    assert isinstance(checks, StructuralChecks)
+    assert (checks.method, checks.rates, checks.timeout_s) == ("auto", None, 5.0)
+    report = checks()
+    assert {c.status for c in report.claims.values()} == {"proven"} and report.solver.startswith("z3")
+    sampled = dataclasses.replace(checks, method="sampled", samples=40)()
+    assert sampled.claim("nondeterminism") == "sampled" and sampled.zeno is None
+    # declared rate bounds reach the Zeno dwell bounds: a slower room dwells longer
+    slow = dataclasses.replace(checks, rates={"T": 0.1}, timeout_s=2.0)()
+    assert slow.zeno.min_dwell_s > report.zeno.min_dwell_s
+    # the options themselves pickle (the checks pickle whenever their model and box do)
+    options = StructuralChecks(model="model", method="smt", rates={"T": 0.1}, timeout_s=2.0)
+    assert pickle.loads(pickle.dumps(options)) == options

@@ -346,8 +346,14 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
         lines.append(f"  box: {modes[0].box}")
     claims = claims_table(report)
     claimed = {row["check"] for row in claims}
+    graph_kinds = {"unreachable": ("unreachable_mode", "unreachable_transition"), "sink_mode": ("sink_mode",)}
+    kinds = {f.kind for f in report.findings}
     for name, status in report.searched.checks.items():  # the graph checks, exact
-        if name not in claimed and name != "zeno_candidate":
+        if name in graph_kinds:
+            label = "FOUND" if any(k in kinds for k in graph_kinds[name]) else "PROVEN"
+            lines.append(f"  {name:<24} {label:<9} exact, on the mode graph" + ("" if status == "ran" else
+                                                                                 f" ({status})"))
+        elif name not in claimed and name != "zeno_candidate":
             lines.append(f"  {name:<24} {status}")
     for row in claims:
         extra = f" ({row['detail']})" if row["detail"] and row["check"] != "zeno" else ""
@@ -537,8 +543,9 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
                               timeout_s=timeout_s)
     elapsed = time.perf_counter() - start
     if args.json:
+        rates = {name: float(f"{rate:.12g}") for name, rate in supervisor_rates(scenario).items()}
         out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario), "clean": report.clean,
-               "method": method, "timeout_s": timeout_s, "rates": {name: float(f"{rate:.12g}") for name, rate in supervisor_rates(scenario).items()}}
+               "method": method, "timeout_s": timeout_s, "rates": rates}
         out.update(report.as_dict())
         print(json.dumps(out, sort_keys=True))
     else:

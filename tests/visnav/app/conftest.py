@@ -46,3 +46,38 @@ def report_tools() -> SimpleNamespace:
     """``run`` (the console script), ``exit_is_the_verdicts``, ``counterexamples``, ``committed`` (the folder)."""
     return SimpleNamespace(run=_run_report, exit_is_the_verdicts=_assert_exit_is_the_verdicts,
                            counterexamples=_counterexamples, committed=COMMITTED)
+
+
+SYMBOLIC_THERMOSTAT = '''
+"""A user's thermostat written with hybrid.symbolic guards, invariants and flows, checked over a box."""
+from analysis.problems import hybrid_problem
+from analysis.requirements import Requirement
+from analysis.verification import Parameter
+from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition
+from hybrid.symbolic import coordinates, flow_map
+
+v = coordinates("T")
+automaton = HybridAutomaton(
+    name="symbolic-thermostat",
+    modes=(Mode(name="off", invariant=v.T - 19.0), Mode(name="on", invariant=21.0 - v.T)),
+    transitions=(Transition(name="heat_on", source="off", target="on", guard=19.0 - v.T),
+                 Transition(name="heat_off", source="on", target="off", guard=v.T - 21.0)),
+    variables=("T",), initial_mode="off")
+system = HybridSystem(automaton=automaton, state_names=("T",),
+                      flows={"off": flow_map(-0.1 * (v.T - 10.0)), "on": flow_map(-0.1 * (v.T - 30.0))})
+problem = hybrid_problem(
+    name="symbolic-thermostat", system=system,
+    initial={"T": Parameter(name="T0", low=19.5, high=20.5, nominal=20.0)},
+    horizon=20.0, sample_period=0.5, check_box=Box(bounds={"T": (15.0, 25.0)}),
+    requirements=(Requirement(name="comfort", formula="always[0, 20] (abs(T - 20) <= 1.5)",
+                              description="the room stays within 1.5 of 20"),))
+'''
+"""A problem file with a symbolic model: its structural checks are decided by the SMT solver (PROVEN)."""
+
+
+@pytest.fixture()
+def symbolic_problem(tmp_path: Path) -> str:
+    """``FILE.py:problem`` of :data:`SYMBOLIC_THERMOSTAT` written in the test's folder."""
+    path = tmp_path / "symbolic_thermostat.py"
+    path.write_text(SYMBOLIC_THERMOSTAT)
+    return f"{path}:problem"

@@ -71,25 +71,120 @@ def test_mode_graph_dot(capsys):
     assert dot.startswith("digraph") and '"FAR|CLEAR" -> "APPROACH|CLEAR"' in dot
 
 
-def test_check_model_on_the_paper_supervisor_is_clean_and_deterministic(capsys):
-    assert main(["check-model", "--samples", "60", "--starts", "2", "--json"]) == 0
-    first = capsys.readouterr().out
-    report = json.loads(first)
-    assert report["clean"] is True and report["scenario"] == "paper"
-    assert {f["kind"] for f in report["findings"]} <= {"priority_overlap", "zeno_candidate"}
+STATE_CHECKS = ("nondeterminism", "deadlock", "reset_outside_invariant", "reset_retriggers")
+
+
+def _check_json(capsys, *args: str) -> tuple[int, dict]:
+    code = main(["check-model", *args, "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_check_model_proves_the_paper_supervisor(capsys):
+    """The supervisor is symbolic: every check decided by the SMT solver, 43 pairs, 578 cycles, no finding."""
+    code, report = _check_json(capsys, "--samples", "60", "--starts", "2")
+    assert code == 0 and report["clean"] is True and report["scenario"] == "paper"
+    assert report["method"] == "auto" and report["timeout_s"] == 5.0 and report["solver"].startswith("z3")
+    assert {name: c["status"] for name, c in report["claims"].items()} == dict.fromkeys((*STATE_CHECKS, "zeno"),
+                                                                                         "proven")
+    assert all(c["assumptions"] for c in report["claims"].values())
+    pairs = report["pairs"]
+    assert len(pairs) == 43
+    assert sum(p["verdict"] == "overlap" for p in pairs) == 29 and sum(p["verdict"] == "exclusive" for p in pairs) == 14
+    assert not any(p["same_priority"] and p["verdict"] == "overlap" for p in pairs)
+    zeno = report["zeno"]
+    assert zeno["counts"]["non_zeno"] == zeno["cycles"] > 0 and zeno["counts"]["undecided"] == 0
+    assert zeno["min_dwell_s"] > 0 and "verdicts" not in zeno  # the cycles grouped, never one row each
+    # the rate bounds are the fuzz measurement space's
+    from visnav.fuzzing.space import scenario_space
+    from visnav.scenario import load_scenario
+
+    space = scenario_space(load_scenario("paper"))
+    assert report["rates"] == pytest.approx(space.rates_per_s())
+    assert report["rates"]["d_coll_0_m"] == pytest.approx(space.max_step_d_m / space.period_s)
+    assert {f["kind"] for f in report["findings"]} <= {"priority_overlap"}
+    assert sum(f["kind"] == "zeno_candidate" for f in report["findings"]) <= 1
     assert report["searched"]["samples"] == 60 and len(report["searched"]["modes"]) == 18
-    assert main(["check-model", "--samples", "60", "--starts", "2", "--json"]) == 0
-    assert capsys.readouterr().out == first
+
+
+def test_check_model_json_is_identical_across_processes():
+    """Two processes (different string hashing) print the same bytes: the report's determinism."""
+    import os
+
+    script = Path(sys.executable).with_name("visnav")
+    runs = [subprocess.run([str(script), "check-model", "--samples", "20", "--starts", "1", "--json"],
+                           capture_output=True, text=True, env={**os.environ, "PYTHONHASHSEED": seed}, timeout=300)
+            for seed in ("1", "2")]
+    assert [r.returncode for r in runs] == [0, 0], runs[0].stderr
+    assert runs[0].stdout == runs[1].stdout
+
+
+def test_check_model_sampled_method_gives_sampled_claims(capsys):
+    code, report = _check_json(capsys, "--method", "sampled", "--samples", "30", "--starts", "1")
+    assert code == 0 and report["method"] == "sampled" and report["pairs"] == [] and report["zeno"] is None
+    assert {name: report["claims"][name]["status"] for name in STATE_CHECKS} == dict.fromkeys(STATE_CHECKS,
+                                                                                               "sampled")
+    assert report["claims"]["zeno"]["status"] == "undecided"
+    assert sum(f["kind"] == "zeno_candidate" for f in report["findings"]) == 1  # the cycles grouped in one row
+    assert main(["check-model", "--method", "sampled", "--samples", "30", "--starts", "1"]) == 0
+    out = capsys.readouterr().out
+    claimed = {ln.split()[0]: ln.split()[1] for ln in out.splitlines() if ln.split()[:1] in ([n] for n in
+                                                                                            (*STATE_CHECKS, "zeno"))}
+    assert claimed == {**dict.fromkeys(STATE_CHECKS, "SAMPLED"), "zeno": "UNDECIDED"}
+    assert "PROVEN over" not in out and "  unreachable              PROVEN    exact, on the mode graph" in out
 
 
 def test_check_model_human_summary_and_bad_options(capsys):
     assert main(["check-model", "--samples", "30", "--starts", "1"]) == 0
     out = capsys.readouterr().out
-    assert "CLEAN" in out and "nondeterminism" in out and "box: d_coll_0_m" in out
+    lines = out.splitlines()
+    assert "CLEAN" in lines[0] and "box: d_coll_0_m" in out
+    for name in (*STATE_CHECKS, "zeno"):  # one line per check: its claim in capitals and the method
+        (line,) = [ln for ln in lines if ln.split()[:1] == [name]]
+        assert line.split()[1] == "PROVEN" and "z3" in line
+    assert ("  pairs: 43 pairs of transitions sharing a source mode: 29 can be enabled together (re-checked "
+            "witnesses), 14 exclusive (proven); equal-priority overlaps: 0") in lines
+    (zeno,) = [ln for ln in lines if ln.startswith("  Zeno: ")]
+    assert "non-Zeno (proven), smallest dwell bound 0.05 s in LEAVE|CLEAR between" in zeno
+    assert zeno.endswith("; 0 instantaneous; 0 undecided")
+    assert "[info] priority_overlap: 29" in out and "zeno_candidate" not in out
     with pytest.raises(SystemExit) as info:
         main(["check-model", "--samples", "0"])
     assert info.value.code == 2
     assert "0 is not positive" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "soon"])
+def test_check_model_bad_timeout_exits_2(value, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["check-model", "--timeout", value])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--timeout" in err and "Traceback" not in err
+
+
+def test_check_model_bad_method_exits_2(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["check-model", "--method", "guess"])
+    assert info.value.code == 2 and "--method" in capsys.readouterr().err
+
+
+def test_check_model_proves_a_users_symbolic_problem(symbolic_problem, capsys):
+    """hybrid_problem(check_box=...) of a symbolic model: every check PROVEN by `check-model --problem`."""
+    code, report = _check_json(capsys, "--problem", symbolic_problem)
+    assert code == 0 and report["clean"] and report["problem"] == "symbolic-thermostat"
+    assert {name: c["status"] for name, c in report["claims"].items()} == dict.fromkeys((*STATE_CHECKS, "zeno"),
+                                                                                         "proven")
+    assert report["zeno"]["counts"]["non_zeno"] == report["zeno"]["cycles"] == 1
+    assert report["method"] == "auto" and report["timeout_s"] == 5.0
+    assert main(["check-model", "--problem", symbolic_problem, "--timeout", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "(problem symbolic-thermostat): CLEAN" in out and "timeout 2 s per solver call" in out
+    for name in (*STATE_CHECKS, "zeno"):
+        assert any(ln.split()[:2] == [name, "PROVEN"] for ln in out.splitlines()), name
+    assert "  Zeno: 1 cycle: 1 non-Zeno (proven), smallest dwell bound" in out
+    # --method sampled reaches the problem's checks too
+    code, report = _check_json(capsys, "--problem", symbolic_problem, "--method", "sampled")
+    assert code == 0 and {report["claims"][n]["status"] for n in STATE_CHECKS} == {"sampled"}
 
 
 def test_mode_graph_as_json(capsys):

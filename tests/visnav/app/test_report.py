@@ -60,6 +60,20 @@ def test_report_contents_and_claims(quick_dirs):
     html = (out / "report.html").read_text()
     assert html.count("data:image/png;base64,") == len(list((out / "figures").glob("*.png")))
     assert "<script" not in html and "http://" not in html and "https://" not in html
+    # the structural checks: decided by the SMT solver, one PROVEN claim per check, the cycles grouped
+    checks = data["model"]["structural_checks"]
+    assert {c["status"] for c in checks["claims"].values()} == {"proven"} and checks["method"] == "auto"
+    model_claims = [c for c in data["claims"] if c["section"] == "model"]
+    assert [c["status"] for c in model_claims] == ["proven"] * 6  # graph checks, then one per check
+    assert [c["text"].split(" of ")[0] for c in model_claims[1:]] == [
+        "nondeterminism", "deadlock", "reset_outside_invariant", "reset_retriggers", "zeno"]
+    assert set(checks["claims"]) == {c["text"].split(" of ")[0] for c in model_claims[1:]}
+    assert "43 pairs of transitions sharing a source mode: 29 can be enabled together" in model_claims[1]["text"]
+    assert "| nondeterminism | PROVEN | z3" in md and "| zeno | PROVEN |" in md
+    (zeno,) = [line for line in md.splitlines() if line.startswith("Zeno: ")]  # the cycles in one line
+    assert "non-Zeno (proven), smallest dwell bound 0.05 s in LEAVE|CLEAR" in zeno
+    assert sum(f["kind"] == "zeno_candidate" for f in checks["findings"]) <= 1  # never one row per cycle
+    assert checks["zeno"]["cycles"] > 100 and "verdicts" not in checks["zeno"]
     # the model's structural findings: counts and the worst few visible, the full list collapsed
     findings = data["model"]["structural_checks"]["findings"]
     if len(findings) > len(data["model"]["structural_checks"]["summary"]["worst"]):

@@ -89,8 +89,21 @@ def test_not_falsified_problem_has_its_verdict_table_first():
     assert body[1].startswith("Verification of `thermostat-band-1`")  # the first section, before the claims
     assert "Overall verdict: NOT FALSIFIED (exit code 0)" in md
     assert "| comfort | NOT FALSIFIED |" in md
-    assert {c["status"] for c in data["claims"]} == {"sampled"}
+    # the example's guards are plain lambdas: the state-space checks are sampled, the graph checks exact
+    from visnav.app.structural import REPORT_STATUS
+
+    structure = [c for c in data["claims"] if c["section"] == "structure"]
+    checks = data["structure"]["claims"]
+    assert checks["nondeterminism"]["status"] == checks["deadlock"]["status"] == "sampled"
+    # the graph checks (exact), then one claim per check that makes one (an undecided check makes none)
+    assert [c["status"] for c in structure] == ["proven"] + [REPORT_STATUS[c["status"]] for c in checks.values()
+                                                             if c["status"] in REPORT_STATUS]
+    assert structure[0]["text"].startswith("graph checks of thermostat (exact, on the mode graph)")
+    assert structure[1]["text"].startswith("nondeterminism of thermostat: no two transitions of equal priority")
+    assert {c["status"] for c in data["claims"] if c["section"] == "verification"} == {"sampled"}
     assert data["structure"]["automaton"] == "thermostat" and data["structure"]["checks"]  # hybrid.check ran
+    assert data["structure"]["claims"]["zeno"]["status"] == "undecided"  # not symbolic: no claim made
+    assert "| zeno | UNDECIDED |" in md
 
 
 def test_falsified_problem_links_its_counterexample(zero_band):
@@ -158,6 +171,9 @@ def test_user_problem_outside_the_repository_end_to_end(tmp_path, capsys):
     rows = {r["name"]: r for r in data["verification"]["requirements"]}
     assert rows["positive"]["verdict"] == "not_falsified" and rows["bounded"]["verdict"] == "falsified"
     assert data["structure"]["summary"]["by_kind"] == [{"severity": "warning", "kind": "sink_mode", "count": 1}]
+    # no box: the state-space checks skipped, the sink mode found by the exact graph check
+    assert {c["status"] for c in data["structure"]["claims"].values()} == {"skipped"}
+    assert [c["status"] for c in data["claims"] if c["section"] == "structure"] == ["measured"]
     md = (out / "report.md").read_text()
     assert "## Structural checks of `decay`" in md and "| bounded | FALSIFIED |" in md
     assert main(["replay", str(out / rows["bounded"]["counterexample_file"])]) == 1
@@ -166,6 +182,24 @@ def test_user_problem_outside_the_repository_end_to_end(tmp_path, capsys):
     assert main(["report", "--problem", f"{tmp_path / 'fixed_problem.py'}:problem", "--out", str(out),
                  "--budget", "8"]) == 0
     assert not (out / "counterexamples" / "bounded.json").exists()
+
+
+def test_symbolic_problem_report_shows_proven_claims(symbolic_problem):
+    """A user's symbolic model: one PROVEN claim per structural check, the claims table and the Zeno line."""
+    problem = load_problem(symbolic_problem)
+    report = build_problem_report(problem, spec="symbolic", seed=0, budget=4, quick=True)
+    st = report.data["structure"]
+    assert {name: c["status"] for name, c in st["claims"].items()} == dict.fromkeys(
+        ("nondeterminism", "deadlock", "reset_outside_invariant", "reset_retriggers", "zeno"), "proven")
+    assert st["zeno"]["cycles"] == 1 and st["solver"].startswith("z3")
+    claims = [c for c in report.data["claims"] if c["section"] == "structure"]
+    assert [c["status"] for c in claims] == ["proven"] * 6  # the graph checks, then one per check
+    assert claims[5]["text"].startswith("zeno of symbolic-thermostat: no Zeno cycle")
+    assert "over every state of the declared box" in claims[1]["text"]
+    md, html = _documents(report)
+    assert "| check | claim | how | detail |" in md and "| nondeterminism | PROVEN | z3" in md
+    assert "Zeno: 1 cycle: 1 non-Zeno (proven), smallest dwell bound" in md
+    assert "<td>PROVEN</td>" in html and '<span class="badge proven">PROVEN</span>zeno of' in html
 
 
 def _many_findings_problem():
