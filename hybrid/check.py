@@ -1545,10 +1545,15 @@ def check(
         checks.update({c: remark for c in STATE_CHECKS})
         if not any(t.direction == 0 for t in a.transitions):
             checks["reset_retriggers"] = "ran: no level-triggered transition (crossing guards do not re-fire)"
-    undecided = _undecided_cycles(cycles, decision)
+    if decision is not None and decision.zeno is not None and not set(boxes or {}) <= sampled_modes:
+        z = decision.zeno
+        checks["zeno_candidate"] = (f"decided: {z.cycles} cycles of transitions"
+                                    + (" (capped)" if z.capped else "") + f"; {dict(z.counts)}")
+    all_sampled = decision is None or set(boxes or {}) <= sampled_modes
+    undecided = cycles if all_sampled else _undecided_cycles(cycles, decision)
     if undecided:
-        why = ("the guards, resets or jump maps are not symbolic" if decision is None or decision.zeno is None
-               else "no dwell bound and no instantaneous lap")
+        why = (("method sampled" if method == "sampled" else "the guards, resets or jump maps are not symbolic")
+               if all_sampled else "no dwell bound and no instantaneous lap")
         findings.append(_zeno_group(undecided, capped, why))
     claims = _claims(decision, sampled_modes, boxes, findings, method)
     summary = SearchSummary(
@@ -1617,18 +1622,28 @@ def _claims(decision: Any, sampled: set[str], boxes: dict[str, Box] | None, find
     from .decide import Claim
 
     kinds = {f.kind for f in findings}
-    out: dict[str, Any] = {}
     if boxes is None:
         return {c: Claim(check=c, status="skipped", method="no box given") for c in (*STATE_CHECKS, "zeno")}
     sampled_method = "sampling (uniform samples, corners, faces, Nelder-Mead); a search that finds nothing is evidence"
+    searched = set(boxes)
+    all_sampled = decision is None or (method != "smt" and searched <= sampled)
+    if decision is None:
+        why = "method sampled" if method == "sampled" else "not decided"
+    else:
+        why = "the model's functions are not symbolic: " + "; ".join(
+            f"{q}: {decision.sampled_modes[q]}" for q in sorted(sampled)[:2] if q in decision.sampled_modes)
+    out: dict[str, Any] = {}
     for c in (*STATE_CHECKS, "zeno"):
-        decided = None if decision is None else decision.claims.get(c)
         found = c in kinds or (c == "zeno" and "reset_retriggers" in kinds)
-        if decided is None:
-            status = "found" if found else ("sampled" if c != "zeno" else "undecided")
-            out[c] = Claim(check=c, status=status, method=sampled_method,
-                           detail="" if c != "zeno" else "cycles not decided: functions not symbolic")
+        if all_sampled:
+            if c == "zeno":
+                out[c] = Claim(check=c, status="found" if found else "undecided", method=sampled_method,
+                               detail=f"cycles not decided ({why})")
+            else:
+                out[c] = Claim(check=c, status="found" if found else "sampled", method=sampled_method,
+                               detail=f"every mode sampled ({why})")
             continue
+        decided = decision.claims.get(c)
         if found:
             status = "found"
         elif decided.status == "undecided":

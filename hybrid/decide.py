@@ -70,7 +70,7 @@ from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import Conjunction, HybridAutomaton, Transition
 from .region import Box
-from .smt import Translation, rational, solver_version, to_float
+from .smt import Translation, context, fresh_context, rational, solver_version, to_float
 from .symbolic import (
     Condition,
     Coordinate,
@@ -439,8 +439,8 @@ class _Frame:
         import z3
 
         self.tag = tag
-        self.x = {n: z3.Real(f"{tag}.{n}") for n in coords}
-        self.m = {n: z3.Real(f"{tag}.m.{n}") for n in memory_names}
+        self.x = {n: z3.Real(f"{tag}.{n}", context()) for n in coords}
+        self.m = {n: z3.Real(f"{tag}.m.{n}", context()) for n in memory_names}
 
 
 class _Decider:
@@ -470,7 +470,7 @@ class _Decider:
         """Parameters as solver variables, within their bounds and under the assumptions."""
         import z3
 
-        self.param_vars = {n: z3.Real(f"param.{n}") for n in parameters.bounds}
+        self.param_vars = {n: z3.Real(f"param.{n}", context()) for n in parameters.bounds}
         self.param_bounds = dict(parameters.bounds)
         for n, (lo, hi) in parameters.bounds.items():
             if math.isfinite(lo):
@@ -487,7 +487,7 @@ class _Decider:
     def solve(self, constraints: list[Any], what: str) -> tuple[str, Any]:
         import z3
 
-        s = z3.Solver()
+        s = z3.Solver(ctx=context())
         s.set("timeout", max(1, int(round(self.timeout_s * 1000))))
         s.add(*constraints, *self.param_constraints)
         start = _time.perf_counter()
@@ -506,7 +506,7 @@ class _Decider:
         """The optimiser's minimum of ``objective`` (a candidate, verified by the caller), or ``None``."""
         import z3
 
-        o = z3.Optimize()
+        o = z3.Optimize(ctx=context())
         o.set("timeout", max(1, int(round(self.timeout_s * 1000))))
         o.add(*constraints)
         h = o.minimize(objective)
@@ -649,7 +649,7 @@ class _Decider:
             parts += tr.side
             disjuncts.append((t.name, z3.And(*parts), p))
         if not disjuncts:
-            return [z3.BoolVal(False)], []
+            return [z3.BoolVal(False, context())], []
         return [z3.Or(*(d for _, d, _ in disjuncts))], disjuncts  # type: ignore[misc]
 
     def last_writers(self, q: str, k: str) -> list[Transition | None]:
@@ -695,7 +695,7 @@ class _Decider:
                     continue
                 reset = self.v.reset(t)
                 if reset is None or t.source not in self.boxes:
-                    options.append(z3.BoolVal(True))
+                    options.append(z3.BoolVal(True, context()))
                     continue
                 p = self.frame(f"{f.tag}<{t.name}.{k}")
                 tr = self.translation(p, t.source)
@@ -704,7 +704,7 @@ class _Decider:
                     parts.append(self.enabled(tr, t))
                 parts.append(f.m[k] == tr.term(reset[k]))
                 options.append(z3.And(*parts, *tr.side))
-            out.append(z3.Or(*options) if options else z3.BoolVal(False))
+            out.append(z3.Or(*options) if options else z3.BoolVal(False, context()))
         return out
 
     def state(self, q: str, only: Transition | None = None, strict: bool = False, role: str = "main",
@@ -789,7 +789,7 @@ def _conjoin(constraints: list[Any]) -> Any:
     """One formula for a cached list of constraints (one assertion instead of many)."""
     import z3
 
-    return z3.And(*constraints) if constraints else z3.BoolVal(True)
+    return z3.And(*constraints) if constraints else z3.BoolVal(True, context())
 
 
 def _close(a: float, b: float) -> bool:
@@ -1124,7 +1124,7 @@ class _Questions(_Decider):
         after = Translation(coordinates=a_x, memory=b.m, bounds=_unbounded(self.v.coords), prefix=f"{b.tag}.a")
         cons += tr.side + self.inside(after, q) + after.side
         cons += landing + [self.enabled(tb, t_out)] + tb.side
-        s = z3.Real(f"{b.tag}.s")
+        s = z3.Real(f"{b.tag}.s", context())
         moves = []
         for n, r in rates.items():
             if math.isinf(r):
@@ -1530,9 +1530,10 @@ def decide(
     boxes = _boxes(view.oracle, box)
     if boxes is None:
         raise ModelDefinitionError("decide(): box = None; give the Box (or a mapping mode -> Box) to decide over")
-    qs = _Questions(view, boxes, rates=rates, timeout_s=float(timeout_s), tol=float(tol),
-                    max_cycles=int(max_cycles))
-    return _assemble(qs, zeno)
+    with fresh_context():
+        qs = _Questions(view, boxes, rates=rates, timeout_s=float(timeout_s), tol=float(tol),
+                        max_cycles=int(max_cycles))
+        return _assemble(qs, zeno)
 
 
 MIN_TIMEOUT_S = 0.001
@@ -1587,8 +1588,13 @@ def exclusive_for_all(
     boxes = _boxes(view.oracle, box)
     if boxes is None:
         raise ModelDefinitionError("exclusive_for_all(): box = None; give the Box to decide over")
-    qs = _Questions(view, boxes, rates=None, timeout_s=float(timeout_s), tol=float(tol), max_cycles=0,
-                    parameters=parameters)
+    with fresh_context():
+        return _parametric_pairs(view, boxes, parameters, modes, float(timeout_s), float(tol))
+
+
+def _parametric_pairs(view: _View, boxes: Mapping[str, Box], parameters: ParameterSpace,
+                      modes: Sequence[str] | None, timeout_s: float, tol: float) -> tuple[PairVerdict, ...]:
+    qs = _Questions(view, boxes, rates=None, timeout_s=timeout_s, tol=tol, max_cycles=0, parameters=parameters)
     out = []
     unknown = [q for q in (modes or ()) if q not in view.automaton.mode_names]
     if unknown:

@@ -19,8 +19,9 @@ checker reports it as "undecided within N s", never as clean.
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -42,7 +43,8 @@ from .symbolic import (
     render,
 )
 
-__all__ = ["z3_available", "Translation", "rational", "to_float", "check_sat", "Answer", "solver_version"]
+__all__ = ["z3_available", "Translation", "rational", "to_float", "check_sat", "Answer", "solver_version",
+           "context", "fresh_context"]
 
 
 def z3_available() -> bool:
@@ -61,12 +63,32 @@ def solver_version() -> str:
     return f"z3 {z3.get_version_string()}"
 
 
-_RATIONALS: dict[float, Any] = {}
+_STATE: dict[str, Any] = {"ctx": None, "numbers": {}}
+
+
+def context() -> Any:
+    """The z3 context of the current decision (:func:`fresh_context`), else z3's main context."""
+    return _STATE["ctx"]
+
+
+@contextlib.contextmanager
+def fresh_context() -> Iterator[Any]:
+    """A private z3 context for one decision: the same questions give the same answers (and witnesses)
+    however many decisions ran before in the process (z3's shared context keeps state between them)."""
+    import z3
+
+    saved = dict(_STATE)
+    _STATE["ctx"], _STATE["numbers"] = z3.Context(), {}
+    try:
+        yield _STATE["ctx"]
+    finally:
+        _STATE.update(saved)
 
 
 def rational(value: float) -> Any:
-    """The exact z3 rational of a finite float (cached: the same numbers recur in every query)."""
-    hit = _RATIONALS.get(value)
+    """The exact z3 rational of a finite float (cached per context: the same numbers recur in every query)."""
+    numbers = _STATE["numbers"]
+    hit = numbers.get(value)
     if hit is not None:
         return hit
     import z3
@@ -74,9 +96,10 @@ def rational(value: float) -> Any:
     if not math.isfinite(value):
         raise SymbolicError(f"the constant {value!r} is not finite; an SMT solver cannot represent it")
     f = Fraction(value)
-    out = z3.Q(f.numerator, f.denominator) if f.denominator != 1 else z3.RealVal(f.numerator)
-    if len(_RATIONALS) < 100_000:
-        _RATIONALS[value] = out
+    ctx = _STATE["ctx"]
+    out = z3.Q(f.numerator, f.denominator, ctx) if f.denominator != 1 else z3.RealVal(f.numerator, ctx)
+    if len(numbers) < 100_000:
+        numbers[value] = out
     return out
 
 
@@ -187,7 +210,7 @@ class Translation:
                 out = z3.If(index < i + 1, self._sub(node.options[i]), out)
             return out
         if isinstance(node, Compare) and (_infinite(node.left) or _infinite(node.right)):
-            return z3.BoolVal(_infinite_compare(node))
+            return z3.BoolVal(_infinite_compare(node), context())
         if isinstance(node, Compare):
             a, b = self._sub(node.left), self._sub(node.right)
             return {">=": lambda: a >= b, ">": lambda: a > b, "<=": lambda: a <= b, "<": lambda: a < b,
@@ -225,7 +248,7 @@ class Translation:
         if op == "pow":
             k = int(node.args[1].value)  # type: ignore[attr-defined]
             if k == 0:
-                return z3.RealVal(1)
+                return z3.RealVal(1, context())
             out = args[0]
             for _ in range(k - 1):
                 out = out * args[0]
@@ -242,7 +265,7 @@ class Translation:
         import z3
 
         lo, hi = enclose(node, self.bounds, self.memory_bounds, param_bounds=self.param_bounds)
-        fresh = z3.Real(f"{self.prefix}!{len(self.approximated)}")
+        fresh = z3.Real(f"{self.prefix}!{len(self.approximated)}", context())
         self.approximated.append(render(node))
         if math.isfinite(lo):
             self._collect.append(fresh >= rational(lo))
@@ -288,7 +311,7 @@ def check_sat(constraints: list[Any], timeout_s: float) -> Answer:
 
     import z3
 
-    solver = z3.Solver()
+    solver = z3.Solver(ctx=context())
     solver.set("timeout", max(1, int(round(timeout_s * 1000))))
     solver.add(*constraints)
     start = _time.perf_counter()

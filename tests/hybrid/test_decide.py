@@ -538,3 +538,19 @@ def test_division_by_a_non_constant_in_a_guard_is_refused_naming_the_transition(
         Transition(name="ratio", source="a", target="b", guard=v.x - 1.0, reset=reset(k=1.0 / v.y))
     with pytest.raises(ModelDefinitionError, match=r"mode 'a'.*division"):
         Mode(name="a", invariant=1.0 - v.x / v.y)
+
+
+def test_the_same_question_gets_the_same_answer_and_witnesses_within_one_process():
+    """Each decision runs in its own z3 context: what ran before in the process changes nothing."""
+    import json
+
+    from hybrid.examples import reference_models
+
+    models = reference_models()
+    first = json.dumps(check(models["nondeterministic"].system, models["nondeterministic"].box).as_dict(),
+                       sort_keys=True)
+    for other in ("thermostat", "bad_reset", "deadlock"):
+        check(models[other].system, models[other].box)
+    again = json.dumps(check(models["nondeterministic"].system, models["nondeterministic"].box).as_dict(),
+                       sort_keys=True)
+    assert first == again
