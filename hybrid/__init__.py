@@ -4,12 +4,14 @@ It knows nothing of robots.  Models: :mod:`hybrid.model` (automata),
 :mod:`hybrid.system` (flows, jump maps, outputs), :mod:`hybrid.region` (boxes);
 the one rule of an instant: :mod:`hybrid.instant`; executors:
 :mod:`hybrid.sampled`, :mod:`hybrid.continuous`; diagnostics and checks:
-:mod:`hybrid.diagnostics`, :mod:`hybrid.check`; graph and exports:
+:mod:`hybrid.diagnostics`, :mod:`hybrid.check` (sampled), :mod:`hybrid.decide` (SMT-decided, on models
+written with :mod:`hybrid.symbolic`; z3 terms in :mod:`hybrid.smt`); graph and exports:
 :mod:`hybrid.graph`, :mod:`hybrid.affine`, :mod:`hybrid.export`; the JSON
 policy: :mod:`hybrid.jsonable`; reference systems: :mod:`hybrid.examples`.
 """
 
 from .check import CheckReport, Finding, Witness, check
+from .decide import Claim, Decision, ParameterSpace, decide, exclusive_for_all
 from .continuous import FlowSegment, HybridEvent, HybridTrajectory, simulate_continuous
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import (
@@ -30,6 +32,11 @@ from .system import HybridSystem
 
 __all__ = [
     "check",
+    "decide",
+    "exclusive_for_all",
+    "Decision",
+    "Claim",
+    "ParameterSpace",
     "CheckReport",
     "Finding",
     "Witness",

@@ -69,7 +69,7 @@ CLAIM_STATUSES = ("proven", "measured", "sampled")
 """How a claim was obtained, strongest first."""
 
 DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx", "matplotlib", "dask",
-                "distributed")
+                "distributed", "z3-solver")
 """Packages whose versions the report records."""
 
 VERDICT_LABELS = {"proven": "PROVEN", "falsified": "FALSIFIED", "not_falsified": "NOT FALSIFIED",
