@@ -64,7 +64,7 @@ from typing import Any
 
 import networkx as nx
 
-from .check import KIND_SEVERITY, Finding, Witness, _g, _num, _Oracle
+from .findings import KIND_SEVERITY, Finding, Witness, _boxes, _g, _num, _Oracle
 from .errors import ExecutionError, ModelDefinitionError
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
@@ -1523,8 +1523,6 @@ def decide(
     ModelDefinitionError
         A box that does not match the model, a rate that is not a number >= 0, bad arguments.
     """
-    from .check import _boxes
-
     view = _View(model)
     validate_options(view.coords, rates, timeout_s)
     boxes = _boxes(view.oracle, box)
@@ -1581,8 +1579,6 @@ def exclusive_for_all(
     "exclusive for every d− < d0 < d+ and every hysteresis h > 0" is
     ``exclusive_for_all(system, box, ParameterSpace(bounds=..., assumptions=(d_minus < d_zero, ...)))``.
     """
-    from .check import _boxes
-
     view = _View(model)
     validate_options(view.coords, None, timeout_s)
     boxes = _boxes(view.oracle, box)

@@ -167,7 +167,8 @@ def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str
                               **checks},
         "figures": ["mode_graph"],
     }
-    claims = report_claims(report, section="model", subject=f"the {len(automaton.modes)}-mode supervisor")
+    claims = report_claims(report, section="model", subject=f"the {len(automaton.modes)}-mode supervisor",
+                           claim=Claim)
     return data, claims, {"mode_graph": mode_graph_figure(automaton)}
 
 

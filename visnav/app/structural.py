@@ -19,7 +19,7 @@ MEASURED when a finding's witness was re-checked.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from visnav.parameters import Scenario
@@ -220,7 +220,7 @@ def structural_data(report: Any) -> dict[str, Any]:
             "solver": str(getattr(report, "solver", "") or "")}
 
 
-def report_claims(report: Any, *, section: str, subject: str) -> list[Any]:
+def report_claims(report: Any, *, section: str, subject: str, claim: Callable[..., Any]) -> list[Any]:
     """The report's claims of a structural check report: one for the graph checks, one per check with a claim.
 
     Parameters
@@ -232,12 +232,16 @@ def report_claims(report: Any, *, section: str, subject: str) -> list[Any]:
         The report section the claims belong to.
     subject : str
         What was checked, e.g. ``"the 18-mode supervisor"``.
+    claim : callable
+        ``claim(section=..., status=..., text=...)``: the report's claim type
+        (:class:`visnav.app.verification_report.Claim`, passed in so that this module does not import
+        the report that imports it).
 
     Returns
     -------
-    list of visnav.app.verification_report.Claim
+    list of what ``claim`` returns
     """
-    from visnav.app.verification_report import Claim
+    Claim = claim  # noqa: N806 - the report's claim class
 
     findings = tuple(getattr(report, "findings", ()))
     graph = [f for f in findings if f.kind in _GRAPH_KINDS]

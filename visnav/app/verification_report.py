@@ -426,7 +426,7 @@ def structure_section(problem: Any) -> Section | None:
             "summary": summary, "findings": findings,
             "checks": dict(getattr(searched, "checks", {})), "samples": getattr(searched, "samples", None),
             "seed": getattr(searched, "seed", None), **structural_data(report)}
-    claims = report_claims(report, section="structure", subject=automaton)
+    claims = report_claims(report, section="structure", subject=automaton, claim=Claim)
     return Section(data=to_jsonable(data, nonfinite="string"), claims=tuple(claims))
 
 
