@@ -77,7 +77,7 @@ import numpy as np
 from scipy.optimize import Bounds, minimize
 
 from .errors import ExecutionError, ModelDefinitionError
-from .findings import KIND_SEVERITY, SEVERITIES, SIGNIFICANT_DIGITS, Finding, Witness, _boxes, _g, _num, _Oracle
+from .findings import KIND_SEVERITY, SEVERITIES, Finding, Witness, _boxes, _g, _num, _Oracle
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import HybridAutomaton, Transition

@@ -1389,13 +1389,16 @@ class _Zeno:
         return self._proj[key]
 
     def travel_bound(self, cycle: Sequence[Transition]) -> tuple[float, str]:
-        """``max_j`` (distance coordinate j must travel in one lap) / (its largest rate along the lap)."""
+        """(distance a coordinate must travel in one lap) / (its largest rate along the lap), for the first
+        coordinate that gives a positive bound (coordinates read by the most guards of the lap first)."""
         qs = self.qs
-        best, where = 0.0, ""
         jumps = [qs.v.jump(t) for t in cycle]
         if any(j is None for j in jumps):
             return 0.0, ""
-        for i, n in enumerate(qs.v.coords):
+        reads = {n: sum(n in free_symbols(qs.v.guard(t))["coordinates"] for t in cycle) for n in qs.v.coords}
+        order = sorted((i for i, n in enumerate(qs.v.coords) if reads[n] >= 2), key=lambda i: -reads[qs.v.coords[i]])
+        for i in order:
+            n = qs.v.coords[i]
             if any(not (isinstance(j[i], Coordinate) and j[i].name == n) for j in jumps):  # type: ignore[index]
                 continue  # a jump moves this coordinate: its path is not continuous
             rate = max(qs.rates(t.target)[n] for t in cycle)
@@ -1403,10 +1406,9 @@ class _Zeno:
                 continue
             path = [self.projection(t, n) for t in cycle]
             distance = _travel(path + [path[0]])
-            if distance / rate > best:
-                best = distance / rate
-                where = f"{n} must travel {_g(distance)} per lap at <= {_g(rate)} per s"
-        return best, where
+            if distance > 0.0:
+                return distance / rate, f"{n} must travel {_g(distance)} per lap at <= {_g(rate)} per s"
+        return 0.0, ""
 
     def verdict(self, cycle: tuple[Transition, ...]) -> CycleVerdict:
         modes = tuple(t.source for t in cycle)
