@@ -93,6 +93,10 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
                      help="timeout of one solver call [s]; a call that times out leaves its answer undecided "
                           "(default: 5)")
+    chk.add_argument("--parametric", action="store_true",
+                     help="also decide which pairs of transitions are exclusive for EVERY admissible envelope "
+                          "(0 < d- < d0 < d+, 0 < D- < D0 < D+, hysteresis > 0, 0 < arm < pi/2), not only the "
+                          "scenario's values")
     chk.set_defaults(func=_cmd_check_model)
     from visnav.app.cli_sweep import add_parser as _add_sweep; _add_sweep(sub)
     from visnav.app.cli_stiffness import add_parser as _add_stiffness; _add_stiffness(sub)
@@ -542,16 +546,47 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
     report = check_supervisor(scenario, samples=args.samples, starts=args.starts, seed=args.seed, method=method,
                               timeout_s=timeout_s)
     elapsed = time.perf_counter() - start
+    parametric = _parametric_pairs(scenario, timeout_s) if args.parametric else None
     if args.json:
         rates = {name: float(f"{rate:.12g}") for name, rate in supervisor_rates(scenario).items()}
         out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario), "clean": report.clean,
                "method": method, "timeout_s": timeout_s, "rates": rates}
         out.update(report.as_dict())
+        if parametric is not None:
+            out["parametric"] = parametric
         print(json.dumps(out, sort_keys=True))
     else:
         print(_check_human(report, f"scenario {scenario.name}", elapsed, method=method, timeout_s=timeout_s,
                            box="declared measurement box"))
+        if parametric is not None:
+            print(_parametric_human(parametric))
     return EXIT_OK if report.clean else EXIT_TASK_FAILED
+
+
+def _parametric_pairs(scenario: Any, timeout_s: float) -> dict[str, Any]:
+    """The supervisor's pairs decided for every admissible envelope (``check-model --parametric``)."""
+    from hybrid.decide import exclusive_for_all
+
+    from visnav.supervisor import build_supervisor, measurement_box, measurement_system, parameter_space
+
+    model = build_supervisor(scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
+    space = parameter_space(model)
+    pairs = exclusive_for_all(measurement_system(model), measurement_box(model, scenario.camera.half_width_px),
+                              space, timeout_s=timeout_s)
+    return {"assumptions": space.description, "pairs": [p.as_dict() for p in pairs]}
+
+
+def _parametric_human(parametric: dict[str, Any]) -> str:
+    rows = parametric["pairs"]
+    exclusive = [r for r in rows if r["verdict"] == "exclusive"]
+    overlap = [r for r in rows if r["verdict"] == "overlap"]
+    undecided = [r for r in rows if r["verdict"] not in ("exclusive", "overlap")]
+    lines = [f"  parametric, for {parametric['assumptions']}:",
+             f"    {len(exclusive)} of {len(rows)} pairs exclusive for every admissible envelope (PROVEN); "
+             f"{len(overlap)} overlap for some envelope (re-checked witnesses with its values)"
+             + (f"; {len(undecided)} undecided" if undecided else "")]
+    lines += [f"    undecided: {r['mode']} {r['first']} / {r['second']}: {r['detail']}" for r in undecided[:5]]
+    return "\n".join(lines)
 
 
 def _single_threaded_blas() -> None:

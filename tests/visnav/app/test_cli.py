@@ -198,3 +198,17 @@ def test_docs_supervisor_dot_is_the_current_mode_graph(capsys):
     assert main(["mode-graph"]) == 0
     dot = capsys.readouterr().out
     assert (Path(__file__).parents[3] / "docs" / "supervisor.dot").read_text() == dot
+
+
+def test_check_model_parametric_proves_the_exclusive_pairs_for_every_admissible_envelope(capsys):
+    assert main(["check-model", "--parametric", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    rows = out["parametric"]["pairs"]
+    verdicts = {(r["first"], r["second"]): r["verdict"] for r in rows}
+    assert len(rows) == 43 and sum(v == "exclusive" for v in verdicts.values()) == 14
+    # the release band is exclusive whatever the envelopes: D_end >= D+ > D-
+    assert verdicts[("FAR@RELEASE->CLEAR", "FAR@RELEASE->OCCLUDED")] == "exclusive"
+    assert "0 < d- < d0 < d+" in out["parametric"]["assumptions"]
+    for r in rows:
+        if r["verdict"] == "overlap":  # every overlap witness carries the envelope it holds for
+            assert any(k.startswith("param ") for k in r["witness"]["values"])
