@@ -34,7 +34,15 @@ from typing import Any
 import numpy as np
 
 from .errors import ExecutionError, ModelDefinitionError
-from .symbolic import Condition, Expr, SymbolicReset, free_symbols, level_form, unsupported_terms
+from .symbolic import (
+    Condition,
+    Expr,
+    SymbolicReset,
+    free_symbols,
+    level_form,
+    misplaced_coordinates,
+    unsupported_terms,
+)
 
 __all__ = [
     "Guard",
@@ -83,6 +91,17 @@ def refuse_unsupported(function: Any, what: str, timed: bool = True) -> None:
         raise ModelDefinitionError(
             f"{what} reads the time t, which guards, invariants and resets do not receive (they read the "
             "signals v and the memory m); give time as a state (a clock with flow 1) or a signal of the output"
+        )
+
+
+def refuse_misplaced(function: Any, names: Sequence[str], what: str, kind: str) -> None:
+    """Raise :class:`ModelDefinitionError` when a symbolic function reads a coordinate by a name that is not
+    the vector's name at that index (it would read the wrong component)."""
+    bad = misplaced_coordinates(function, names)
+    if bad:
+        raise ModelDefinitionError(
+            f"{what} reads coordinate(s) {', '.join(bad)}; build them with "
+            f"hybrid.symbolic.coordinates({', '.join(repr(n) for n in names)}) (the {kind}, in order)"
         )
 
 
@@ -328,6 +347,10 @@ class HybridAutomaton:
         A probe that raises proves nothing and is ignored (the function may be undefined at zero);
         the executors and checks refuse a bool at every evaluation as well (:func:`refuse_bool`).
         """
+        for what, function in [(f"invariant of mode {q.name!r}", q.invariant) for q in self.modes] + [
+                (f"guard of transition {t.name!r}", t.guard) for t in self.transitions] + [
+                (f"reset of transition {t.name!r}", t.reset) for t in self.transitions]:
+            refuse_misplaced(function, self.variables, f"automaton {self.name!r}: {what}", "variables")
         zeros = tuple(0.0 for _ in self.variables)
         memory = MappingProxyType(self.initial_memory())
         probes = [(f"invariant of mode {q.name!r}", q.invariant) for q in self.modes if q.invariant is not None]

@@ -97,6 +97,7 @@ __all__ = [
     "free_symbols",
     "transcendental_terms",
     "unsupported_terms",
+    "misplaced_coordinates",
     "Unsupported",
     "substitute",
     "to_casadi",
@@ -1046,6 +1047,29 @@ def unsupported_terms(node: Any) -> list[Unsupported]:
     if not isinstance(node, (Expr, Condition)):
         return []
     return [n for n in _walk(node) if isinstance(n, Unsupported)]
+
+
+def misplaced_coordinates(node: Any, names: Sequence[str]) -> list[str]:
+    """Coordinates of ``node`` whose name is not the ``names`` entry at their index (text for each).
+
+    A coordinate built by :func:`coordinates` over other names than the vector it is evaluated on would
+    read the wrong component silently: the model refuses it (:mod:`hybrid.model`, :mod:`hybrid.system`).
+    """
+    if isinstance(node, SymbolicReset):
+        parts: list[Any] = list(node.assignments.values())
+    elif isinstance(node, SymbolicVector):
+        parts = list(node.components)
+    elif isinstance(node, (Expr, Condition)):
+        parts = [node]
+    else:
+        return []
+    bad = set()
+    for p in parts:
+        for n in _walk(p):
+            if isinstance(n, Coordinate) and (n.index >= len(names) or names[n.index] != n.name):
+                actual = names[n.index] if n.index < len(names) else "nothing"
+                bad.add(f"{n.name!r} (index {n.index}, where the vector has {actual!r})")
+    return sorted(bad)
 
 
 def transcendental_terms(node: Expr | Condition) -> list[str]:

@@ -136,13 +136,17 @@ class HybridSystem:
                 )
         elif not callable(self.output):
             raise ModelDefinitionError(f"system {a.name!r}: output = {self.output!r} is not callable")
-        from .model import refuse_unsupported
+        from .model import refuse_misplaced, refuse_unsupported
 
         for mode, f in flows.items():
             refuse_unsupported(f, f"system {a.name!r}: flow of mode {mode!r}")
+            refuse_misplaced(f, self.state_names, f"system {a.name!r}: flow of mode {mode!r}", "state names")
         for name, r in jumps.items():
             refuse_unsupported(r, f"system {a.name!r}: jump map of transition {name!r}", timed=False)
+            refuse_misplaced(r, self.state_names, f"system {a.name!r}: jump map of transition {name!r}",
+                             "state names")
         refuse_unsupported(self.output, f"system {a.name!r}: output")
+        refuse_misplaced(self.output, self.state_names, f"system {a.name!r}: output", "state names")
         object.__setattr__(self, "flows", MappingProxyType(flows))
         object.__setattr__(self, "jumps", MappingProxyType(jumps))
 

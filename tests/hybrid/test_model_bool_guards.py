@@ -322,3 +322,13 @@ def test_a_symbolic_reset_provides_writes_and_runs():
     assert automaton(V.x >= 5.0, reset_=r, writes=("n",)).transitions[0].writes == ("n",)
     with pytest.raises(ModelDefinitionError, match=r"writes = \('m',\) but the symbolic reset assigns \('n',\)"):
         Transition(name="go", source="wait", target="done", guard=V.x >= 5.0, reset=r, writes=("m",))
+
+
+def test_a_symbolic_guard_over_other_coordinates_than_the_automaton_variables_is_refused():
+    """coordinates('a', 'b') evaluated on variables ('x', 'y') would silently read the wrong component."""
+    from hybrid.symbolic import coordinates
+
+    v = coordinates("a", "b")
+    with pytest.raises(ModelDefinitionError, match=r"'b' \(index 1, where the vector has 'y'\).*coordinates\('x', 'y'\)"):
+        HybridAutomaton(name="x", modes=(Mode(name="q"),), variables=("x", "y"),
+                        transitions=(Transition(name="t", source="q", target="q", guard=v.b - 1.0),))
