@@ -116,18 +116,6 @@ def test_a_thin_overlap_is_found_for_every_seed_with_a_witness_that_rechecks():
     assert all(w == witnesses[0] for w in witnesses)
 
 
-def test_a_thin_overlap_sampled_with_plain_lambdas_is_recorded(record_property):
-    """Recorded, not asserted: how many of the seeds the sampled search finds the same sliver."""
-    model = _sliver_overlap(symbolic=False)
-    hits = 0
-    for seed in SEEDS:
-        report = check(model, BOX_XY, seed=seed, method="sampled")
-        assert report.claim("nondeterminism") in ("found", "sampled")
-        hits += bool(report.of_kind("nondeterminism"))
-    record_property("sampled_overlap_hits", f"{hits}/{len(SEEDS)}")
-    print(f"sampled search found the {SLIVER:g}-wide overlap for {hits} of {len(SEEDS)} seeds")
-
-
 def _sliver_deadlock(symbolic: bool, repaired: bool = False) -> HybridSystem:
     """Mode ``run``: flow (1, 0), invariant x <= 1; at the boundary x = 1, ``up`` covers y >= SLIVER and
     ``down`` covers y <= 0, leaving y in (0, SLIVER) deadlocked.  Repaired: ``up`` covers y >= 0, and the
@@ -195,16 +183,6 @@ def test_the_repaired_deadlock_model_is_proven_deadlock_free_and_deterministic()
     # the guards now touch at y = 0 on the boundary; the priorities resolve it (info, re-checked)
     (info,) = report.of_kind("priority_overlap")
     assert _guard(model, "up", info.witness) >= 0.0 and _guard(model, "down", info.witness) >= 0.0
-
-
-def test_a_thin_deadlock_sampled_with_plain_lambdas_is_recorded(record_property):
-    model = _sliver_deadlock(symbolic=False)
-    hits = 0
-    for seed in SEEDS:
-        report = check(model, BOX_XY, seed=seed, method="sampled")
-        hits += bool(report.of_kind("deadlock"))
-    record_property("sampled_deadlock_hits", f"{hits}/{len(SEEDS)}")
-    print(f"sampled search found the {SLIVER:g}-wide deadlock for {hits} of {len(SEEDS)} seeds")
 
 
 # ====================================================================== 2. reference models
