@@ -539,6 +539,11 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
     from visnav.scenario import load_scenario, scenario_digest
 
     if args.problem is not None:
+        if args.parametric:
+            print("visnav: error: --parametric asks about the supervisor's envelopes (a --scenario), not a --problem; "
+                  "for your own model call hybrid.exclusive_for_all(system, box, ParameterSpace(...)) from Python",
+                  file=sys.stderr)
+            return EXIT_BAD_INPUT
         return _check_problem(args)
     scenario = load_scenario(args.scenario)
     method, timeout_s = args.method or CHECK_DEFAULT_METHOD, args.timeout or CHECK_DEFAULT_TIMEOUT_S

@@ -212,3 +212,9 @@ def test_check_model_parametric_proves_the_exclusive_pairs_for_every_admissible_
     for r in rows:
         if r["verdict"] == "overlap":  # every overlap witness carries the envelope it holds for
             assert any(k.startswith("param ") for k in r["witness"]["values"])
+
+
+def test_check_model_parametric_with_a_problem_is_refused(capsys):
+    assert main(["check-model", "--problem", "examples/thermostat.py:problem", "--parametric"]) == 2
+    err = capsys.readouterr().err
+    assert "--parametric" in err and "exclusive_for_all" in err and "Traceback" not in err
