@@ -718,14 +718,21 @@ class _Decider:
         key = (q, None if only is None else only.name, strict, role, entry, writers)
         hit = self._states.get(key)
         if hit is None:
-            f = self.frame(f"{role} {q}")
-            tr = self.translation(f, q)
-            memory, disjuncts = self.entry(f, q, only) if entry else ([], [])
+            # the frame, its translation and its entry formula are shared by every role whose queries hold
+            # one point of the mode (each query is its own solver); only "pre" needs a frame of its own
+            base_key = ("frame", q, None if only is None else only.name, "pre" if role == "pre" else "point", entry)
+            base = self._states.get(base_key)
+            if base is None:
+                f = self.frame(f"{role} {q}")
+                tr = self.translation(f, q)
+                memory, disjuncts = self.entry(f, q, only) if entry else ([], [])
+                base = self._states[base_key] = (f, tr, _conjoin(self.box(f, q) + self.hull(f, q) + memory),
+                                                 disjuncts)
+            f, tr, core, disjuncts = base
             tr.begin()
             inside = self.inside(tr, q, strict)
             last = self.written(f, q, bool(writers), sorted(writers) if writers else None)
-            hit = (f, [_conjoin(self.box(f, q) + self.hull(f, q) + memory + last + inside + list(tr.side))], tr,
-                   disjuncts)
+            hit = (f, [core, _conjoin(last + inside + list(tr.side))], tr, disjuncts)
             self._states[key] = hit
         f, cons, tr, disjuncts = hit
         tr.begin()
