@@ -1337,58 +1337,6 @@ class _Zeno:
             self._dwell[key] = self.qs.dwell(t_in, t_out)
         return self._dwell[key]
 
-    def _symbols(self, e: Any) -> set[str]:
-        if not isinstance(e, (Expr, Condition)):
-            return set()
-        f = free_symbols(e)
-        return {f"x.{n}" for n in f["coordinates"]} | {f"m.{n}" for n in f["memory"]}
-
-    def independent_exit(self, t_in: Transition, t_out: Transition) -> tuple[float, str] | None:
-        """The dwell of a pair whose exit reads nothing the entry constrains, without the optimiser.
-
-        When ``t_out``'s guard shares no coordinate or memory with ``t_in``'s guard and reset (nor
-        with an invariant), ``t_in``'s jump is the identity and both modes have the same box, the
-        query splits into two independent parts over a product of intervals: ``t_out`` can then
-        fire at the very state ``t_in`` lands on (dwell 0) iff its guard holds somewhere on the box
-        with the memory it reads in the source's hull, and never otherwise (infeasible).  ``None``
-        when the shortcut does not apply.
-        """
-        q = t_in.target
-        jump = self.v.jump(t_in)
-        if jump is None or any(not (isinstance(e, Coordinate) and e.name == n) for e, n in zip(jump, self.v.coords)):
-            return None
-        if self.v.invariant(q) is not True or self.v.invariant(t_in.source) is not True:
-            return None
-        if self.boxes[q] != self.boxes[t_in.source]:
-            return None
-        written = self.v.reset(t_in) or {}
-        entry = self._symbols(self.v.guard(t_in)) | {f"m.{k}" for k in t_in.writes}
-        for e in written.values():
-            entry |= self._symbols(e)
-        exit_reads = self._symbols(self.v.guard(t_out))
-        if exit_reads & entry:
-            return None
-        hull = self.hulls[t_in.source] or {}
-        reads = sorted(n[2:] for n in exit_reads if n.startswith("m."))
-        key = ("fires", t_out.name, tuple((k, hull.get(k)) for k in reads))
-        if key not in self._states:
-            f, cons, tr = self.landing(q, "fires")
-            cons = [c for c in self.box(f, q)] + [self.enabled(tr, t_out)] + tr.side
-            for k in reads:
-                lo, hi = hull.get(k, (-math.inf, math.inf))
-                if math.isfinite(lo):
-                    cons.append(f.m[k] >= rational(lo))
-                if math.isfinite(hi):
-                    cons.append(f.m[k] <= rational(hi))
-            status, _ = self.solve(cons, f"dwell exit {t_out.name}")
-            self._states[key] = status
-        status = self._states[key]
-        if status == "sat":
-            return 0.0, ""
-        if status == "unsat":
-            return math.inf, "infeasible"
-        return None
-
     def projection(self, t: Transition, n: str) -> tuple[float, float]:
         key = (t.name, n)
         if key not in self._proj:

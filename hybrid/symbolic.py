@@ -904,11 +904,28 @@ def _compiled(node: Any, kind: str) -> Callable[..., Any]:
             body = "{" + ", ".join(f"{name!r}: {_source(p, vec)}" for name, p in parts) + "}"
         else:
             body = "(" + "".join(f"{_source(p, vec)}, " for _, p in parts) + ")"
-        fn = eval(compile(f"lambda {params}: {body}", f"<symbolic {kind}>", "eval"), dict(_NAMESPACE))  # noqa: S307
+        fn = _compile_lambda(f"lambda {params}: {body}", kind)
     if len(_CACHE) >= _CACHE_LIMIT:
         _CACHE.clear()
     _CACHE[key] = (node, fn)  # the node is kept alive with its function, so its id stays unique
     return fn
+
+
+_COMPILED = itertools.count()
+
+
+def _compile_lambda(source: str, kind: str) -> Callable[..., Any]:
+    """The float function of a generated lambda, its source registered with :mod:`linecache`.
+
+    The source is built by :func:`_source` from the node types of this module only (floats by
+    ``repr``, coordinate indices, memory names by ``repr``), evaluated with an empty ``__builtins__``;
+    registering it makes a traceback through a compiled guard show the expression, not a blank line.
+    """
+    import linecache
+
+    filename = f"<symbolic {kind} {next(_COMPILED)}>"
+    linecache.cache[filename] = (len(source), None, [source + "\n"], filename)
+    return eval(compile(source, filename, "eval"), dict(_NAMESPACE))  # noqa: S307 - generated, see above
 
 
 def _parts(node: Any) -> list[tuple[str, Expr]]:

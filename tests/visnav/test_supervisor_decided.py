@@ -151,3 +151,23 @@ def test_the_smallest_dwell_bound_is_one_centimetre_at_the_distance_rate(decided
     assert exact * (1.0 - 1e-6) <= z.min_dwell_s <= exact * (1.0 + 1e-12)
     assert "LEAVE" in z.binding and "LEAVE->AVOID" in z.binding
     assert any(n.startswith("LEAVE->AVOID@") for n in z.binding_cycle)
+
+
+def test_dropping_the_detection_hysteresis_is_caught_by_the_zeno_check():
+    """A realistic slip (hysteresis 0, finding R2 of docs/fuzzing.md): FAR <-> APPROACH can cycle at one
+    instant on d = d+, and the decided Zeno check says so with a re-checked witness."""
+    from hybrid import check
+
+    from visnav.parameters import Envelopes, SupervisorSettings
+    from visnav.supervisor import build_supervisor, measurement_box, measurement_rates, measurement_system
+
+    model = build_supervisor(Envelopes(), SupervisorSettings(detection_hysteresis_m=0.0), 2)
+    rates = measurement_rates({"d": 0.01, "d_occ": 4.0, "d_bord": 6.0, "pan": 0.04}, 0.05, 2)
+    report = check(measurement_system(model), measurement_box(model, 320.0), rates=rates)
+    assert report.claims["zeno"].status == "found"
+    cycles = [v for v in report.zeno.verdicts if v.verdict in ("zeno_point", "instantaneous")]
+    assert cycles and all(set(v.transitions) <= {f"FAR->APPROACH@{o}" for o in ("CLEAR", "OCCLUDED", "RELEASE")}
+                          | {f"APPROACH->FAR@{o}" for o in ("CLEAR", "OCCLUDED", "RELEASE")} for v in cycles)
+    w = cycles[0].witness
+    d_plus = Envelopes().d_plus_m
+    assert min(w.state["d_coll_0_m"], w.state["d_coll_1_m"]) == pytest.approx(d_plus, abs=1e-12)
