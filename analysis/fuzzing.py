@@ -62,6 +62,7 @@ from hypothesis.errors import HypothesisException, HypothesisWarning
 from hypothesis.stateful import RuleBasedStateMachine, run_state_machine_as_test
 
 __all__ = [
+    "project_constants_ignored",
     "Channel",
     "Sample",
     "Segment",
@@ -462,8 +463,9 @@ def _observe(label: str, value: float) -> None:
 
 
 @contextlib.contextmanager
-def _project_constants_ignored() -> Iterator[None]:
-    """Keep hypothesis from mixing the project's own source constants into the draws.
+def project_constants_ignored() -> Iterator[None]:
+    """Keep hypothesis from mixing the project's own source constants into the draws (every hypothesis search of
+    the toolkit runs inside this: fuzzing here, falsification in :mod:`analysis.falsification`).
 
     Since 6.131 hypothesis draws, with a small probability, numbers found in
     the source of every *local* module in ``sys.modules``; the examples of a
@@ -554,7 +556,7 @@ def run_property(
     if seed is not None:
         wrapped = hypothesis_seed(seed)(wrapped)
     try:
-        with warnings.catch_warnings(), _project_constants_ignored():
+        with warnings.catch_warnings(), project_constants_ignored():
             warnings.simplefilter("ignore", HypothesisWarning)  # large reprs of long failing sequences
             wrapped()
     except HypothesisException:
@@ -612,7 +614,7 @@ def run_machine(
     if seed is not None:
         Recorded = hypothesis_seed(seed)(Recorded)  # noqa: N806
     try:
-        with warnings.catch_warnings(), _project_constants_ignored():
+        with warnings.catch_warnings(), project_constants_ignored():
             warnings.simplefilter("ignore", HypothesisWarning)
             run_state_machine_as_test(Recorded, settings=config)
     except HypothesisException:

@@ -1,6 +1,6 @@
 """Structural checks of the paper's supervisor: SMT-decided (PROVEN) vs sampled, side by side on one core.
 
-Run: ``.venv/bin/python benchmarks/bench_check.py [--repeats N] [--samples S]``.
+Run: ``.venv/bin/python benchmarks/bench_check.py [--repeats N] [--samples S] [--cli-repeats K]``.
 
 The process is pinned to one CPU and to one BLAS thread before anything is
 measured.  Both methods run on the same automaton (the 18-mode product of
@@ -9,7 +9,9 @@ measurement space's rate bounds), alternating, ``--repeats`` times; the table
 gives the median wall time of each, their ratio, and what each answered (the
 pair verdicts and Zeno cycles of the decided run; the sampled run's findings).
 A cold run (first call: z3 import, compilation of the symbolic guards) is
-reported separately from the warm medians.
+reported separately from the warm medians, and so is the whole command
+(``visnav check-model`` in a fresh process on the same CPU: interpreter
+start, imports, scenario, cold check and output).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--samples", type=int, default=300, help="samples per mode of the sampled check (the CLI default)")
+    parser.add_argument("--cli-repeats", type=int, default=3, help="runs of the whole `visnav check-model` process")
     args = parser.parse_args()
     pinned = _pin()
 
@@ -82,6 +85,24 @@ def main() -> None:
           f"{args.samples} samples per mode")
     print(f"cold first smt call (z3 import, guard compilation): {cold:.3f} s")
     print(f"ratio smt / sampled (medians, same run): {smt / smp:.3f}")
+    cli = _cli_walls(args.cli_repeats)
+    if cli:
+        print(f"visnav check-model, whole process on the same CPU (interpreter, imports, cold check): median "
+              f"{statistics.median(cli):.3f} s, min {min(cli):.3f} s over {len(cli)} runs")
+
+
+def _cli_walls(repeats: int) -> list[float]:
+    """Wall times of the command itself, each a fresh process (it inherits this process's CPU pinning)."""
+    import subprocess
+    import sys
+
+    out = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", "import sys; from visnav.app.cli import main; sys.exit(main(['check-model']))"],
+                       check=True, stdout=subprocess.DEVNULL)
+        out.append(time.perf_counter() - start)
+    return out
 
 
 if __name__ == "__main__":

@@ -8,11 +8,17 @@ the one rule of an instant: :mod:`hybrid.instant`; executors:
 written with :mod:`hybrid.symbolic`; z3 terms in :mod:`hybrid.smt`); graph and exports:
 :mod:`hybrid.graph`, :mod:`hybrid.affine`, :mod:`hybrid.export`; the JSON
 policy: :mod:`hybrid.jsonable`; reference systems: :mod:`hybrid.examples`.
+
+The executors (:mod:`hybrid.continuous`, :mod:`hybrid.sampled`, which load
+SciPy's integrators) are imported on first use of one of their names, so that
+a structural check does not pay for them.
 """
+
+import importlib
+from typing import Any
 
 from .check import CheckReport, Finding, Witness, check
 from .decide import Claim, Decision, ParameterSpace, decide, exclusive_for_all
-from .continuous import FlowSegment, HybridEvent, HybridTrajectory, simulate_continuous
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import (
     DivergenceError,
@@ -26,9 +32,26 @@ from .affine import AffineForm, NotAffine, NotAffineError, affine_form
 from .export import spacex_config, to_dot, to_json, to_spacex
 from .graph import mode_graph
 from .model import Conjunction, HybridAutomaton, MemoryVariable, Mode, Transition, all_of, transition_fires
-from .sampled import Plant, SampledEvent, SampledTrace, settle, simulate_sampled
 from .region import Box
 from .system import HybridSystem
+
+_LAZY = {
+    **dict.fromkeys(("FlowSegment", "HybridEvent", "HybridTrajectory", "simulate_continuous"), "continuous"),
+    **dict.fromkeys(("Plant", "SampledEvent", "SampledTrace", "settle", "simulate_sampled"), "sampled"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hybrid' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
 
 __all__ = [
     "check",

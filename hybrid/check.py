@@ -74,7 +74,6 @@ from typing import Any
 
 import networkx as nx
 import numpy as np
-from scipy.optimize import Bounds, minimize
 
 from .errors import ExecutionError, ModelDefinitionError
 from .findings import KIND_SEVERITY, SEVERITIES, Finding, Witness, _boxes, _g, _num, _Oracle
@@ -500,6 +499,8 @@ class _Checker:
         self, space: _Space, merit: Callable[[np.ndarray], float], starts: Sequence[np.ndarray]
     ) -> list[np.ndarray]:
         """Bounded Nelder-Mead of ``merit`` (over the free coordinates) from each start."""
+        from scipy.optimize import Bounds, minimize  # imported when sampling: a decided check never needs it
+
         free = space.free
         if not len(free):
             note = "no continuous coordinate with lower < upper: sampling only, no local optimisation"

@@ -70,7 +70,7 @@ from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import Conjunction, HybridAutomaton, Transition
 from .region import Box
-from .smt import Translation, context, fresh_context, rational, solver_version, to_float
+from .smt import Translation, all_of, any_of, check_sat, compare, context, fresh_context, rational, solver_version, to_float
 from .symbolic import (
     Condition,
     Coordinate,
@@ -458,7 +458,6 @@ class _Decider:
         self.unknown: list[str] = []
         self.count = itertools.count()
         self._states: dict[tuple[Any, ...], Any] = {}
-        self.timing: dict[str, float] = {}
         self.param_vars: dict[str, Any] = {}
         self.param_bounds: dict[str, tuple[float, float]] = {}
         self.param_constraints: list[Any] = []
@@ -485,22 +484,12 @@ class _Decider:
 
     # ------------------------------------------------------------------ solver
     def solve(self, constraints: list[Any], what: str) -> tuple[str, Any]:
-        import z3
-
-        s = z3.Solver(ctx=context())
-        s.set("timeout", max(1, int(round(self.timeout_s * 1000))))
-        s.add(*constraints, *self.param_constraints)
-        start = _time.perf_counter()
-        r = s.check()
-        self.solver_s += _time.perf_counter() - start
-        self.timing[what.split(" ")[0]] = self.timing.get(what.split(" ")[0], 0.0) + _time.perf_counter() - start
+        answer = check_sat([*constraints, *self.param_constraints], self.timeout_s)
+        self.solver_s += answer.seconds
         self.queries += 1
-        if r == z3.sat:
-            return "sat", s.model()
-        if r == z3.unsat:
-            return "unsat", None
-        self.unknown.append(f"{what}: undecided within {self.timeout_s:g} s ({s.reason_unknown()})")
-        return "unknown", None
+        if answer.status == "unknown":
+            self.unknown.append(f"{what}: undecided within {self.timeout_s:g} s ({answer.reason})")
+        return answer.status, answer.model
 
     def minimise(self, constraints: list[Any], objective: Any, what: str) -> float | None:
         """The optimiser's minimum of ``objective`` (a candidate, verified by the caller), or ``None``."""
@@ -513,7 +502,6 @@ class _Decider:
         start = _time.perf_counter()
         r = o.check()
         self.solver_s += _time.perf_counter() - start
-        self.timing["optimise " + what.split(" ")[0]] = self.timing.get("optimise " + what.split(" ")[0], 0.0) + _time.perf_counter() - start
         self.queries += 1
         if r != z3.sat:
             return None
@@ -583,25 +571,25 @@ class _Decider:
         b = self.boxes[q]
         out = []
         for n, (lo, hi) in b.bounds.items():
-            out += [f.x[n] >= rational(float(lo)), f.x[n] <= rational(float(hi))]
+            out += [compare(">=", f.x[n], rational(float(lo))), compare("<=", f.x[n], rational(float(hi)))]
         for n, values in b.choices.items():
-            out.append(z3.Or(*(f.x[n] == rational(float(c)) for c in values)))
+            out.append(any_of([compare("==", f.x[n], rational(float(c))) for c in values]))
         return out
 
     def hull(self, f: _Frame, q: str) -> list[Any]:
         out = []
         for k, (lo, hi) in (self.hulls[q] or {}).items():
             if math.isfinite(lo):
-                out.append(f.m[k] >= rational(lo))
+                out.append(compare(">=", f.m[k], rational(lo)))
             if math.isfinite(hi):
-                out.append(f.m[k] <= rational(hi))
+                out.append(compare("<=", f.m[k], rational(hi)))
         return out
 
     def enabled(self, tr: Translation, t: Transition, strict: bool = False) -> Any:
-        g = tr.term(self.v.guard(t))
+        g, zero = tr.term(self.v.guard(t)), rational(0.0)
         if t.direction < 0:
-            return g < 0 if strict else g <= 0
-        return g > 0 if strict else g >= 0
+            return compare("<" if strict else "<=", g, zero)
+        return compare(">" if strict else ">=", g, zero)
 
     def disabled(self, tr: Translation, t: Transition, margin: float = 0.0) -> Any:
         g = tr.term(self.v.guard(t))
@@ -628,7 +616,7 @@ class _Decider:
         disjuncts: list[tuple[str, Any, _Frame | None]] = []
         if q == self.a.initial_mode and only is None:
             init = self.a.initial_memory()
-            disjuncts.append(("initial", z3.And(*(f.m[k] == rational(c) for k, c in init.items())), None))
+            disjuncts.append(("initial", all_of([compare("==", f.m[k], rational(c)) for k, c in init.items()]), None))
         entering = [t for t in self.a.transitions if t.target == q and self.hulls[t.source] is not None
                     and t.source in self.boxes]
         if only is not None:
@@ -643,14 +631,14 @@ class _Decider:
             for k in self.v.memory_names:
                 if k in t.writes:
                     if written is not None:
-                        parts.append(f.m[k] == tr.term(written[k]))
+                        parts.append(compare("==", f.m[k], tr.term(written[k])))
                 else:
-                    parts.append(f.m[k] == p.m[k])
+                    parts.append(compare("==", f.m[k], p.m[k]))
             parts += tr.side
-            disjuncts.append((t.name, z3.And(*parts), p))
+            disjuncts.append((t.name, all_of(parts), p))
         if not disjuncts:
             return [z3.BoolVal(False, context())], []
-        return [z3.Or(*(d for _, d, _ in disjuncts))], disjuncts  # type: ignore[misc]
+        return [any_of([d for _, d, _ in disjuncts])], disjuncts  # type: ignore[misc]
 
     def last_writers(self, q: str, k: str) -> list[Transition | None]:
         """Transitions that can have written memory ``k`` last when in ``q`` (``None``: its initial value)."""
@@ -691,7 +679,7 @@ class _Decider:
             options = []
             for t in self.last_writers(q, k):
                 if t is None:
-                    options.append(f.m[k] == rational(self.a.initial_memory()[k]))
+                    options.append(compare("==", f.m[k], rational(self.a.initial_memory()[k])))
                     continue
                 reset = self.v.reset(t)
                 if reset is None or t.source not in self.boxes:
@@ -702,9 +690,9 @@ class _Decider:
                 parts = self.box(p, t.source) + self.hull(p, t.source) + self.inside(tr, t.source)
                 if self.v.guard(t) is not None:
                     parts.append(self.enabled(tr, t))
-                parts.append(f.m[k] == tr.term(reset[k]))
-                options.append(z3.And(*parts, *tr.side))
-            out.append(z3.Or(*options) if options else z3.BoolVal(False, context()))
+                parts.append(compare("==", f.m[k], tr.term(reset[k])))
+                options.append(all_of(parts + list(tr.side)))
+            out.append(any_of(options))
         return out
 
     def state(self, q: str, only: Transition | None = None, strict: bool = False, role: str = "main",
@@ -794,9 +782,7 @@ class _Decider:
 
 def _conjoin(constraints: list[Any]) -> Any:
     """One formula for a cached list of constraints (one assertion instead of many)."""
-    import z3
-
-    return z3.And(*constraints) if constraints else z3.BoolVal(True, context())
+    return all_of(constraints)
 
 
 def _close(a: float, b: float) -> bool:
@@ -1046,7 +1032,7 @@ class _Questions(_Decider):
         q0 = cycle[0].source
         f, cons, tr, _ = self.state(q0, role="neighbour")
         cons.append(self.enabled(tr, cycle[0]))
-        cons.append(z3.Not(z3.And(*self.lap_formula(f, tr, cycle))))
+        cons.append(z3.Not(all_of(self.lap_formula(f, tr, cycle))))
         for n, (lo, hi) in self.boxes[q0].bounds.items():
             step = RETRIGGER_PROBE * (float(hi) - float(lo))
             c = w.state[n]
@@ -1219,13 +1205,20 @@ class _Questions(_Decider):
             return math.inf, "infeasible"
         return None
 
-    def projection(self, t: Transition, n: str) -> tuple[float, float]:
-        """A sound interval of coordinate ``n`` over the states where ``t`` can fire (verified optimum)."""
+    def projection(self, t: Transition, n: str, entry: bool) -> tuple[float, float]:
+        """A sound interval of coordinate ``n`` over the states where ``t`` can fire (verified optimum).
+
+        ``entry``: the source's memory as its entering transitions write it (tighter); otherwise within
+        its hull only (cheaper, and as sound).
+        """
         lo_box, hi_box = self._box_bounds(t.source)[n]
         guard = self.v.guard(t)
         if guard is None or n not in free_symbols(guard)["coordinates"]:
             return lo_box, hi_box
-        f, cons, tr, _ = self.state(t.source)
+        if entry:
+            f, cons, tr, _ = self.state(t.source)
+        else:
+            f, cons, tr = self.landing(t.source, "projection")
         cons = cons + [self.enabled(tr, t)] + tr.side
         out = []
         for sign in (1.0, -1.0):
@@ -1328,7 +1321,7 @@ class _Zeno:
     def __init__(self, qs: _Questions) -> None:
         self.qs = qs
         self._dwell: dict[tuple[str, str], tuple[float, str]] = {}
-        self._proj: dict[tuple[str, str], tuple[float, float]] = {}
+        self._proj: dict[tuple[str, str, bool], tuple[float, float]] = {}
         self.findings: list[Finding] = []
 
     def dwell(self, t_in: Transition, t_out: Transition) -> tuple[float, str]:
@@ -1337,32 +1330,36 @@ class _Zeno:
             self._dwell[key] = self.qs.dwell(t_in, t_out)
         return self._dwell[key]
 
-    def projection(self, t: Transition, n: str) -> tuple[float, float]:
-        key = (t.name, n)
+    def projection(self, t: Transition, n: str, entry: bool) -> tuple[float, float]:
+        key = (t.name, n, entry)
         if key not in self._proj:
-            self._proj[key] = self.qs.projection(t, n)
+            self._proj[key] = self.qs.projection(t, n, entry)
         return self._proj[key]
 
     def travel_bound(self, cycle: Sequence[Transition]) -> tuple[float, str]:
         """(distance a coordinate must travel in one lap) / (its largest rate along the lap), for the first
-        coordinate that gives a positive bound (coordinates read by the most guards of the lap first)."""
+        coordinate that gives a positive bound (coordinates read by the most guards of the lap first).
+
+        The guard sets are projected with the memory in its hulls first, and, when no coordinate gives
+        a positive bound, again with the memory as the entering transitions write it."""
         qs = self.qs
         jumps = [qs.v.jump(t) for t in cycle]
         if any(j is None for j in jumps):
             return 0.0, ""
         reads = {n: sum(n in free_symbols(qs.v.guard(t))["coordinates"] for t in cycle) for n in qs.v.coords}
         order = sorted((i for i, n in enumerate(qs.v.coords) if reads[n] >= 2), key=lambda i: -reads[qs.v.coords[i]])
-        for i in order:
-            n = qs.v.coords[i]
-            if any(not (isinstance(j[i], Coordinate) and j[i].name == n) for j in jumps):  # type: ignore[index]
-                continue  # a jump moves this coordinate: its path is not continuous
-            rate = max(qs.rates(t.target)[n] for t in cycle)
-            if math.isinf(rate) or rate <= 0.0:
-                continue
-            path = [self.projection(t, n) for t in cycle]
-            distance = _travel(path + [path[0]])
-            if distance > 0.0:
-                return distance / rate, f"{n} must travel {_g(distance)} per lap at <= {_g(rate)} per s"
+        for entry in (False, True):
+            for i in order:
+                n = qs.v.coords[i]
+                if any(not (isinstance(j[i], Coordinate) and j[i].name == n) for j in jumps):  # type: ignore[index]
+                    continue  # a jump moves this coordinate: its path is not continuous
+                rate = max(qs.rates(t.target)[n] for t in cycle)
+                if math.isinf(rate) or rate <= 0.0:
+                    continue
+                path = [self.projection(t, n, entry) for t in cycle]
+                distance = _travel(path + [path[0]])
+                if distance > 0.0:
+                    return distance / rate, f"{n} must travel {_g(distance)} per lap at <= {_g(rate)} per s"
         return 0.0, ""
 
     def verdict(self, cycle: tuple[Transition, ...]) -> CycleVerdict:

@@ -368,7 +368,7 @@ class HybridAutomaton:
     @property
     def mode_names(self) -> tuple[str, ...]:
         """Mode names in declaration order (the index used by traces)."""
-        return tuple(m.name for m in self.modes)
+        return tuple(self._mode_index)
 
     def mode(self, name: str) -> Mode:
         """The mode called ``name``."""

@@ -44,7 +44,7 @@ from .symbolic import (
 )
 
 __all__ = ["z3_available", "Translation", "rational", "to_float", "check_sat", "Answer", "solver_version",
-           "context", "fresh_context"]
+           "context", "fresh_context", "all_of", "any_of", "compare", "combine"]
 
 
 def z3_available() -> bool:
@@ -63,7 +63,7 @@ def solver_version() -> str:
     return f"z3 {z3.get_version_string()}"
 
 
-_STATE: dict[str, Any] = {"ctx": None, "numbers": {}}
+_STATE: dict[str, Any] = {"ctx": None, "numbers": {}, "solver": None}
 
 
 def context() -> Any:
@@ -78,7 +78,7 @@ def fresh_context() -> Iterator[Any]:
     import z3
 
     saved = dict(_STATE)
-    _STATE["ctx"], _STATE["numbers"] = z3.Context(), {}
+    _STATE["ctx"], _STATE["numbers"], _STATE["solver"] = z3.Context(), {}, None
     try:
         yield _STATE["ctx"]
     finally:
@@ -103,12 +103,68 @@ def rational(value: float) -> Any:
     return out
 
 
+def _connective(terms: list[Any], conjunction: bool) -> Any:
+    import z3
+
+    ctx = _STATE["ctx"] if _STATE["ctx"] is not None else z3.main_ctx()
+    if not terms:
+        return z3.BoolVal(conjunction, ctx)
+    if len(terms) == 1 and isinstance(terms[0], z3.BoolRef):
+        return terms[0]
+    if not all(isinstance(t, z3.BoolRef) and t.ctx is ctx for t in terms):
+        return z3.And(*terms) if conjunction else z3.Or(*terms)  # z3 coerces (and reports what it cannot)
+    array = (z3.Ast * len(terms))(*(t.as_ast() for t in terms))
+    make = z3.Z3_mk_and if conjunction else z3.Z3_mk_or
+    return z3.BoolRef(make(ctx.ref(), len(terms), array), ctx)
+
+
+_COMPARE = {">=": "Z3_mk_ge", ">": "Z3_mk_gt", "<=": "Z3_mk_le", "<": "Z3_mk_lt", "==": "Z3_mk_eq"}
+_COMBINE = {"add": "Z3_mk_add", "sub": "Z3_mk_sub", "mul": "Z3_mk_mul"}
+
+
+def _both_terms(a: Any, b: Any) -> bool:
+    import z3
+
+    return isinstance(a, z3.ArithRef) and isinstance(b, z3.ArithRef) and a.ctx is b.ctx
+
+
+def compare(op: str, a: Any, b: Any) -> Any:
+    """``a op b`` for two real z3 terms of one context, built in one call (z3's operators check sorts
+    and coerce first: the cost of most of a translation); other operands go through those operators."""
+    import z3
+
+    if op in _COMPARE and _both_terms(a, b):
+        return z3.BoolRef(getattr(z3, _COMPARE[op])(a.ctx.ref(), a.as_ast(), b.as_ast()), a.ctx)
+    return {">=": lambda: a >= b, ">": lambda: a > b, "<=": lambda: a <= b, "<": lambda: a < b,
+            "==": lambda: a == b, "!=": lambda: a != b}[op]()
+
+
+def combine(op: str, a: Any, b: Any) -> Any:
+    """``a + b``, ``a - b`` or ``a * b`` for two real z3 terms of one context, built in one call."""
+    import z3
+
+    if _both_terms(a, b):
+        array = (z3.Ast * 2)(a.as_ast(), b.as_ast())
+        return z3.ArithRef(getattr(z3, _COMBINE[op])(a.ctx.ref(), 2, array), a.ctx)
+    return a + b if op == "add" else (a - b if op == "sub" else a * b)
+
+
+def all_of(terms: list[Any]) -> Any:
+    """The conjunction of z3 formulas of the current context (``True`` when empty), built in one call."""
+    return _connective(list(terms), True)
+
+
+def any_of(terms: list[Any]) -> Any:
+    """The disjunction of z3 formulas of the current context (``False`` when empty), built in one call."""
+    return _connective(list(terms), False)
+
+
 def to_float(value: Any) -> float:
     """A z3 numeral (rational or algebraic) as the nearest float."""
     import z3
 
-    if z3.is_rational_value(value):
-        return float(value.as_fraction())
+    if z3.is_rational_value(value):  # the numeral's exact text "p" or "p/q", in one call
+        return float(Fraction(z3.Z3_get_numeral_string(value.ctx_ref(), value.as_ast())))
     if z3.is_algebraic_value(value):
         return float(Fraction(value.approx(20).as_fraction()))
     return float(Fraction(str(z3.simplify(value))))
@@ -204,7 +260,7 @@ class Translation:
         if isinstance(node, Select):
             index = self._sub(node.index)
             n = len(node.options)
-            self._collect.append(z3.And(index > -1, index < n))
+            self._collect.append(all_of([index > -1, index < n]))
             out = self._sub(node.options[-1])
             for i in range(n - 2, -1, -1):
                 out = z3.If(index < i + 1, self._sub(node.options[i]), out)
@@ -212,12 +268,10 @@ class Translation:
         if isinstance(node, Compare) and (_infinite(node.left) or _infinite(node.right)):
             return z3.BoolVal(_infinite_compare(node), context())
         if isinstance(node, Compare):
-            a, b = self._sub(node.left), self._sub(node.right)
-            return {">=": lambda: a >= b, ">": lambda: a > b, "<=": lambda: a <= b, "<": lambda: a < b,
-                    "==": lambda: a == b, "!=": lambda: a != b}[node.op]()
+            return compare(node.op, self._sub(node.left), self._sub(node.right))
         if isinstance(node, Logic):
             args = [self._sub(c) for c in node.args]
-            return z3.Not(args[0]) if node.op == "not" else (z3.And(*args) if node.op == "and" else z3.Or(*args))
+            return z3.Not(args[0]) if node.op == "not" else (all_of(args) if node.op == "and" else any_of(args))
         raise SymbolicError(f"cannot translate {node!r} for the SMT solver")
 
     def _lookup(self, table: Mapping[str, Any], name: str, what: str) -> Any:
@@ -233,30 +287,26 @@ class Translation:
         if op in TRANSCENDENTAL or op == "inv":
             return self._enclosed(node)
         args = [self._sub(a) for a in node.args]
-        if op == "add":
-            return args[0] + args[1]
-        if op == "sub":
-            return args[0] - args[1]
-        if op == "mul":
-            return args[0] * args[1]
+        if op in ("add", "sub", "mul"):
+            return combine(op, args[0], args[1])
         if op == "div":
             return args[0] / args[1]
         if op == "neg":
             return -args[0]
         if op == "abs":
-            return z3.If(args[0] >= 0, args[0], -args[0])
+            return z3.If(compare(">=", args[0], rational(0.0)), args[0], -args[0])
         if op == "pow":
             k = int(node.args[1].value)  # type: ignore[attr-defined]
             if k == 0:
                 return z3.RealVal(1, context())
             out = args[0]
             for _ in range(k - 1):
-                out = out * args[0]
+                out = combine("mul", out, args[0])
             return out
         if op in ("min", "max"):
             out = args[0]
             for a in args[1:]:
-                out = z3.If(out <= a, out, a) if op == "min" else z3.If(out >= a, out, a)
+                out = z3.If(compare("<=" if op == "min" else ">=", out, a), out, a)
             return out
         raise SymbolicError(f"unsupported operation {op!r} for the SMT solver")
 
@@ -268,9 +318,9 @@ class Translation:
         fresh = z3.Real(f"{self.prefix}!{len(self.approximated)}", context())
         self.approximated.append(render(node))
         if math.isfinite(lo):
-            self._collect.append(fresh >= rational(lo))
+            self._collect.append(compare(">=", fresh, rational(lo)))
         if math.isfinite(hi):
-            self._collect.append(fresh <= rational(hi))
+            self._collect.append(compare("<=", fresh, rational(hi)))
         if node.op == "inv":
             self._collect.append(self._sub(node.args[0]) != 0)
         if node.op == "log":
@@ -305,18 +355,54 @@ class Answer:
     seconds: float = 0.0
 
 
+def _session() -> Any:
+    """The incremental solver of the current context (created on first use; one per :func:`fresh_context`)."""
+    import z3
+
+    if _STATE["solver"] is None:
+        _STATE["solver"] = z3.SimpleSolver(ctx=_STATE["ctx"])
+    return _STATE["solver"]
+
+
 def check_sat(constraints: list[Any], timeout_s: float) -> Answer:
-    """Decide the conjunction of ``constraints`` within ``timeout_s`` seconds."""
+    """Decide the conjunction of ``constraints`` within ``timeout_s`` seconds.
+
+    The question goes first to the context's incremental SMT core
+    (``z3.SimpleSolver``, one per :func:`fresh_context`, the constraints asserted
+    inside ``push``/``pop``: no solver is built per question and no
+    preprocessing tactic runs, the cheapest on the small linear queries of a
+    supervisor).  When it answers "unknown" (non-linear arithmetic it cannot
+    settle, or its timeout) the question is put to a fresh default solver (which
+    picks a tactic for the logic, e.g. ``nlsat`` for polynomial real arithmetic)
+    with the same timeout.  Both are decision procedures: "unsat" from either is
+    a proof, a model from either is re-checked by the caller.  ``seconds``
+    counts both calls.
+    """
     import time as _time
 
     import z3
 
+    ms = max(1, int(round(timeout_s * 1000)))
+    session = _session()
+    session.set("timeout", ms)
+    session.push()
+    try:
+        session.add(*constraints)
+        start = _time.perf_counter()
+        result = session.check()
+        elapsed = _time.perf_counter() - start
+        if result == z3.sat:
+            return Answer("sat", session.model(), seconds=elapsed)
+        if result == z3.unsat:
+            return Answer("unsat", seconds=elapsed)
+    finally:
+        session.pop()
     solver = z3.Solver(ctx=context())
-    solver.set("timeout", max(1, int(round(timeout_s * 1000))))
+    solver.set("timeout", ms)
     solver.add(*constraints)
     start = _time.perf_counter()
     result = solver.check()
-    elapsed = _time.perf_counter() - start
+    elapsed += _time.perf_counter() - start
     if result == z3.sat:
         return Answer("sat", solver.model(), seconds=elapsed)
     if result == z3.unsat:

@@ -40,13 +40,15 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from analysis.requirements import ParsedRequirement, Requirement, parse_requirements
 from analysis.stl import SignalTrace
 
-from hybrid import SampledTrace
+if TYPE_CHECKING:  # annotations only: loading a scenario does not load the executors
+    from hybrid import SampledTrace
 
 from visnav.geometry import wrap_angle
 from visnav.parameters import Scenario

@@ -87,6 +87,23 @@ def test_the_same_seed_gives_the_same_json_and_another_seed_other_points():
     assert run(4) != run(5)
 
 
+def test_the_draws_do_not_depend_on_which_local_modules_are_imported(tmp_path, monkeypatch):
+    # hypothesis mixes numbers from the source of every imported local module into its draws (with a small
+    # probability per draw); a falsification must depend on its seed only, not on what else the process loaded
+    def run():
+        return json.dumps(verify(_problem(Counting(), {"c": "always[0, 1] (x >= -0.9)"}), budget=40, seed=2)
+                          .as_dict(evaluations=True), sort_keys=True)
+
+    before = run()
+    constants = ", ".join(f"{-0.99 + 0.0173 * i!r}" for i in range(115))
+    (tmp_path / "many_local_constants.py").write_text(f"VALUES = ({constants})\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import importlib
+
+    importlib.import_module("many_local_constants")
+    assert run() == before
+
+
 def test_a_resumed_search_reads_every_point_back_and_simulates_none():
     first = Counting()
     journal = []

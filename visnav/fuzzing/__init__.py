@@ -22,53 +22,58 @@ returns a :class:`FuzzReport`; a failure comes with a shrunk
 :class:`Counterexample` (:mod:`~visnav.fuzzing.counterexamples`, the file
 machinery of :mod:`analysis.counterexamples`) that :func:`replay`
 (:mod:`~visnav.fuzzing.replay`) runs again.  Nothing here prints or writes files.
+
+The names are imported from their submodules on first use: importing one
+submodule (say :mod:`~visnav.fuzzing.space`) does not load the closed loop.
 """
 
-from visnav.fuzzing.closed_loop import (
-    OUTCOMES,
-    TARGET_LOST_WINDOW_S,
-    ScenarioRun,
-    VariantLoop,
-    classify_outcome,
-    simulate_variant,
-)
-from visnav.fuzzing.counterexamples import (
-    FORMAT,
-    FORMAT_VERSION,
-    Counterexample,
-    CounterexampleError,
-    counterexample_from_json,
-    counterexample_to_json,
-)
-from visnav.fuzzing.layouts import scenarios
-from visnav.fuzzing.machine import STATEFUL_STEPS, supervisor_machine
-from visnav.fuzzing.properties import (
-    CONTROL_TOLERANCE,
-    MAX_JUMPS_BOUNDED,
-    TOLERANCE,
-    check_control_continuity,
-    check_determinism,
-    check_differential,
-    check_flag_consistency,
-    check_leave_release,
-    check_leave_timing,
-    check_mu_continuity,
-    check_mu_range,
-    check_no_chatter,
-    check_stateful,
-    hypotheses_prefix,
-)
-from visnav.fuzzing.registry import PROPERTIES, RESPECTING, Property, budget, property_names
-from visnav.fuzzing.replay import Replay, replay
-from visnav.fuzzing.run import FuzzReport, PropertyResult, fuzz, fuzz_property
-from visnav.fuzzing.runner import MAX_JUMPS_PER_SAMPLE, Jump, Step, SupervisorRunner, run_supervisor
-from visnav.fuzzing.scenario_properties import (
-    check_classified_outcome,
-    check_closed_loop_continuity,
-    check_no_collision,
-)
-from visnav.fuzzing.space import MeasurementSpace, bypass_runs, respect_hypotheses, signal_runs
-from visnav.fuzzing.variants import PAPER, RESOLVED, VARIANTS, make_variant
+import importlib
+import sys
+import types
+from typing import Any
+
+_LAZY = {
+    **dict.fromkeys(('OUTCOMES', 'ScenarioRun', 'TARGET_LOST_WINDOW_S', 'VariantLoop', 'classify_outcome', 'simulate_variant'), 'closed_loop'),
+    **dict.fromkeys(('Counterexample', 'CounterexampleError', 'FORMAT', 'FORMAT_VERSION', 'counterexample_from_json', 'counterexample_to_json'), 'counterexamples'),
+    **dict.fromkeys(('scenarios',), 'layouts'),
+    **dict.fromkeys(('STATEFUL_STEPS', 'supervisor_machine'), 'machine'),
+    **dict.fromkeys(('CONTROL_TOLERANCE', 'MAX_JUMPS_BOUNDED', 'TOLERANCE', 'check_control_continuity', 'check_determinism', 'check_differential', 'check_flag_consistency', 'check_leave_release', 'check_leave_timing', 'check_mu_continuity', 'check_mu_range', 'check_no_chatter', 'check_stateful', 'hypotheses_prefix'), 'properties'),
+    **dict.fromkeys(('PROPERTIES', 'Property', 'RESPECTING', 'budget', 'property_names'), 'registry'),
+    **dict.fromkeys(('Replay', 'replay'), 'replay'),
+    **dict.fromkeys(('FuzzReport', 'PropertyResult', 'fuzz', 'fuzz_property'), 'run'),
+    **dict.fromkeys(('Jump', 'MAX_JUMPS_PER_SAMPLE', 'Step', 'SupervisorRunner', 'run_supervisor'), 'runner'),
+    **dict.fromkeys(('check_classified_outcome', 'check_closed_loop_continuity', 'check_no_collision'), 'scenario_properties'),
+    **dict.fromkeys(('MeasurementSpace', 'bypass_runs', 'respect_hypotheses', 'signal_runs'), 'space'),
+    **dict.fromkeys(('PAPER', 'RESOLVED', 'VARIANTS', 'make_variant'), 'variants'),
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Each name is imported from its submodule on first use (importing the package costs nothing)."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'visnav.fuzzing' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"visnav.fuzzing.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """Keeps an exported function whose name is also a submodule's (``replay``) from being replaced by the
+    submodule when the import system binds it on the package after loading it."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _LAZY.get(name) == name:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
 
 __all__ = [
     "FORMAT",
