@@ -611,7 +611,13 @@ def _single_threaded_blas() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``visnav`` console script; returns the exit code."""
+    """Entry point of the ``visnav`` console script; returns the exit code (``docs/failure_modes.md``)."""
+    from visnav.app.failures import run_guarded
+
+    return run_guarded(lambda: _main(argv), None if argv is None else list(argv))
+
+
+def _main(argv: Sequence[str] | None) -> int:
     _single_threaded_blas()  # before anything imports numpy (building the parser imports some of the toolkit)
     parser = build_parser()
     args = parser.parse_args(argv)

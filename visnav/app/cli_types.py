@@ -1,7 +1,10 @@
 """Exit codes and argument types of the ``visnav`` subcommands: one definition, one wording of every error.
 
-The exit codes are shared by every subcommand: 0 the task holds, 1 it failed
-(collision, timeout, a finding), 2 bad input, 3 the simulation diverged.
+The exit codes are shared by every subcommand (``docs/failure_modes.md``): 0 the task holds, 1 it
+failed (collision, timeout, a falsified requirement, a finding), 2 bad input (nothing was run, or
+what was given cannot be used; the message says what to change), 3 the run could not complete (a
+simulation diverged or an executor failed), 4 internal error (a defect of visnav: the one-line
+message names the file holding the traceback), 130 interrupted (SIGINT).
 
 Each raises :class:`argparse.ArgumentTypeError` naming the value and what to give instead, which
 argparse turns into a usage error (exit code 2).
@@ -12,11 +15,17 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "positive_int", "non_negative_int",
-           "positive_seconds"]
+__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
+           "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
 
-EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 1, 2, 3
+EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
+EXIT_INTERRUPTED = 130
+"""Interrupted by SIGINT (128 + 2, the shells' convention)."""
+EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
+              EXIT_BAD_INPUT: "bad input", EXIT_DIVERGED: "the run could not complete",
+              EXIT_INTERNAL: "internal error", EXIT_INTERRUPTED: "interrupted"}
+"""What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
 
 
 def _whole(text: str, minimum: int, wanted: str) -> int:
