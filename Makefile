@@ -6,12 +6,14 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: demo test bench install clean
+.PHONY: demo test bench install clean lock
 
-$(STAMP): pyproject.toml
+# constraints.txt pins the whole dependency set (the report's versions table lists it): the same
+# bytes on every machine. Refresh it with `make lock`.
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[test]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -36,6 +38,18 @@ bench: $(STAMP)
 	$(PY) benchmarks/bench_campaign.py
 	$(PY) benchmarks/bench_stiffness.py
 	$(PY) benchmarks/bench_fuzz.py
+
+# resolve '.[test]' afresh (newest releases) in a scratch venv and pin what it installed; then run
+# `make demo` and commit constraints.txt with the regenerated reports/paper/
+lock:
+	rm -rf .lock-venv
+	$(PYTHON) -m venv .lock-venv
+	.lock-venv/bin/python -m pip install --quiet --upgrade pip
+	.lock-venv/bin/python -m pip install --quiet -e '.[test]'
+	{ sed -n '/^#/p' constraints.txt; .lock-venv/bin/python -m pip freeze --exclude-editable | sort -f; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
+	rm -rf .lock-venv
+	@echo "constraints.txt refreshed: run make demo and commit constraints.txt and reports/paper/"
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis
