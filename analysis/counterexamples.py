@@ -4,10 +4,17 @@ Robot-free.  A fuzzer that finds a failing example saves it so that it can be
 run again later, by another process or another person.  This module is the
 file machinery; what a counterexample *contains* is the caller's business.
 
+:func:`read_counterexample_text`
+    A file's text, refused with a :class:`CounterexampleError` when it is not
+    a regular file, larger than :data:`MAX_FILE_BYTES` or not UTF-8.
 :class:`CounterexampleFormat`
     The envelope: a ``format`` name and an integer ``version`` (a reader
     accepts only its own), deterministic text (sorted keys, one sample of a
-    sequence per line), values through :func:`encode_value`.
+    sequence per line), values through :func:`encode_value`.  Reading is
+    strict JSON: no ``NaN``/``Infinity`` tokens, no number overflowing a float,
+    integers of at most :data:`MAX_INT_DIGITS` digits, no duplicate key, no
+    unpaired surrogate, at most :data:`MAX_DEPTH` levels of nesting, no
+    byte-order mark, an object at the top level.
 :func:`encode_value`
     The toolkit's JSON policy for files read back
     (:func:`hybrid.jsonable.to_jsonable` with ``nonfinite="string"``: ``inf``,
@@ -17,7 +24,8 @@ file machinery; what a counterexample *contains* is the caller's business.
     :class:`CounterexampleError` naming the file and the field
     (``space.n_obstacles = 1.5: expected an integer``);
     :func:`decode_record` builds a frozen dataclass from its JSON object,
-    type-checking each field from the class's annotations.
+    type-checking each field from the class's annotations;
+    :func:`check_keys` refuses missing and unknown keys of an object.
 :func:`replay_counterexample`
     Runs a decoded counterexample again through a caller-supplied function and
     reports whether its property still fails (:class:`Replay`).
@@ -36,7 +44,12 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
+import math
+import os
+import re
+import stat
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -48,8 +61,16 @@ from hybrid.jsonable import float_from_json, to_jsonable
 from analysis.fuzzing import PropertyViolation
 
 __all__ = [
+    "MAX_FILE_BYTES",
+    "MAX_DEPTH",
+    "MAX_INT_DIGITS",
     "CounterexampleError",
     "CounterexampleFormat",
+    "read_counterexample_text",
+    "parse_json",
+    "json_type",
+    "show_value",
+    "check_keys",
     "encode_value",
     "decode_float",
     "decode_int",
@@ -78,6 +99,295 @@ class CounterexampleError(ValueError):
         super().__init__(f"counterexample {source!r}: {problem}")
         self.source = source
         self.problem = problem
+
+
+MAX_FILE_BYTES = 50_000_000
+"""Largest counterexample file read [bytes] (50 MB; the files written by the fuzzers are kilobytes)."""
+MAX_DEPTH = 64
+"""Deepest nesting of arrays and objects read (the files written are at most 6 levels deep)."""
+MAX_INT_DIGITS = 300
+"""Most digits of an integer read (every integer read then also converts to a float)."""
+_SHOWN = 80
+
+
+def json_type(value: Any) -> str:
+    """What a decoded JSON value is, as a message says it (``"an array"``, ``"null"``, ...)."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, int):
+        return "an integer"
+    if isinstance(value, float):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, Mapping):
+        return "an object"
+    if isinstance(value, (list, tuple)):
+        return "an array"
+    return f"a {type(value).__name__}"
+
+
+def show_value(value: Any, limit: int = _SHOWN) -> str:
+    """``repr(value)`` for a message, cut to about ``limit`` characters (a file's value can be megabytes)."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    if isinstance(value, str):
+        return f"{text[:limit]}... (a string of {len(value):,} characters)"
+    if isinstance(value, (list, tuple, Mapping)):
+        return f"{text[:limit]}... ({json_type(value)} of {len(value):,} entries)"
+    return f"{text[:limit]}..."
+
+
+def _names(keys: Sequence[Any], limit: int = 8) -> str:
+    """``'a', 'b'`` (at most ``limit`` of them, then how many more)."""
+    shown = ", ".join(show_value(k, 40) for k in list(keys)[:limit])
+    return shown + (f" and {len(keys) - limit} more" if len(keys) > limit else "")
+
+
+def read_counterexample_text(path: str | os.PathLike[str], *, max_bytes: int = MAX_FILE_BYTES) -> str:
+    """The text of a counterexample file: a regular file of at most ``max_bytes`` bytes of UTF-8.
+
+    A FIFO or a device is refused before it is opened (reading one could block or never end).
+
+    Raises
+    ------
+    CounterexampleError
+        ``source`` is ``str(path)``; the problem says what the path is
+        instead (missing, a folder, not a regular file, too large, not UTF-8,
+        unreadable).
+    """
+    source = os.fspath(path)
+    try:
+        info = os.stat(source)
+    except FileNotFoundError:
+        raise CounterexampleError(source, "no such file") from None
+    except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
+        raise CounterexampleError(source, f"cannot read the file ({getattr(err, 'strerror', None) or err})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise CounterexampleError(source, "is a folder, not a file")
+    if not stat.S_ISREG(info.st_mode):
+        raise CounterexampleError(source, "is not a regular file (a device, FIFO or socket)")
+    def too_big(size: str) -> CounterexampleError:
+        return CounterexampleError(source, f"the file is {size} bytes, more than the {max_bytes:,} bytes a "
+                                           "counterexample file may have (the fuzzers write kilobytes)")
+
+    if info.st_size > max_bytes:
+        raise too_big(f"{info.st_size:,}")
+    try:
+        with open(source, "rb") as handle:  # a regular file: opening it does not block
+            if not stat.S_ISREG(os.fstat(handle.fileno()).st_mode):  # replaced since the stat above
+                raise CounterexampleError(source, "is not a regular file")
+            data = handle.read(max_bytes + 1)
+    except OSError as err:
+        raise CounterexampleError(source, f"cannot read the file ({err.strerror or err})") from None
+    if len(data) > max_bytes:  # grew since the stat above, or a file system reporting no size
+        raise too_big(f"over {max_bytes:,}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line, column = _position(data, err.start)
+        raise CounterexampleError(
+            source, f"not UTF-8 text: byte 0x{data[err.start]:02x} at line {line}, column {column} ({err.reason}); "
+                    "a counterexample file is UTF-8 JSON"
+        ) from None
+
+
+def _position(text: str | bytes, offset: int) -> tuple[int, int]:
+    """1-based line and column of ``offset`` in ``text``."""
+    newline = b"\n" if isinstance(text, bytes) else "\n"
+    return text.count(newline, 0, offset) + 1, offset - (text.rfind(newline, 0, offset) + 1) + 1
+
+
+# ---- strict JSON ------------------------------------------------------------------------------------
+
+
+class _Refused:
+    """A number token strict JSON reading refuses, kept in place so that the message can name its path."""
+
+    __slots__ = ("problem",)
+
+    def __init__(self, problem: str) -> None:
+        self.problem = problem
+
+
+class _Duplicated(dict):
+    """An object in which a key occurs twice (the first duplicated key in ``duplicate``)."""
+
+    duplicate: Any = None
+
+
+def _constant(name: str) -> _Refused:
+    return _Refused(f"{name} is not a JSON number (non-finite values are written as the strings "
+                    "\"nan\", \"inf\", \"-inf\" where they are allowed)")
+
+
+def _int(text: str) -> int | _Refused:
+    digits = len(text) - text.startswith("-")
+    if digits > MAX_INT_DIGITS:
+        return _Refused(f"an integer of {digits} digits (at most {MAX_INT_DIGITS} are read)")
+    return int(text)
+
+
+def _object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    data = dict(pairs)
+    if len(data) == len(pairs):
+        return data
+    seen: set[str] = set()
+    duplicate = next(k for k, _ in pairs if k in seen or seen.add(k))  # type: ignore[func-returns-value]
+    refused = _Duplicated(data)
+    refused.duplicate = duplicate
+    return refused
+
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+def _path(trail: Any) -> str:
+    """``violation.details.x[2]`` from the linked trail ``(parent, key)`` of a value (``""``: the top level)."""
+    keys: list[Any] = []
+    while trail is not None:
+        trail, key = trail
+        keys.append(key)
+    text = ""
+    for key in reversed(keys):
+        if isinstance(key, int):
+            text += f"[{key}]"
+        elif _IDENTIFIER.match(key):
+            text += f".{key}" if text else key
+        else:
+            text += f"[{show_value(key, 40)}]"
+    return text if len(text) <= 160 else text[:80] + " ... " + text[-75:]
+
+
+def _unpaired_surrogate(text: str) -> bool:
+    if text.isascii():
+        return False
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return True
+    return False
+
+
+_NUMBERS = {float, int}
+_OVERFLOW = ("a number too large for a float (it reads as infinity); write a finite number, or the string "
+             "\"inf\" where infinity is allowed")
+
+
+def _number_rows(value: list[Any]) -> bool:
+    """Whether ``value`` is a list of lists of finite numbers (checked without a Python call per value)."""
+    if set(map(type, value)) != {list}:
+        return False
+    values = itertools.chain.from_iterable(value)
+    return set(map(type, values)) <= _NUMBERS and math.isfinite(sum(itertools.chain.from_iterable(value)))
+
+
+def _check_tree(data: Any, source: str) -> None:
+    """Refuse what :func:`json.loads` accepted but strict reading does not (module docstring).
+
+    ``NaN``, ``Infinity`` and over-long integers were kept in place by the
+    parser's hooks as :class:`_Refused`, duplicate keys as :class:`_Duplicated`;
+    a float that is not finite can only be a literal that overflowed.
+    """
+
+    def fail(problem: str, trail: Any) -> typing.NoReturn:
+        where = _path(trail) or "the top-level object"
+        raise CounterexampleError(source, f"malformed counterexample file: {where}: {problem}")
+
+    stack: list[tuple[Any, int, Any]] = [(data, 1, None)]
+    while stack:
+        value, depth, trail = stack.pop()
+        if isinstance(value, (dict, list)):
+            if depth > MAX_DEPTH:
+                fail(f"nested more than {MAX_DEPTH} levels deep (arrays and objects)", trail)
+            if isinstance(value, dict):
+                if isinstance(value, _Duplicated):
+                    fail(f"duplicate key {show_value(value.duplicate, 40)} (each key may occur once per object)",
+                         trail)
+                items = list(value.items())
+                for key, _ in items:
+                    if _unpaired_surrogate(key):
+                        fail(f"key {show_value(key, 40)} has an unpaired surrogate (not Unicode text)", trail)
+            elif depth + 1 <= MAX_DEPTH and _number_rows(value):  # a sequence of samples: nothing more to check
+                continue
+            else:
+                items = list(enumerate(value))
+            for key, child in reversed(items):
+                kind = type(child)
+                if kind is float:
+                    if not math.isfinite(child):
+                        fail(_OVERFLOW, (trail, key))
+                elif kind is not int:
+                    stack.append((child, depth + 1, (trail, key)))
+        elif isinstance(value, str):
+            if _unpaired_surrogate(value):
+                fail(f"string {show_value(value, 40)} has an unpaired surrogate (not Unicode text)", trail)
+        elif isinstance(value, _Refused):
+            fail(value.problem, trail)
+
+
+_BRACKETS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def _too_deep_at(text: str) -> str:
+    """``line L, column C``: where the nesting first exceeds :data:`MAX_DEPTH` (for the parser's own limit)."""
+    depth = 0
+    for match in _BRACKETS.finditer(text):
+        token = match.group()
+        if token in ("[", "{"):
+            depth += 1
+            if depth > MAX_DEPTH:
+                line, column = _position(text, match.start())
+                return f"line {line}, column {column}"
+        elif token in ("]", "}"):
+            depth -= 1
+    return "the top-level value"  # not reached for text the parser gave up on
+
+
+def parse_json(text: str, source: str) -> Any:
+    """Strict JSON (module docstring): the decoded value, or a :class:`CounterexampleError` saying what and where.
+
+    The problem starts with ``"not valid JSON"`` for syntax errors (with line
+    and column) and ``"malformed counterexample file: "`` for the rest, followed
+    by where: the path of the value (``measurements[3][0]: NaN is not a JSON
+    number ...``), or the line and column when the parser itself gave up.
+    """
+    if not text.strip():
+        raise CounterexampleError(source, "malformed counterexample file: the file is empty; expected a JSON object")
+    if text.startswith("\ufeff"):
+        raise CounterexampleError(source, "malformed counterexample file: it starts with a byte-order mark (U+FEFF), "
+                                          "which JSON does not allow; save it as UTF-8 without BOM")
+    try:
+        data = json.loads(text, parse_constant=_constant, parse_int=_int, object_pairs_hook=_object)
+    except json.JSONDecodeError as err:
+        raise CounterexampleError(
+            source, f"not valid JSON ({err.msg} at line {err.lineno}, column {err.colno})"
+        ) from None
+    except RecursionError:
+        raise CounterexampleError(source, f"malformed counterexample file: {_too_deep_at(text)}: nested more than "
+                                          f"{MAX_DEPTH} levels deep (arrays and objects)") from None
+    _check_tree(data, source)
+    return data
+
+
+def check_keys(
+    data: Mapping[str, Any], where: str, source: str, required: Sequence[str], optional: Sequence[str] = ()
+) -> None:
+    """Refuse an object missing one of ``required`` or holding a key in neither list (``where``: its path)."""
+    at = f"{where}: " if where else ""
+    known = (*required, *optional)
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise CounterexampleError(source, f"{at}missing key {_names(missing)} (required: {', '.join(required)})")
+    unknown = [k for k in data if k not in known]
+    if unknown:
+        raise CounterexampleError(
+            source, f"{at}unknown key{'s' if len(unknown) > 1 else ''} {_names(unknown)}; "
+                    f"the known keys are {', '.join(sorted(known))} (remove the others)"
+        )
 
 
 def encode_value(value: Any) -> Any:
@@ -137,23 +447,31 @@ class CounterexampleFormat:
         return f'{head[:-2]},\n {json.dumps(rows_key)}: [\n{lines}\n ]\n}}\n'
 
     def loads(self, text: str, source: str) -> Mapping[str, Any]:
-        """Parse ``text`` and check its envelope; return the top-level object.
+        """Parse ``text`` (strict JSON, :func:`parse_json`) and check its envelope; return the top-level object.
 
         Raises
         ------
         CounterexampleError
-            Not JSON, not an object of this format, or another version.
+            Not strict JSON, not an object of this format, or another version.
         """
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as err:
-            raise CounterexampleError(
-                source, f"not valid JSON ({err.msg} at line {err.lineno}, column {err.colno})"
-            ) from err
-        if not isinstance(data, Mapping) or data.get("format") != self.name:
-            found = data.get("format") if isinstance(data, Mapping) else type(data).__name__
-            raise CounterexampleError(source, f"not a counterexample file (format = {found!r}, expected {self.name!r})")
-        version = data.get("version")
+        data = parse_json(text, source)
+        if not isinstance(data, Mapping):
+            raise CounterexampleError(source, f"not a counterexample file: the top level is {json_type(data)}, "
+                                              f"expected an object with format = {self.name!r}")
+        if "format" not in data:
+            raise CounterexampleError(source, f"not a counterexample file: no 'format' key "
+                                              f"(expected format = {self.name!r})")
+        found = data["format"]
+        if found != self.name:
+            raise CounterexampleError(source, f"not a counterexample file (format = {show_value(found)}, "
+                                              f"expected {self.name!r})")
+        if "version" not in data:
+            raise CounterexampleError(source, f"no 'version' key (expected version = {self.version}: "
+                                              f"{self.reader} reads version {self.version})")
+        version = data["version"]
+        if not isinstance(version, int) or isinstance(version, bool):
+            raise CounterexampleError(source, f"version = {show_value(version)}: expected the integer "
+                                              f"{self.version}, found {json_type(version)}")
         if version != self.version:
             raise CounterexampleError(
                 source, f"format version {version!r} is not supported ({self.reader} reads version {self.version})"
@@ -170,26 +488,28 @@ def decode_float(value: Any, where: str, source: str) -> float:
         return float_from_json(value, where=where)
     except ValueError as err:
         raise CounterexampleError(source, str(err)) from None
+    except OverflowError:  # an integer beyond the float range
+        raise CounterexampleError(source, f"{where} = {show_value(value)}: expected a number within the float range") from None
 
 
 def decode_int(value: Any, where: str, source: str) -> int:
     """An integer (booleans refused)."""
     if not isinstance(value, int) or isinstance(value, bool):
-        raise CounterexampleError(source, f"{where} = {value!r}: expected an integer")
+        raise CounterexampleError(source, f"{where} = {show_value(value)}: expected an integer")
     return value
 
 
 def decode_optional_int(value: Any, where: str, source: str) -> int | None:
     """An integer or ``null``."""
     if value is not None and (not isinstance(value, int) or isinstance(value, bool)):
-        raise CounterexampleError(source, f"{where} = {value!r}: expected an integer or null")
+        raise CounterexampleError(source, f"{where} = {show_value(value)}: expected an integer or null")
     return value
 
 
 def decode_str(value: Any, where: str, source: str) -> str:
     """A string."""
     if not isinstance(value, str):
-        raise CounterexampleError(source, f"{where} = {value!r}: expected a string")
+        raise CounterexampleError(source, f"{where} = {show_value(value)}: expected a string")
     return value
 
 
@@ -203,14 +523,14 @@ def _decode_typed(kind: Any, value: Any, where: str, source: str) -> Any:
         return decode_str(value, where, source)
     if kind is bool:
         if not isinstance(value, bool):
-            raise CounterexampleError(source, f"{where} = {value!r}: expected true or false")
+            raise CounterexampleError(source, f"{where} = {show_value(value)}: expected true or false")
         return value
     if kind is float:
         return decode_float(value, where, source)
     if typing.get_origin(kind) is tuple:
         args = typing.get_args(kind)
         if not isinstance(value, list):
-            raise CounterexampleError(source, f"{where} = {value!r}: expected a list")
+            raise CounterexampleError(source, f"{where} = {show_value(value)}: expected a list")
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_decode_typed(args[0], x, f"{where}[{i}]", source) for i, x in enumerate(value))
         if len(value) != len(args):
@@ -232,12 +552,14 @@ def decode_record(cls: type, data: Any, where: str, source: str) -> Any:
     CounterexampleError
     """
     if not isinstance(data, Mapping):
-        raise CounterexampleError(source, f"{where}: expected an object, found {type(data).__name__}")
+        raise CounterexampleError(source, f"{where}: expected an object, found {json_type(data)}")
     hints = typing.get_type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls) if f.init]
     unknown = sorted(set(data) - set(names))
     if unknown:
-        raise CounterexampleError(source, f"{where}: unknown key(s) {unknown}; expected some of {names}")
+        raise CounterexampleError(source, f"{where}: unknown key(s) {unknown[:8]}"
+                                          f"{f' and {len(unknown) - 8} more' if len(unknown) > 8 else ''}; "
+                                          f"expected some of {names}")
     kwargs = {name: _decode_typed(hints[name], value, f"{where}.{name}", source) for name, value in data.items()}
     try:
         return cls(**kwargs)
@@ -251,6 +573,12 @@ def decode_rows(
     """A non-empty list of samples, each a list of ``width`` floats (``names``: the columns, for messages)."""
     if not isinstance(rows, list) or not rows:
         raise CounterexampleError(source, f"{where}: expected a non-empty list of rows")
+    if set(map(type, rows)) == {list} and set(map(len, rows)) == {width}:  # the common case, in bulk
+        kinds = set(map(type, itertools.chain.from_iterable(rows)))
+        if kinds == {float}:
+            return tuple(map(tuple, rows))
+        if kinds <= _NUMBERS:
+            return tuple(tuple(map(float, row)) for row in rows)
     columns = f" ({', '.join(names)})" if names else ""
     parsed = []
     for k, row in enumerate(rows):

@@ -17,11 +17,20 @@ Every sampling period ``T`` the executor
 A :class:`~hybrid.errors.NumericalFailure` raised by user code, or a NaN in a
 state, a signal or an input, stops the run with a
 :class:`~hybrid.errors.DivergenceError` naming the time, the mode and the cause.
+
+Resource bound: the run has ``floor(duration / period) + 1`` samples and keeps
+one row per sample in memory.  :func:`simulate_sampled` refuses, before it
+allocates anything or calls user code, a sample count above ``max_samples``
+(default :data:`DEFAULT_MAX_SAMPLES`), one that is not representable (an
+overflowing ``duration / period``) and a period too small to advance the time
+stamps, with a :class:`SampledArgumentError` naming the argument, the value,
+what was expected and the fix.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -29,7 +38,7 @@ from typing import Any, Protocol
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .errors import DivergenceError, ExecutionError, NumericalFailure, ZenoError
+from .errors import DivergenceError, ExecutionError, NumericalFailure, ParameterError, ZenoError
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
 from .model import HybridAutomaton
 
@@ -40,6 +49,9 @@ __all__ = [
     "SampledTrace",
     "simulate_sampled",
     "settle",
+    "sample_count",
+    "SampledArgumentError",
+    "DEFAULT_MAX_SAMPLES",
     "FLOW_RTOL",
     "FLOW_ATOL",
 ]
@@ -48,6 +60,27 @@ FLOW_RTOL = 1e-10
 """Relative tolerance of the fallback plant integration."""
 FLOW_ATOL = 1e-12
 """Absolute tolerance of the fallback plant integration."""
+DEFAULT_MAX_SAMPLES = 10_000_000
+"""Default ``max_samples`` of :func:`simulate_sampled`: samples of one run at most.
+
+A run keeps every sample's row (time, jump counter, mode, state, signals, input and
+recorded values) as Python objects until it returns, about 50 bytes per value: ten
+million samples of a 10-value row are about 5 GB.  Pass a larger ``max_samples`` for
+longer runs on a machine that has the memory."""
+
+
+class SampledArgumentError(ParameterError, ExecutionError):
+    """An argument of :func:`simulate_sampled` that cannot describe a run (found before anything runs).
+
+    A :class:`~hybrid.errors.ParameterError` (``parameter``, ``value``, ``expected``,
+    ``fix``), and an :class:`~hybrid.errors.ExecutionError` as the executor's argument
+    errors always were.  The message is
+    ``"simulate_sampled: <parameter> = <value>; expected <expected>; fix: <fix>"``.
+    """
+
+    def render(self) -> str:
+        """The message."""
+        return f"simulate_sampled: {self.parameter} = {self.value!r}; expected {self.expected}; fix: {self.fix}"
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -301,6 +334,82 @@ def _events(instant: Instant, time: float, sample: int, jump: int) -> list[Sampl
     ]
 
 
+def _finite_time(name: str, value: object, wanted: str, example: str, positive: bool = True) -> float:
+    """``value`` as a float [s], or a :class:`SampledArgumentError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise SampledArgumentError(name, value, f"{wanted}, found {type(value).__name__}",
+                                   f"pass a number such as {example}")
+    number = float(value)
+    if not math.isfinite(number) or (positive and not number > 0):
+        raise SampledArgumentError(name, value, wanted, f"pass a {wanted.removeprefix('a ')} such as {example}")
+    return number
+
+
+def sample_count(period: float, duration: float, *, t0: float = 0.0, max_samples: int = DEFAULT_MAX_SAMPLES) -> int:
+    """The number of samples :func:`simulate_sampled` takes, ``floor(duration / period) + 1``, checked.
+
+    Nothing is allocated: the arguments are checked against :func:`simulate_sampled`'s
+    rules and its resource bound, so a caller can refuse a run up front.
+
+    Parameters
+    ----------
+    period, duration : float
+        Sampling period and simulated time, finite and ``> 0`` [s].
+    t0 : float
+        Time of the first sample, finite [s].
+    max_samples : int
+        Most samples allowed, ``>= 1`` (default :data:`DEFAULT_MAX_SAMPLES`).
+
+    Returns
+    -------
+    int
+        Between 1 and ``max_samples``.
+
+    Raises
+    ------
+    SampledArgumentError
+        Naming the argument, its value, what was expected and the fix.
+
+    Examples
+    --------
+    >>> sample_count(0.05, 120.0)
+    2401
+    >>> sample_count(1e-12, 1e3)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    hybrid.sampled.SampledArgumentError: simulate_sampled: duration = 1000.0; expected at most max_samples = ...
+    """
+    period = _finite_time("period", period, "a positive finite time step [s]", "0.01")
+    duration = _finite_time("duration", duration, "a positive finite time [s]", "10.0")
+    t0 = _finite_time("t0", t0, "a finite time [s]", "0.0", positive=False)
+    if isinstance(max_samples, bool) or not isinstance(max_samples, numbers.Integral) or max_samples < 1:
+        raise SampledArgumentError("max_samples", max_samples, "an integer >= 1",
+                                   f"pass a whole number of samples, e.g. the default {DEFAULT_MAX_SAMPLES:_}")
+    ratio = duration / period  # inf when it overflows: compared before any int()
+    fix = "lengthen period, shorten duration, or pass a larger max_samples"
+    if not (math.isfinite(ratio) and ratio < 2.0 * max_samples):
+        count = f"{ratio:.3g} samples" if math.isfinite(ratio) else "overflows a float"
+        raise SampledArgumentError(
+            "duration", duration,
+            f"at most max_samples = {int(max_samples):,} samples of period = {period!r} s "
+            f"(duration / period = {count})", fix)
+    n_samples = int(math.floor(ratio + 1e-9)) + 1
+    if n_samples > max_samples:
+        raise SampledArgumentError(
+            "duration", duration,
+            f"at most max_samples = {int(max_samples):,} samples of period = {period!r} s "
+            f"(floor(duration / period) + 1 = {n_samples:,} samples)", fix)
+    t_last = t0 + (n_samples - 1) * period
+    if not (math.isfinite(t_last) and t0 + period > t0 and t_last + period > t_last):
+        raise SampledArgumentError(
+            "period", period,
+            f"a period that advances the time from t0 = {t0!r} s to the last sample ({t_last!r} s): at that "
+            "magnitude t + period == t",
+            "start at a smaller t0 or lengthen period",
+        )
+    return n_samples
+
+
 def simulate_sampled(
     automaton: HybridAutomaton,
     plant: Plant,
@@ -315,6 +424,7 @@ def simulate_sampled(
     stop: Callable[[float, Sequence[float], Any, Sequence[float], str, Mapping[str, float]], str | None]
     | None = None,
     max_jumps_per_sample: int = MAX_JUMPS_PER_INSTANT,
+    max_samples: int = DEFAULT_MAX_SAMPLES,
 ) -> SampledTrace:
     """Run the sampled-data closed loop for ``duration`` seconds.
 
@@ -329,14 +439,22 @@ def simulate_sampled(
     x0 : sequence of float, shape (n,)
         Initial plant state.
     period : float
-        Sampling period ``T > 0`` [s].
+        Sampling period ``T > 0`` [s], finite.
     duration : float
-        Simulated time ``> 0`` [s]; the last sample is at ``t0 + K T <= t0 + duration``.
+        Simulated time ``> 0`` [s], finite; the last sample is at ``t0 + K T <= t0 + duration``
+        (:func:`sample_count` samples).
+    t0 : float
+        Time of the first sample [s], finite.
     stop : callable or None
         ``stop(t, x, c, v, mode, memory)`` returning a termination reason to
         end the run after the current sample, or ``None`` to go on.
     max_jumps_per_sample : int
         Jumps allowed at one instant before a :class:`ZenoError`.
+    max_samples : int
+        Most samples the run may have (default :data:`DEFAULT_MAX_SAMPLES`): a longer
+        ``duration / period`` is refused before anything is allocated, since the
+        trace holds every sample (a ``stop`` condition that ends the run early does
+        not lift the bound: it may never hold).
 
     Returns
     -------
@@ -344,24 +462,30 @@ def simulate_sampled(
 
     Raises
     ------
+    SampledArgumentError
+        (a :class:`~hybrid.errors.ParameterError` and an :class:`ExecutionError`) on
+        invalid arguments: a period, duration or ``t0`` that is not a finite number
+        (``period``, ``duration > 0``), more samples than ``max_samples`` or than a
+        float can count, a period too small to advance the time, a wrong ``x0``.
     ExecutionError
-        On invalid arguments or wrong signal dimensions.
+        On wrong signal dimensions or unknown initial memory.
     ZenoError
         When more than ``max_jumps_per_sample`` jumps happen at one instant.
     DivergenceError
         When user code raises :class:`NumericalFailure` or a value becomes NaN.
     """
-    if not (isinstance(period, (int, float)) and period > 0 and math.isfinite(period)):
-        raise ExecutionError(f"simulate_sampled: period = {period!r}; expected a positive finite time step [s]")
-    if not (isinstance(duration, (int, float)) and duration > 0 and math.isfinite(duration)):
-        raise ExecutionError(f"simulate_sampled: duration = {duration!r}; expected a positive finite time [s]")
+    n_samples = sample_count(period, duration, t0=t0, max_samples=max_samples)
     if len(x0) != len(plant.state_names):
-        raise ExecutionError(
-            f"simulate_sampled: x0 has {len(x0)} components, plant state has {len(plant.state_names)} "
-            f"({', '.join(plant.state_names)})"
+        raise SampledArgumentError(
+            "x0", tuple(x0),
+            f"one value per plant state: x0 has {len(x0)} components, plant state has {len(plant.state_names)} "
+            f"({', '.join(plant.state_names)})",
+            "give x0 in the order of plant.state_names",
         )
-    if max_jumps_per_sample < 1:
-        raise ExecutionError(f"simulate_sampled: max_jumps_per_sample = {max_jumps_per_sample}; expected >= 1")
+    if isinstance(max_jumps_per_sample, bool) or not isinstance(max_jumps_per_sample, numbers.Integral) or (
+            max_jumps_per_sample < 1):
+        raise SampledArgumentError("max_jumps_per_sample", max_jumps_per_sample, "an integer >= 1",
+                                   f"use the default {MAX_JUMPS_PER_INSTANT}")
     mode = initial_mode or automaton.initial_mode
     automaton.mode(mode)
     memory = automaton.initial_memory()
@@ -371,7 +495,6 @@ def simulate_sampled(
             raise ExecutionError(f"simulate_sampled: initial_memory names unknown variable(s) {sorted(unknown)}")
         memory.update({k: float(val) for k, val in initial_memory.items()})
 
-    n_samples = int(math.floor(duration / period + 1e-9)) + 1
     x = tuple(float(c) for c in x0)
     mode_index = {name: i for i, name in enumerate(automaton.mode_names)}
     outgoing = {name: automaton.outgoing(name) for name in automaton.mode_names}

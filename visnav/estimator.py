@@ -10,7 +10,7 @@ fixed-step BDF step of (13)::
     ψ_{k+1} = sum_j c_j ψ_{k+1-j} + β h F(ψ_{k+1}),   F = blockdiag(L_i) T_rc
 
 with the camera screw ``T_rc`` chosen by ``EstimatorSettings.screw_model``
-(NOTES.md, open question 13; see ``docs/estimator.md`` for the measured effect).
+(open question 13 of ``docs/supervisor.md``; see ``docs/estimator.md`` for the measured effect).
 
 Newton structure
 ----------------
@@ -166,6 +166,12 @@ class HeldInputs:
     mean_screw: tuple[float, float, float]
 
 
+MIN_NEWTON_TOL = 1e-15
+"""Smallest Newton tolerance accepted: a few ulps of a relative update (a smaller one cannot be met)."""
+MAX_NEWTON_ITER = 100
+"""Most Newton iterations per step accepted (a bound on the work of one step)."""
+
+
 def validate_settings(settings: EstimatorSettings) -> None:
     """Check ``settings`` (order 1–6, known screw model, tolerance > 0, maxiter >= 1).
 
@@ -183,14 +189,17 @@ def validate_settings(settings: EstimatorSettings) -> None:
             f"{', '.join(map(repr, SCREW_MODELS))} (default 'histopolated', see docs/estimator.md)"
         )
     tol = settings.newton_tol
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (tol > 0.0 and math.isfinite(tol)):
+    if (isinstance(tol, bool) or not isinstance(tol, (int, float))
+            or not (MIN_NEWTON_TOL <= tol < 1.0 and math.isfinite(tol))):
         raise EstimatorSettingsError(
-            f"EstimatorSettings.newton_tol = {tol!r}: expected a positive finite tolerance, e.g. 1e-12"
+            f"EstimatorSettings.newton_tol = {tol!r}: expected a relative tolerance in [{MIN_NEWTON_TOL:g}, 1) "
+            "(below that, double precision cannot meet it and every step would fail), e.g. 1e-12"
         )
     maxiter = settings.newton_maxiter
-    if isinstance(maxiter, bool) or not isinstance(maxiter, int) or maxiter < 1:
+    if isinstance(maxiter, bool) or not isinstance(maxiter, int) or not 1 <= maxiter <= MAX_NEWTON_ITER:
         raise EstimatorSettingsError(
-            f"EstimatorSettings.newton_maxiter = {maxiter!r}: expected an integer >= 1, e.g. 8"
+            f"EstimatorSettings.newton_maxiter = {maxiter!r}: expected an integer in [1, {MAX_NEWTON_ITER}] "
+            "(Newton converges in a few iterations or not at all), e.g. 8"
         )
 
 

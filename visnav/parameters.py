@@ -15,6 +15,7 @@ from analysis.requirements import Requirement
 
 __all__ = [
     "K_PATH_RANGE",
+    "PATH_CLEARANCE_M",
     "RobotGeometry",
     "CameraModel",
     "Envelopes",
@@ -36,6 +37,14 @@ The interval the Lyapunov certificate of the path-following law covers and the
 admissible-gain search scans (:mod:`visnav.studies.path_following`,
 :mod:`visnav.studies.loop_analysis`).  :mod:`visnav.scenario` refuses a
 ``gains.k_path`` outside it, so that every command accepts the same scenarios."""
+
+PATH_CLEARANCE_M = 0.1
+"""Clearance [m] the admissible path-following gains of ``visnav analyse`` and ``visnav report``
+must guarantee by default (the value of :data:`visnav.studies.loop_analysis.DEFAULT_CLEARANCE_M`).
+
+The analysis needs it inside the avoidance envelope, ``clearance < d0``, so
+:mod:`visnav.scenario` refuses ``envelopes.d_zero_m <= PATH_CLEARANCE_M``: a scenario that
+``visnav simulate`` accepts is then analysed by ``visnav analyse`` and ``visnav report`` too."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

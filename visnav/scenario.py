@@ -15,6 +15,14 @@ found, what was expected and how to fix it::
 
 Obstacle indices in keys (``obstacles[1].radius_m``) count from 0, in file order.
 
+Hostile input is refused the same way, never with a traceback or a hang: a file
+that is a directory, not UTF-8, starts with a byte-order mark, is larger than
+:data:`MAX_SCENARIO_BYTES`, nests deeper than the TOML parser can follow or holds
+an integer it cannot read; arrays longer than :data:`MAX_OBSTACLES`,
+:data:`MAX_TARGET_POINTS`, :data:`MAX_REQUIREMENTS`; and a run longer than the
+resource bounds of :mod:`visnav.simulation` (samples and trace memory, derived
+from the scenario before anything runs).
+
 Examples
 --------
 >>> scenario = load_scenario("paper")
@@ -31,9 +39,11 @@ import difflib
 import functools
 import hashlib
 import importlib.resources
+import itertools
 import math
 import os
 import re
+import sys
 import tomllib
 import typing
 from collections.abc import Mapping, Sequence
@@ -47,6 +57,7 @@ from visnav import geometry
 from visnav.estimator import SCREW_MODELS, EstimatorSettingsError, validate_settings
 from visnav.parameters import (
     K_PATH_RANGE,
+    PATH_CLEARANCE_M,
     ActuatorLimits,
     CameraModel,
     Envelopes,
@@ -74,6 +85,12 @@ __all__ = [
     "scenario_digest",
     "target_square",
     "point_in_camera",
+    "MIN_TARGET_POINTS",
+    "MAX_TARGET_POINTS",
+    "MAX_OBSTACLES",
+    "MAX_REQUIREMENTS",
+    "MAX_SCENARIO_BYTES",
+    "MAX_KEY_PARTS",
 ]
 
 #: Zero-stable BDF orders accepted for ``estimator.order`` (for reference: the check itself is
@@ -82,6 +99,18 @@ ESTIMATOR_ORDERS = range(MIN_ORDER, MAX_ORDER + 1)
 #: Minimum number of target points (``C = (LᵀL)⁻¹Lᵀ`` needs ``2N >= 3`` independent rows; the
 #: paper uses 4).
 MIN_TARGET_POINTS = 3
+#: Most target points (the paper uses 4; every sample projects, estimates and records each one).
+MAX_TARGET_POINTS = 100
+#: Most obstacles (the paper has 2; the separation rule compares every pair, the supervisor's
+#: checks take one coordinate per obstacle).
+MAX_OBSTACLES = 100
+#: Most ``[[requirements]]`` (the paper has 33; each formula is parsed at load).
+MAX_REQUIREMENTS = 1000
+#: Largest scenario file or text [bytes] (the commented paper scenario is about 20 kB).
+MAX_SCENARIO_BYTES = 1_048_576
+#: Most parts of one dotted key or table header (``a.b.c = 1``: 3; a scenario needs 2).  Checked
+#: before parsing: ``tomllib`` takes time quadratic in the parts (20,000 parts: 17 s).
+MAX_KEY_PARTS = 64
 
 _MISSING = object()
 
@@ -165,14 +194,47 @@ def _rebuild_error(source, key, value, expected, fix, line, column) -> ScenarioE
     return ScenarioError(source, key, value, expected, fix, line=line, column=column)
 
 
+_SHOW_ITEMS = 8  # array entries / table keys shown in a message
+_SHOW_DEPTH = 4  # nesting levels shown in a message
+_SHOW_CHARS = 200  # longest value shown in a message
+
+
 def _show(value: object) -> str:
+    """The value as the message shows it: TOML-like, at most :data:`_SHOW_CHARS` characters (and the count)."""
+    text = _show_part(value, _SHOW_DEPTH)
+    if len(text) <= _SHOW_CHARS:
+        return text
+    count = f" ({len(value):,} entries)" if isinstance(value, (list, tuple, Mapping)) else ""
+    return text[: _SHOW_CHARS - 1] + "…" + count
+
+
+def _show_part(value: object, depth: int) -> str:
     if isinstance(value, float):
         return repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_show(v) for v in value) + "]"
-    if isinstance(value, Mapping):
-        return "{" + ", ".join(f"{k} = {_show(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 200:
+        try:
+            digits = f"{len(str(abs(value)))}"
+        except ValueError:  # beyond Python's int-to-str digit limit
+            digits = f"about {int(value.bit_length() * math.log10(2)) + 1}"
+        return f"<an integer of {digits} digits>"
+    if isinstance(value, str) and len(value) > _SHOW_CHARS:
+        return repr(value[:_SHOW_CHARS]) + f"… ({len(value)} characters)"
+    if isinstance(value, (list, tuple, Mapping)):
+        if depth <= 0:
+            return "[…]" if not isinstance(value, Mapping) else "{…}"
+        head = (list(itertools.islice(value.items(), _SHOW_ITEMS)) if isinstance(value, Mapping)
+                else list(value[:_SHOW_ITEMS]))
+        more = f", … ({len(value):,} entries)" if len(value) > _SHOW_ITEMS else ""
+        if isinstance(value, Mapping):
+            return "{" + ", ".join(f"{_short_key(k)} = {_show_part(v, depth - 1)}" for k, v in head) + more + "}"
+        return "[" + ", ".join(_show_part(v, depth - 1) for v in head) + more + "]"
     return repr(value)
+
+
+def _short_key(key: object, limit: int = 60) -> str:
+    """A key as messages show it (a key of a hostile file may be very long)."""
+    text = str(key)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _num(x: float) -> str:
@@ -287,6 +349,14 @@ def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
         text = _builtin_dir().joinpath(f"{text_name}.toml").read_text(encoding="utf-8")
         return scenario_from_toml(text, text_name)
     path = Path(text_name)
+    if path.is_dir():
+        inside = sorted(entry.name for entry in path.glob("*.toml"))[:5]
+        hint = f" (it holds {', '.join(inside)})" if inside else ""
+        raise ScenarioError(
+            text_name, None, text_name,
+            f"the path of a scenario file, found a directory at {str(path.resolve())!r}{hint}",
+            "give the path of a .toml file, e.g. " + (f"{str(path / inside[0])!r}" if inside else "'DIR/my.toml'"),
+        )
     if not path.is_file():
         if looks_like_path:
             expected = f"an existing scenario file (no file at {str(path.resolve())!r})"
@@ -303,36 +373,192 @@ def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
             f"use one of the built-in names {available}, or check the path",
         )
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
+        size = path.stat().st_size
+        if size > MAX_SCENARIO_BYTES:
+            raise ScenarioError(
+                text_name, None, None,
+                f"a scenario file of at most {MAX_SCENARIO_BYTES:,} bytes (visnav.scenario.MAX_SCENARIO_BYTES), "
+                f"found {size:,} bytes",
+                "check that this is the scenario file; a scenario needs a few kilobytes (the commented paper "
+                "scenario is about 20 kB)",
+            )
+        with path.open("rb") as handle:
+            data = handle.read(MAX_SCENARIO_BYTES + 1)  # the file may grow between stat and read
+    except OSError as err:
         raise ScenarioError(
-            text_name, None, text_name, f"a readable UTF-8 text file ({err})", "check the file"
+            text_name, None, text_name, f"a readable file ({err.strerror or err})",
+            "check the file's permissions and that it is a regular file",
         ) from err
-    return scenario_from_toml(text, text_name)
+    return scenario_from_toml(_decode(data, text_name), text_name)
+
+
+def _decode(data: bytes, source: str) -> str:
+    """UTF-8 text of a scenario file; a byte that is not UTF-8 is named by its offset, line and column."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        column = err.start - (data.rfind(b"\n", 0, err.start) + 1) + 1
+        bad = data[err.start:err.end].hex(" ")
+        raise ScenarioError(
+            source, None, None,
+            f"UTF-8 text (the byte{'s' if err.end - err.start > 1 else ''} 0x{bad} at byte offset {err.start}, "
+            f"line {line}, column {column}, {'are' if err.end - err.start > 1 else 'is'} not valid UTF-8: "
+            f"{err.reason})",
+            f"save the file as UTF-8 (it may be in Latin-1 or Windows-1252: re-encode it, e.g. "
+            f"iconv -f latin1 -t utf-8), or retype the character at line {line}, column {column}",
+            line=line, column=column,
+        ) from err
 
 
 _POSITION = re.compile(r"line (\d+), column (\d+)")
 
 
 def scenario_from_toml(text: str, source: str = "<string>") -> Scenario:
-    """Parse TOML ``text`` and validate it with :func:`scenario_from_mapping`."""
+    """Parse TOML ``text`` and validate it with :func:`scenario_from_mapping`.
+
+    Raises
+    ------
+    ScenarioError
+        Text over :data:`MAX_SCENARIO_BYTES`, a byte-order mark, a TOML syntax error
+        (with its line and column and, for the common mistakes, what to change: a
+        non-ASCII bare key, a key defined twice), nesting too deep or an integer too
+        long for the parser, or any validation failure.
+    """
+    if not isinstance(text, str):
+        raise ScenarioError(source, None, None, f"TOML text (a str), found {type(text).__name__}",
+                            "decode the file as UTF-8 first, or call load_scenario with its path")
+    if len(text) > MAX_SCENARIO_BYTES:
+        raise ScenarioError(
+            source, None, None,
+            f"a scenario of at most {MAX_SCENARIO_BYTES:,} characters (visnav.scenario.MAX_SCENARIO_BYTES), "
+            f"found {len(text):,}", "a scenario needs a few kilobytes; check what is being loaded")
+    if text.startswith("\ufeff"):
+        raise ScenarioError(
+            source, None, None,
+            "TOML text without a byte-order mark (the file starts with a UTF-8 byte-order mark, U+FEFF, "
+            "which TOML does not allow)",
+            "save the file as UTF-8 without BOM (most editors offer 'UTF-8' next to 'UTF-8 with BOM')",
+            line=1, column=1,
+        )
+    _long_dotted_key(text, source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         message = str(err)
         found = _POSITION.search(message)
         line, column = (int(found[1]), int(found[2])) if found else (None, None)
-        at = f"line {line}, column {column}" if found else "an unknown position"
+        if found is None and "end of document" in message:
+            last = text.rsplit("\n", 1)[-1]
+            line, column = text.count("\n") + 1, len(last) + 1
+        at = f"line {line}, column {column}" if line is not None else "an unknown position"
+        expected, fix = _syntax_hint(text, message, line, column)
         raise ScenarioError(
             source,
             None,
             None,
-            f"valid TOML (syntax error at {at}: {message})",
-            f"correct the TOML syntax at {at}",
+            expected or f"valid TOML (syntax error at {at}: {message})",
+            fix or f"correct the TOML syntax at {at}",
             line=line,
             column=column,
         ) from err
+    except RecursionError as err:
+        where = _deepest_line(text)
+        raise ScenarioError(
+            source, None, None,
+            f"TOML nested at most a few hundred levels deep: arrays or inline tables are nested too deep for "
+            f"the parser{where}",
+            "a scenario nests arrays at most 2 levels deep (target.points_m = [[x, y, h], ...]): remove the "
+            "extra brackets",
+        ) from err
+    except ValueError as err:  # an integer longer than Python's int-to-str digit limit (4300 digits)
+        long_number = re.search(r"\d{500,}", text)
+        where = f" at line {text.count(chr(10), 0, long_number.start()) + 1}" if long_number else ""
+        digits = re.search(r"value has (\d+) digits", str(err))
+        found = f"found an integer of {digits[1]} digits" if digits else " ".join(str(err).split())
+        raise ScenarioError(
+            source, None, None,
+            f"numbers the TOML parser can read: an integer has at most {sys.get_int_max_str_digits()} digits "
+            f"({found}{where})",
+            "write the number as a float with an exponent (1e300) or shorten it; no value of a scenario needs "
+            "more than 17 significant digits",
+        ) from err
     return scenario_from_mapping(data, source)
+
+
+# strings and comments of a TOML text, in the order the parser meets them (a '#' inside a string is not a comment)
+_STRINGS_AND_COMMENTS = re.compile(
+    r'"""(?:[^"\\]|\\.|"(?!""))*+"""|\'\'\'(?:[^\']|\'(?!\'\'))*+\'\'\'|"(?:[^"\\\n]|\\.)*+"|\'[^\'\n]*+\'|#[^\n]*+',
+    re.DOTALL,
+)
+# a chain of MAX_KEY_PARTS + 1 dotted parts (strings already replaced by one letter); linear: possessive, and
+# a chain starts only at the beginning of a part
+_DOTTED_CHAIN = re.compile(rf"(?<![A-Za-z0-9_-])(?:[A-Za-z0-9_-]++[ \t]*+\.[ \t]*+){{{MAX_KEY_PARTS},}}[A-Za-z0-9_-]")
+
+
+def _long_dotted_key(text: str, source: str) -> None:
+    """Refuse a dotted key or header of more than :data:`MAX_KEY_PARTS` parts before ``tomllib`` sees it."""
+    bare = _STRINGS_AND_COMMENTS.sub(lambda m: "" if m[0].startswith("#") else "s" + "\n" * m[0].count("\n"), text)
+    found = _DOTTED_CHAIN.search(bare)
+    if found:
+        line = bare.count("\n", 0, found.start()) + 1
+        parts = found[0].count(".") + 1
+        raise ScenarioError(
+            source, None, None,
+            f"dotted keys and table headers of at most {MAX_KEY_PARTS} parts (visnav.scenario.MAX_KEY_PARTS): "
+            f"line {line} has a key of {parts:,} parts (a.b.c... is a table nested once per part)",
+            "a scenario nests tables at most 2 levels deep ([robot] then pan_offset_m, or robot.pan_offset_m): "
+            f"shorten the key at line {line}",
+            line=line,
+        )
+
+
+def _deepest_line(text: str) -> str:
+    """`` (line N)``: the line that opens the most arrays and inline tables (strings and comments skipped)."""
+    bare = _STRINGS_AND_COMMENTS.sub(lambda m: "" if m[0].startswith("#") else "s" + "\n" * m[0].count("\n"), text)
+    counts = [line.count("[") + line.count("{") for line in bare.split("\n")]
+    best = max(range(len(counts)), key=counts.__getitem__) if counts else 0
+    return f" (line {best + 1} opens {counts[best]:,})" if counts and counts[best] else ""
+
+
+_BARE_KEY_PREFIX = re.compile(r"\s*\[{0,2}\s*[A-Za-z0-9_\-. \t\"']*\Z")
+
+
+def _syntax_hint(text: str, message: str, line: int | None, column: int | None) -> tuple[str, str]:
+    """``(expected, fix)`` for the TOML syntax errors whose position alone does not say what to change."""
+    if line is None or column is None:
+        return "", ""
+    lines = text.splitlines()
+    source_line = lines[line - 1] if 0 < line <= len(lines) else ""
+    char = source_line[column - 1] if 0 < column <= len(source_line) else ""
+    at = f"line {line}, column {column}"
+    if char and ord(char) > 127 and _BARE_KEY_PREFIX.match(source_line[: column - 1]):
+        key = re.split(r"\s*[=\]]", source_line.strip().lstrip("["), maxsplit=1)[0].strip()
+        return (
+            f"a bare key of ASCII letters, digits, '-' and '_' only (found {char!r}, U+{ord(char):04X}, in the key "
+            f"{_short_key(key)!r} at {at})",
+            f'quote the key ("{_short_key(key)}" = ...) or spell it in ASCII; the keys of a scenario are ASCII '
+            "(docs/scenarios.md)",
+        )
+    if message.startswith("Cannot declare"):  # a [table] header given twice
+        header = source_line.strip().split("#", 1)[0].strip()
+        first = next((n for n, text_line in enumerate(lines[: line - 1], start=1)
+                      if text_line.split("#", 1)[0].strip() == header), None)
+        earlier = f" (first at line {first})" if first else ""
+        return (
+            f"each table defined once: TOML refuses the header {_short_key(header)} at {at}, the table is "
+            f"already defined{earlier}",
+            f"merge the keys of both {_short_key(header)} tables under one header and delete the other one "
+            "([[obstacles]] and [[requirements]], with two brackets, may repeat)",
+        )
+    if message.startswith("Cannot overwrite a value"):  # a key given twice in one table
+        key = re.split(r"\s*=", source_line.strip(), maxsplit=1)[0].strip()
+        return (
+            f"each key defined once per table: TOML refuses {_short_key(key)!r} at {at}, the same table "
+            "already defines it",
+            f"delete one of the two lines {_short_key(key)} = ... (the second is line {line})",
+        )
+    return "", ""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -362,12 +588,24 @@ class _Checker:
         for key in table:
             if key in valid:
                 continue
+            shown = _short_key(key)
+            where = f"{prefix}.{shown}" if prefix else shown
+            if prefix and key in _TOP_KEYS:
+                # a top-level key written below a [table] header: TOML puts it into that table
+                header = f"[[{prefix.split('[', 1)[0]}]]" if prefix.endswith("]") else f"[{prefix}]"
+                extra = (" (or delete it: a file without [[obstacles]] tables has no obstacles)"
+                         if key == "obstacles" else "")
+                self.fail(
+                    where, table[key],
+                    f"one of the keys {', '.join(valid)}: in TOML every key after a {header} header belongs to "
+                    f"that table, up to the next header, so this top-level {key!r} was read as {where}",
+                    f"move the line {shown} = ... above the first [table] header of the file{extra}",
+                )
             close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.6)
             if close:
-                fix = f"did you mean {close[0]!r}? rename {key!r} to {close[0]!r}"
+                fix = f"did you mean {close[0]!r}? rename {shown!r} to {close[0]!r}"
             else:
-                fix = f"remove {key!r} (valid keys: {', '.join(valid)})"
-            where = f"{prefix}.{key}" if prefix else str(key)
+                fix = f"remove {shown!r} (valid keys: {', '.join(valid)})"
             self.fail(where, table[key], f"one of the keys {', '.join(valid)}", fix)
 
     def number(self, key: str, value: object, unit: str = "") -> float:
@@ -381,7 +619,11 @@ class _Checker:
                 else "write a single number"
             )
             self.fail(key, value, f"a number{unit_text}, found {_toml_type(value)}", hint)
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond the float range (TOML integers have no bound)
+            self.fail(key, value, f"a finite number{unit_text} (this integer is beyond the float range, "
+                      "about 1.8e308)", "write a number of a sensible magnitude")
         if not math.isfinite(number):
             self.fail(key, value, f"a finite number{unit_text}", "replace inf/nan by a finite value")
         return number
@@ -396,6 +638,8 @@ class _Checker:
                 else "write a whole number"
             )
             self.fail(key, value, f"an integer, found {_toml_type(value)}", hint)
+        if value.bit_length() > 63:  # TOML integers are 64-bit; a Python mapping may hold any int
+            self.fail(key, value, "an integer of at most 64 bits (|value| < 2**63)", "write a small whole number")
         return value
 
     def string(self, key: str, value: object) -> str:
@@ -526,6 +770,14 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     for key in ("sampling_period_s", "duration_s", "success_tolerance_px"):
         if key in top:
             check.positive(key, top[key])
+    period = top.get("sampling_period_s", _SCENARIO_DEFAULTS["sampling_period_s"])
+    duration = top.get("duration_s", _SCENARIO_DEFAULTS["duration_s"])
+    if not duration >= period:
+        check.fail(
+            "duration_s", duration,
+            f"at least sampling_period_s = {period!r} s (a run of at least one sampling period)",
+            "lengthen duration_s or shorten sampling_period_s",
+        )
 
     # -- parameter records
     records: dict[str, Any] = {}
@@ -545,6 +797,15 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     env: Envelopes = records["envelopes"]
     _ordered(check, "envelopes", ("d_minus_m", "d_zero_m", "d_plus_m"), env)
     _ordered(check, "envelopes", ("D_minus_px", "D_zero_px", "D_plus_px"), env)
+    if not env.d_zero_m > PATH_CLEARANCE_M:
+        check.fail(
+            "envelopes.d_zero_m", env.d_zero_m,
+            f"a value > {PATH_CLEARANCE_M!r} m (visnav.parameters.PATH_CLEARANCE_M): the path-following analysis "
+            f"of visnav analyse and visnav report certifies gains that keep {PATH_CLEARANCE_M!r} m from the obstacle, "
+            "a clearance inside the avoidance envelope d0",
+            f"choose d_zero_m above {PATH_CLEARANCE_M!r} m (the paper uses 0.5), keeping d_minus_m < d_zero_m "
+            "< d_plus_m",
+        )
 
     _gains_and_limits(check, records["gains"], records["limits"])
     _estimator(check, records["estimator"])
@@ -577,11 +838,75 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     target_table = check.table("target", data["target"], required=True)
     target = _target(check, target_table, robot, records["camera"], poses)
 
+    _run_bounds(check, period, duration, len(target.points_m), len(obstacles))
+
     scenario = Scenario(
         **top, **records, obstacles=obstacles, target=target, start=poses["start"], goal=poses["goal"]
     )
     requirements = _requirements(check, data.get("requirements", _MISSING), scenario)
     return dataclasses.replace(scenario, requirements=requirements) if requirements else scenario
+
+
+_SCENARIO_DEFAULTS = {f.name: f.default for f in dataclasses.fields(Scenario)}
+
+
+def _at_most(check: _Checker, key: str, raw: list[Any], constant: str, what: str, why: str) -> None:
+    """Refuse an array of more than ``globals()[constant]`` entries before any entry is looked at."""
+    limit = globals()[constant]
+    if len(raw) > limit:
+        check.fail(key, raw, f"at most {limit:,} {what} (visnav.scenario.{constant}), found {len(raw):,}: {why}",
+                   f"keep at most {limit:,} {what}")
+
+
+def _run_bounds(check: _Checker, period: float, duration: float, n_points: int, n_obstacles: int) -> None:
+    """Rule 25: the run's samples and trace memory within :mod:`visnav.simulation`'s resource bounds."""
+    from visnav.simulation import MAX_RUN_SAMPLES, MAX_TRACE_BYTES, TRACE_BYTES_PER_VALUE, run_size
+
+    size = run_size(period, duration, n_points, n_obstacles)
+    fix = "lengthen sampling_period_s or shorten duration_s (docs/scenarios.md, 'Resource bounds')"
+    count = (f"{int(size.samples):,} samples" if size.samples <= 1e9 else f"{size.samples:.3g} samples"
+             if math.isfinite(size.samples) else "more samples than a float can count")
+    if not size.samples <= MAX_RUN_SAMPLES:
+        check.fail(
+            "duration_s", duration,
+            f"a run of at most {MAX_RUN_SAMPLES:,} samples (visnav.simulation.MAX_RUN_SAMPLES): "
+            f"duration_s / sampling_period_s = {duration!r} / {period!r} gives {count}, over the limit",
+            fix,
+        )
+    if not size.trace_bytes <= MAX_TRACE_BYTES:
+        check.fail(
+            "duration_s", duration,
+            f"a trace of at most {MAX_TRACE_BYTES / 1e6:,.0f} MB (visnav.simulation.MAX_TRACE_BYTES), the memory "
+            f"of the run kept until it ends: {count} of {size.row_values} values "
+            f"({n_points} target points, {n_obstacles} obstacles) at {TRACE_BYTES_PER_VALUE} bytes each take "
+            f"{size.trace_bytes / 1e6:,.0f} MB; at most {size.max_samples:,} samples fit",
+            fix + ", or use fewer target points",
+        )
+
+
+def _target_determines_motion(check: _Checker, points: tuple[tuple[float, float, float], ...],
+                              robot: RobotGeometry, goal: Pose) -> None:
+    """Rule 21: ``L^T L`` non-singular at ``s*``, with the controller's own test (:mod:`visnav.controllers`).
+
+    The closed loop evaluates the interaction matrix at the desired features, so this one
+    matrix is the one every sample of the run inverts.
+    """
+    from hybrid.errors import NumericalFailure
+
+    from visnav.controllers import visual_servoing_error
+
+    cx, cy, phi = geometry.camera_pose(goal.x_m, goal.y_m, goal.theta_rad, goal.pan_rad, robot)
+    desired = geometry.project_points(cx, cy, phi, robot.camera_height_m, points)
+    try:
+        visual_servoing_error(desired, tuple((x, y) for x, y, _ in desired), desired)
+    except NumericalFailure as err:
+        check.fail(
+            "target.points_m", [list(p) for p in points],
+            "target points whose image at the goal pose determines the camera motion (the visual-servoing "
+            f"matrix L^T L at s* must be invertible; {err.cause.split('; ', 1)[0]})",
+            "spread the points: no two of them coincident, not all on one line (the paper uses the 4 corners of a "
+            "square)",
+        )
 
 
 def _requirement_key(i: int, error: RequirementError) -> str:
@@ -612,6 +937,8 @@ def _requirements(check: _Checker, raw: object, scenario: Scenario) -> tuple[Req
 
     if raw is _MISSING:
         return ()
+    if isinstance(raw, list):
+        _at_most(check, "requirements", raw, "MAX_REQUIREMENTS", "requirements", "each formula is parsed at load")
     if not isinstance(raw, list) or not all(isinstance(item, Mapping) for item in raw):
         check.fail("requirements", raw, "an array of tables [[requirements]]",
                    "write each requirement under its own [[requirements]] header")
@@ -680,8 +1007,8 @@ def _gains_and_limits(check: _Checker, gains: Gains, limits: ActuatorLimits) -> 
 _ESTIMATOR_FIXES = {
     "order": "use 4, as in the paper",
     "screw_model": f"use one of {', '.join(SCREW_MODELS)}",
-    "newton_tol": "set newton_tol to a positive value, e.g. 1e-12",
-    "newton_maxiter": "use 8",
+    "newton_tol": "set newton_tol to a relative tolerance in [1e-15, 1), e.g. 1e-12",
+    "newton_maxiter": "use 8 (at most 100)",
 }
 
 
@@ -761,6 +1088,9 @@ def _obstacles(
 ) -> tuple[Obstacle, ...]:
     if raw is _MISSING:
         return ()
+    if isinstance(raw, list):
+        _at_most(check, "obstacles", raw, "MAX_OBSTACLES", "obstacles",
+                 "the separation rule compares every pair and every sample measures every obstacle")
     if not isinstance(raw, list) or not all(isinstance(item, Mapping) for item in raw):
         check.fail(
             "obstacles",
@@ -854,6 +1184,8 @@ def _target(
                 f"an array of [x, y, h] points [m], found {_toml_type(raw)}",
                 "write points_m = [[x, y, h], ...]",
             )
+        _at_most(check, "target.points_m", raw, "MAX_TARGET_POINTS", "target points",
+                 "every sample projects, reconstructs and records each point")
         points = tuple(
             check.vector(f"target.points_m[{i}]", p, 3, "[x, y, h]", "m") for i, p in enumerate(raw)
         )
@@ -914,6 +1246,7 @@ def _target(
                 f"(found {' and '.join(outside)})",
                 "move the goal pose further from the target, shrink the target, or widen the image",
             )
+    _target_determines_motion(check, points, robot, goal)
     return Target(points_m=points)
 
 

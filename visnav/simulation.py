@@ -20,9 +20,9 @@ from hybrid import SampledTrace, simulate_sampled
 
 from hybrid.jsonable import to_jsonable
 
-from visnav.closed_loop import ClosedLoop, robot_plant
+from visnav.closed_loop import ClosedLoop, record_names, robot_plant
 from visnav.parameters import Scenario
-from visnav.supervisor import split_mode
+from visnav.supervisor import SIGNALS, split_mode
 
 __all__ = [
     "SimulationResult",
@@ -40,6 +40,11 @@ __all__ = [
     "LOOP_TRANSITION_COUNT",
     "CHATTER_WINDOW_S",
     "CLEARANCE_SUBSTEPS",
+    "MAX_RUN_SAMPLES",
+    "MAX_TRACE_BYTES",
+    "TRACE_BYTES_PER_VALUE",
+    "RunSize",
+    "run_size",
 ]
 
 OUTCOMES = ("success", "collision", "timeout", "stuck_in_loop", "target_lost", "diverged", "invalid_scenario", "error")
@@ -86,6 +91,82 @@ CHATTER_WINDOW_S = 1.0
 
 CLEARANCE_SUBSTEPS = 20
 """Sub-samples per period at which the exact arc is checked for clearance."""
+
+MAX_RUN_SAMPLES = 1_000_000
+"""Most samples one run may have, ``floor(duration_s / sampling_period_s) + 1``.
+
+About 30 minutes of simulation at the measured 1.7 ms per sample of the paper scenario
+(the paper run: 2,401 samples, 4 s).  :mod:`visnav.scenario` refuses a scenario over it
+when it is loaded (``docs/scenarios.md``, "Resource bounds"), and :func:`simulate` passes
+it to :func:`hybrid.simulate_sampled` as ``max_samples``."""
+
+MAX_TRACE_BYTES = 500_000_000
+"""Most memory [bytes] the trace of one run may take (:func:`run_size`): 500 MB.
+
+A run keeps every sample until it ends, and a run that never reaches its goal runs its
+whole duration; the bound is checked before the run starts, so that a long duration
+(or a short period) is refused instead of filling the memory."""
+
+TRACE_BYTES_PER_VALUE = 48
+"""Memory of one recorded value while a run goes on [bytes]: a Python float in the
+executor's rows (24 B) and its reference (8 B), the row tuples and the final numpy
+arrays; measured 2.4 kB per sample for the paper scenario's 51-value rows."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class RunSize:
+    """What one run of a scenario takes before it starts (:func:`run_size`).
+
+    Attributes
+    ----------
+    samples : int or float
+        ``floor(duration_s / sampling_period_s) + 1``; a float above ``2 MAX_RUN_SAMPLES``
+        (``inf`` when the ratio overflows).
+    row_values : int
+        Values recorded per sample: time, jump counter, mode, the 4 states, the
+        ``6 + n_obstacles`` supervisor signals, the 3 inputs and the
+        ``9 + 6 n_points`` records of :func:`visnav.closed_loop.record_names`.
+    trace_bytes : float
+        ``samples * row_values * TRACE_BYTES_PER_VALUE``.
+    """
+
+    samples: int | float
+    row_values: int
+    trace_bytes: float
+
+    @property
+    def within_limits(self) -> bool:
+        """At most :data:`MAX_RUN_SAMPLES` samples and :data:`MAX_TRACE_BYTES` bytes."""
+        return self.samples <= MAX_RUN_SAMPLES and self.trace_bytes <= MAX_TRACE_BYTES
+
+    @property
+    def max_samples(self) -> int:
+        """The most samples a run with rows of this size may have under both limits."""
+        return max(1, min(MAX_RUN_SAMPLES, MAX_TRACE_BYTES // (self.row_values * TRACE_BYTES_PER_VALUE)))
+
+
+def run_size(sampling_period_s: float, duration_s: float, n_points: int, n_obstacles: int) -> RunSize:
+    """Samples and trace memory of a run, from the scenario's values alone (nothing is run or allocated).
+
+    Parameters
+    ----------
+    sampling_period_s, duration_s : float
+        Positive and finite [s].
+    n_points, n_obstacles : int
+        Target points and obstacles of the scenario.
+
+    Examples
+    --------
+    >>> size = run_size(0.05, 120.0, 4, 2)
+    >>> size.samples, size.row_values, size.trace_bytes
+    (2401, 51, 5877648)
+    """
+    ratio = duration_s / sampling_period_s
+    samples: int | float = math.floor(ratio + 1e-9) + 1 if ratio < 2.0 * MAX_RUN_SAMPLES else (
+        ratio + 1.0 if math.isfinite(ratio) else math.inf)
+    row = (3 + len(robot_plant().state_names) + len(SIGNALS) + n_obstacles + len(robot_plant().input_names)
+           + len(record_names(n_points)))
+    return RunSize(samples=samples, row_values=row, trace_bytes=samples * row * TRACE_BYTES_PER_VALUE)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -135,12 +216,20 @@ class SimulationResult:
 def simulate(scenario: Scenario) -> SimulationResult:
     """Simulate ``scenario``'s closed loop until success, collision or its duration.
 
+    A loaded scenario is within the resource bounds (:func:`run_size`); one built in
+    Python and not validated is refused by :func:`hybrid.simulate_sampled` before the run
+    starts when it needs more than ``run_size(...).max_samples`` samples.
+
     Raises
     ------
     hybrid.DivergenceError
         With the time, the mode and the cause, if the numerics break down.
+    hybrid.sampled.SampledArgumentError
+        A run over the resource bounds (nothing was run).
     """
     loop = ClosedLoop(scenario=scenario)
+    size = run_size(scenario.sampling_period_s, scenario.duration_s, len(scenario.target.points_m),
+                    len(scenario.obstacles))
     start = time.perf_counter()
     trace = simulate_sampled(
         loop.supervisor.automaton,
@@ -150,6 +239,7 @@ def simulate(scenario: Scenario) -> SimulationResult:
         period=scenario.sampling_period_s,
         duration=scenario.duration_s,
         stop=loop.stop,
+        max_samples=size.max_samples,
     )
     wall = time.perf_counter() - start
     return SimulationResult(

@@ -29,11 +29,13 @@ continuous; the tests check it at every transition.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from hybrid import Box, HybridAutomaton, HybridSystem, MemoryVariable, Mode, Transition
 from hybrid.decide import ParameterSpace
+from hybrid.errors import ParameterError
 from hybrid.symbolic import (
     Expr,
     coordinates,
@@ -60,6 +62,7 @@ __all__ = [
     "measurement_system",
     "measurement_box",
     "measurement_rates",
+    "no_obstacle_distance",
     "parameter_space",
 ]
 
@@ -167,8 +170,20 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
     settings : SupervisorSettings
         Arming angle of the LEAVE condition and detection hysteresis.
     n_obstacles : int
-        Number of obstacles; the signals carry one distance per obstacle.
+        Number of obstacles (``>= 0``); the signals carry one distance per obstacle.  With
+        none, the latched distance is ``d_nearest`` (``inf`` in the closed loop): no
+        collision transition is ever enabled and the supervisor stays in ``FAR``
+        (µ_coll = 0), the occlusion component works as usual.
+
+    Raises
+    ------
+    hybrid.errors.ParameterError
+        ``n_obstacles`` not an integer ``>= 0`` (a ``ValueError``).
     """
+    if isinstance(n_obstacles, bool) or not isinstance(n_obstacles, numbers.Integral) or n_obstacles < 0:
+        raise ParameterError("n_obstacles", n_obstacles,
+                             "an integer >= 0 (the number of obstacles of the scene, for build_supervisor)",
+                             "pass len(scenario.obstacles)")
     env = envelopes
     d_minus, d_zero, d_plus = (param("d_minus", env.d_minus_m), param("d_zero", env.d_zero_m),
                                param("d_plus", env.d_plus_m))
@@ -177,6 +192,7 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
     arm = param("arm", settings.arm_angle_rad)
     hysteresis = param("hysteresis", settings.detection_hysteresis_m)
     release_margin = 0.5 * (D_zero - D_minus)
+    n_obstacles = int(n_obstacles)
     v = coordinates(SIGNALS + tuple(f"d_coll_{i}_m" for i in range(n_obstacles)))
     m = memory_refs("obstacle", "side", "arm_sign", "dL", "d_end", "DL", "D_end")
     pan, d_occ, d_bord = v.pan_wrapped_rad, v.d_occ_px, v.d_bord_px
@@ -324,6 +340,13 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
     supervisor has an invariant (it is evaluated at every sample, and the
     deadlock question is void).  The dwell-time bounds of the Zeno check take
     the measurements' rate bounds instead (:func:`measurement_rates`).
+
+    Without obstacles (``n_obstacles = 0``) there is no distance coordinate:
+    the closed loop then measures ``d_nearest = inf``, and the checks read the
+    finite :func:`no_obstacle_distance` instead (a solver cannot represent
+    ``inf``, and a latched ``dL = inf`` would make ``d − d_end`` NaN), which
+    behaves as ``inf`` in every guard: no collision transition is ever enabled
+    from ``FAR``.
     """
     n = model.n_obstacles
     names = tuple(f"d_coll_{i}_m" for i in range(n)) + (
@@ -336,8 +359,9 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
         index: Expr = 0.0 * distances[0]  # the first minimal distance's index, as min(range(n), key=...)
         for i in range(1, n):
             index = ite(distances[i] < minimum(*distances[:i]), float(i), index)
-    else:
-        nearest, index = 0.0 * x.d_occ_px + math.inf, 0.0 * x.d_occ_px  # type: ignore[assignment]
+    else:  # no obstacle: a finite distance beyond every collision threshold (see the docstring)
+        far = no_obstacle_distance(model.envelopes)
+        nearest, index = 0.0 * x.d_occ_px + far, 0.0 * x.d_occ_px  # type: ignore[assignment]
     output = output_map(nearest, index, x.bypass_side, x.d_occ_px, x.d_bord_px, x.pan_wrapped_rad, *distances)
     zero = tuple(0.0 for _ in names)
     return HybridSystem(
@@ -346,6 +370,23 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
         flows={mode: (lambda t, x, m: zero) for mode in model.automaton.mode_names},
         output=output,
     )
+
+
+def no_obstacle_distance(envelopes: Envelopes) -> float:
+    """The obstacle distance [m] the structural checks read in a scene without obstacles.
+
+    ``10 (d+ + 1 m)``: beyond every collision threshold of the guards (``d+``,
+    ``d+ + hysteresis``) for every envelope and hysteresis of
+    :func:`parameter_space` (``d+ <= d+ + 1 m``, hysteresis ``<= 1 m``), so it acts
+    as the closed loop's ``d_nearest = inf`` (``FAR -> APPROACH`` never enabled)
+    while staying a finite number a solver can represent.
+
+    Examples
+    --------
+    >>> no_obstacle_distance(Envelopes())
+    16.0
+    """
+    return 10.0 * (envelopes.d_plus_m + 1.0)
 
 
 def parameter_space(model: SupervisorModel) -> ParameterSpace:

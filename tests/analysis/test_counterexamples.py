@@ -2,21 +2,29 @@
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 
 import pytest
 
 from analysis.counterexamples import (
+    MAX_DEPTH,
+    MAX_FILE_BYTES,
+    MAX_INT_DIGITS,
     CounterexampleError,
     CounterexampleFormat,
     Replay,
+    check_keys,
     decode_float,
     decode_int,
     decode_optional_int,
     decode_record,
     decode_rows,
     encode_value,
+    parse_json,
+    read_counterexample_text,
     replay_counterexample,
+    show_value,
 )
 from analysis.fuzzing import PropertyViolation
 from analysis.sequences import run_sequence
@@ -72,7 +80,8 @@ def test_encode_value_is_the_toolkit_policy_for_files_read_back():
 
 @pytest.mark.parametrize("text, message", [
     ("{nope", r"counterexample 'f.json': not valid JSON \(Expecting property name"),
-    ("[1]", r"not a counterexample file \(format = 'list', expected 'thermostat-counterexample'\)"),
+    ("[1]", r"not a counterexample file: the top level is an array, expected an object with "
+            r"format = 'thermostat-counterexample'"),
     ('{"format": "other"}', r"not a counterexample file \(format = 'other'"),
     ('{"format": "thermostat-counterexample", "version": 2}',
      r"format version 2 is not supported \(this thermostat reads version 3\)"),
@@ -87,7 +96,7 @@ def test_the_envelope_is_checked(text, message):
     ({"band": {"low": 22.0}}, r"setup.band: Band: low = 22.0 >= high = 21.0"),
     ({"band": {"low": "warm"}}, r"setup.band.low = 'warm': expected a number or one of 'inf', '-inf', 'nan'"),
     ({"band": {"low": True}}, r"setup.band.low = True: expected a number .*not a boolean"),
-    ({"band": 3}, r"setup.band: expected an object, found int"),
+    ({"band": 3}, r"setup.band: expected an object, found an integer"),
     ({"sensors": 1.0}, r"setup.sensors = 1.0: expected an integer"),
     ({"name": 7}, r"setup.name = 7: expected a string"),
     ({"heated": 1}, r"setup.heated = 1: expected true or false"),
@@ -152,3 +161,95 @@ def test_counterexample_error_is_a_value_error_naming_the_file():
     err = CounterexampleError("a.json", "broken")
     assert isinstance(err, ValueError) and str(err) == "counterexample 'a.json': broken"
     assert json.loads(FMT.dumps({})) == {"format": "thermostat-counterexample", "version": 3}
+
+
+# ---- reading a file: strict JSON, bounded ------------------------------------------------------------------
+
+_OK = '{"format": "thermostat-counterexample", "version": 3, "x": %s}'
+
+
+@pytest.mark.parametrize("text, message", [
+    ("", r"'f.json': malformed counterexample file: the file is empty; expected a JSON object"),
+    (" \n\t", r"malformed counterexample file: the file is empty"),
+    ("\ufeff" + _OK % 1, r"malformed counterexample file: it starts with a byte-order mark \(U\+FEFF\)"),
+    (_OK % "[1.0, NaN]", r"malformed counterexample file: x\[1\]: NaN is not a JSON number .*the strings \"nan\""),
+    (_OK % '{"t": Infinity}', r"malformed counterexample file: x\.t: Infinity is not a JSON number"),
+    (_OK % "-Infinity", r"malformed counterexample file: x: -Infinity is not a JSON number"),
+    (_OK % "[[1.0, 1e999]]", r"x\[0\]\[1\]: a number too large for a float \(it reads as infinity\)"),
+    (_OK % ("1" * 400 + ".5"), r"x: a number too large for a float"),
+    (_OK % ("7" * 5000), r"x: an integer of 5000 digits \(at most 300 are read\)"),
+    (_OK % ("-" + "7" * 301), r"x: an integer of 301 digits"),
+    ('{"format": "thermostat-counterexample", "version": 3, "version": 3}',
+     r"malformed counterexample file: the top-level object: duplicate key 'version'"),
+    (_OK % '[{"a": 1, "b": 2, "a": 3}]', r"x\[0\]: duplicate key 'a' \(each key may occur once per object\)"),
+    (_OK % '"\\udc00"', r"x: string '\\udc00' has an unpaired surrogate"),
+    (_OK % '{"\\ud800": 1}', r"x: key '\\ud800' has an unpaired surrogate"),
+    ("[" * 5000 + "]" * 5000, rf"malformed counterexample file: line 1, column {MAX_DEPTH + 1}: nested more than "
+                              rf"{MAX_DEPTH} levels deep"),
+    ('{"a": \n' + '{"a": ' * 5000 + "1" + "}" * 5001, r"line 2, column 379: nested more than 64 levels deep"),
+    (_OK % ("[" * 100 + "]" * 100), r"x\[0\]\[0\].*: nested more than 64 levels deep"),
+    ("null", r"not a counterexample file: the top level is null, expected an object"),
+    ('"thermostat-counterexample"', r"the top level is a string"),
+    ('{"version": 3}', r"not a counterexample file: no 'format' key \(expected format = 'thermostat-counterexample'\)"),
+    ('{"format": ["thermostat-counterexample"]}', r"not a counterexample file \(format = \['thermostat-counterexample'\]"),
+    ('{"format": "thermostat-counterexample"}', r"no 'version' key \(expected version = 3: this thermostat reads"),
+    ('{"format": "thermostat-counterexample", "version": true}', r"version = True: expected the integer 3, found a bool"),
+    ('{"format": "thermostat-counterexample", "version": 3.0}', r"version = 3\.0: expected the integer 3, found a number"),
+    ('{"format": "thermostat-counterexample", "version": "3"}', r"version = '3': expected the integer 3, found a string"),
+    ('{"format": "thermostat-counterexample", "version": 3} []', r"not valid JSON \(Extra data at line 1, column 55\)"),
+])
+def test_reading_is_strict_json_and_says_what_and_where(text, message):
+    with pytest.raises(CounterexampleError, match=message) as info:
+        FMT.loads(text, "f.json")
+    assert info.value.source == "f.json" and str(info.value).startswith("counterexample 'f.json': ")
+
+
+def test_strict_reading_keeps_what_the_writer_writes():
+    """Big finite values, ints in float rows, the non-finite strings, nesting up to MAX_DEPTH: read as before."""
+    rows = [(1e308, 1e308), (2, -0.0), (math.inf, 5e-324), (math.nan, 1.5)]
+    text = FMT.dumps({"deep": [[[]]], "big": 10 ** (MAX_INT_DIGITS - 1)}, rows_key="samples", rows=rows)
+    data = FMT.loads(text, "t.json")
+    assert data["big"] == 10 ** (MAX_INT_DIGITS - 1) and data["deep"] == [[[]]]
+    back = decode_rows(data["samples"], 2, "samples", "t.json")
+    assert back[:3] == ((1e308, 1e308), (2.0, -0.0), (math.inf, 5e-324)) and type(back[1][0]) is float
+    assert math.isnan(back[3][0]) and back[3][1] == 1.5
+    nested = "[" * (MAX_DEPTH - 1) + "]" * (MAX_DEPTH - 1)
+    assert parse_json(f'{{"x": {nested}}}', "t.json")["x"] == json.loads(nested)
+
+
+def test_a_file_is_read_only_when_it_is_a_regular_utf8_file_of_bounded_size(tmp_path):
+    good = tmp_path / "good.json"
+    good.write_text('{"a": "é"}', encoding="utf-8")
+    assert read_counterexample_text(good) == '{"a": "é"}'
+    with pytest.raises(CounterexampleError, match=r"'.*missing.json': no such file") as info:
+        read_counterexample_text(tmp_path / "missing.json")
+    assert info.value.source == str(tmp_path / "missing.json")
+    with pytest.raises(CounterexampleError, match=r"is a folder, not a file"):
+        read_counterexample_text(tmp_path)
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)  # reading it would block: refused before opening
+    with pytest.raises(CounterexampleError, match=r"is not a regular file \(a device, FIFO or socket\)"):
+        read_counterexample_text(fifo)
+    with pytest.raises(CounterexampleError, match=r"the file is 11 bytes, more than the 10 bytes a counterexample"):
+        read_counterexample_text(good, max_bytes=10)
+    assert MAX_FILE_BYTES == 50_000_000
+    latin = tmp_path / "latin.json"
+    latin.write_bytes(b'{\n "a": "\xe9t\xe9"}')
+    with pytest.raises(CounterexampleError, match=r"not UTF-8 text: byte 0xe9 at line 2, column 8 \(invalid "
+                                                  r"continuation byte\)"):
+        read_counterexample_text(latin)
+
+
+def test_check_keys_names_the_missing_and_the_unknown_ones():
+    check_keys({"a": 1, "b": 2}, "top", "f", ("a",), ("b", "c"))
+    with pytest.raises(CounterexampleError, match=r"'f': top: missing key 'a' \(required: a\)"):
+        check_keys({"b": 1}, "top", "f", ("a",))
+    with pytest.raises(CounterexampleError, match=r"'f': unknown keys 'z', 'y'; the known keys are a, b \(remove"):
+        check_keys({"a": 1, "z": 2, "y": 3}, "", "f", ("a",), ("b",))
+
+
+def test_show_value_bounds_what_a_message_repeats():
+    assert show_value("abc") == "'abc'" and show_value([1, 2]) == "[1, 2]"
+    assert show_value("x" * 10_000) == "'" + "x" * 79 + "... (a string of 10,000 characters)"
+    assert show_value(list(range(5000))).endswith("... (an array of 5,000 entries)")
+    assert len(show_value(10 ** 200)) == 83

@@ -747,10 +747,12 @@ def test_settings_unknown_screw_model():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"newton_tol": 0.0}, r"EstimatorSettings\.newton_tol = 0\.0: expected a positive finite tolerance"),
-    ({"newton_tol": math.nan}, r"EstimatorSettings\.newton_tol = nan: expected a positive finite tolerance"),
-    ({"newton_maxiter": 0}, r"EstimatorSettings\.newton_maxiter = 0: expected an integer >= 1"),
-    ({"newton_maxiter": 2.0}, r"EstimatorSettings\.newton_maxiter = 2\.0: expected an integer >= 1"),
+    ({"newton_tol": 0.0}, r"EstimatorSettings\.newton_tol = 0\.0: expected a relative tolerance in \[1e-15, 1\)"),
+    ({"newton_tol": math.nan}, r"EstimatorSettings\.newton_tol = nan: expected a relative tolerance in \[1e-15, 1\)"),
+    ({"newton_tol": 5e-324}, r"EstimatorSettings\.newton_tol = 5e-324: expected a relative tolerance"),
+    ({"newton_maxiter": 0}, r"EstimatorSettings\.newton_maxiter = 0: expected an integer in \[1, 100\]"),
+    ({"newton_maxiter": 2.0}, r"EstimatorSettings\.newton_maxiter = 2\.0: expected an integer in \[1, 100\]"),
+    ({"newton_maxiter": 10 ** 12}, r"EstimatorSettings\.newton_maxiter = 1000000000000: expected an integer in"),
 ])
 def test_settings_newton(kwargs, message):
     with pytest.raises(EstimatorSettingsError, match=message):

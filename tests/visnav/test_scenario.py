@@ -381,10 +381,11 @@ def test_estimator_order(paper, order):
     rejects(paper, "estimator.order", "use 4, as in the paper", "a BDF order in 1..6")
 
 
-@pytest.mark.parametrize("value", [0.0, -2.0])
+@pytest.mark.parametrize("value", [0.0, -2.0, 5e-324, 1e-16, 1.0])
 def test_newton_tol(paper, value):
     paper["estimator"]["newton_tol"] = value
-    rejects(paper, "estimator.newton_tol", "set newton_tol to a positive value", "a positive finite tolerance")
+    rejects(paper, "estimator.newton_tol", "set newton_tol to a relative tolerance in [1e-15, 1)",
+            "a relative tolerance in [1e-15, 1)")
 
 
 @pytest.mark.parametrize(("key", "value"), [("order", 9), ("screw_model", "trapezoid"), ("newton_tol", -1.0),
@@ -419,9 +420,10 @@ def test_screw_models_accepted(paper, model_name):
     assert scenario_from_mapping(paper, SOURCE).estimator.screw_model == model_name
 
 
-def test_newton_maxiter(paper):
-    paper["estimator"]["newton_maxiter"] = 0
-    rejects(paper, "estimator.newton_maxiter", "use 8", ">= 1")
+@pytest.mark.parametrize("value", [0, 101, 10 ** 12])
+def test_newton_maxiter(paper, value):
+    paper["estimator"]["newton_maxiter"] = value
+    rejects(paper, "estimator.newton_maxiter", "use 8 (at most 100)", "an integer in [1, 100]")
 
 
 @pytest.mark.parametrize("value", [0.0, -0.2, math.pi / 2, 2.0])

@@ -2,7 +2,7 @@
 
 Property tests drive the automaton with bounded-rate signal sequences and
 check the invariants after every sample; example tests pin the answer to
-each open question of NOTES.md.
+each open question of docs/supervisor.md.
 """
 
 import math

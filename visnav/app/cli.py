@@ -143,7 +143,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     from visnav.app.files import prepare_output_dir
     from visnav.app.report import ReportOptions, build_report
-    from visnav.app.report_files import write_report
+    from visnav.app.report_files import check_report_folder, write_report
     from visnav.app.verification_report import VERDICT_LABELS
     from visnav.scenario import load_scenario
 
@@ -155,10 +155,13 @@ def _cmd_report(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         if args.problem is not None:
+            if args.out is not None:  # refused before the work (the default folder needs the problem's name)
+                check_report_folder(args.out)
             report, folder, subject = _build_problem_report(args, options, progress)
         else:
             scenario = load_scenario(args.scenario or "paper")
             folder = prepare_output_dir(args.out or f"reports/{scenario.name}")
+            check_report_folder(folder)  # the report replaces the folder whole: refused before the work
             report = build_report(scenario, options, progress=progress, source=args.scenario or "paper")
             subject = scenario.name
     except ProblemLoadError as error:
@@ -179,12 +182,20 @@ def _cmd_report(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     counts, verdict = report.data["claim_counts"], report.data["verdict"]
     code = EXIT_CODES[verdict]
+    # the scenario's own task (its nominal simulation): a failed task is a failed report, as for `simulate`
+    metrics = report.data.get("simulation", {}).get("metrics")
+    task_achieved = None if metrics is None else bool(metrics["success"])
+    if task_achieved is False:
+        code = EXIT_TASK_FAILED
     if args.json:
         print(json.dumps({"problem" if args.problem is not None else "scenario": subject, "out": str(folder),
-                          "verdict": verdict, "exit_code": code,
+                          "verdict": verdict, "task_achieved": task_achieved, "exit_code": code,
                           "claim_counts": counts, "files": [str(p) for p in written]}, sort_keys=True))
     else:
-        lines = [f"visnav report {subject}{' (quick)' if args.quick else ''}: {VERDICT_LABELS[verdict]}; "
+        task = "" if task_achieved is not False else (
+            f"; TASK FAILED in the nominal simulation ({metrics['termination']}"
+            f"{', collision' if metrics.get('collided') else ''})")
+        lines = [f"visnav report {subject}{' (quick)' if args.quick else ''}: {VERDICT_LABELS[verdict]}{task}; "
                  f"{counts['proven']} proven, {counts['measured']} measured, {counts['sampled']} sampled claims in "
                  f"{elapsed:.1f} s"]
         lines += _verdict_lines(report.data["verification"]["requirements"], folder)

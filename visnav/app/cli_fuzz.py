@@ -10,7 +10,10 @@ JSON object, byte-identical for the same arguments (no timings in it).
 
 ``visnav replay FILE [--all] [--json]`` runs a counterexample again and shows
 the trace and the violated property; exit 1 if the property still fails, 0
-if it now holds, 2 if the file is missing, corrupt or of another format version.
+if it now holds, 2 if the file cannot be read (missing, a folder, not a
+regular file, over :data:`analysis.counterexamples.MAX_FILE_BYTES`, not UTF-8)
+or is malformed (not strict JSON, another format or version, a missing,
+unknown or ill-typed key, a scenario the scenario validator refuses).
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from typing import Any, TextIO
 
 from hybrid.jsonable import to_jsonable
 
-from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED, positive_int
+from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED, non_negative_int, positive_int
 
 __all__ = ["add_parser", "cmd_fuzz", "cmd_replay", "DEFAULT_OUT"]
 
@@ -55,6 +58,17 @@ def _variant_name(text: str) -> str:
     return text
 
 
+def _seed(text: str) -> int:
+    """A seed: a whole number >= 0 that a counterexample file can hold (at most ``MAX_INT_DIGITS`` digits)."""
+    from analysis.counterexamples import MAX_INT_DIGITS, show_value
+
+    if len(text.strip().lstrip("+-").lstrip("0")) > MAX_INT_DIGITS:
+        raise argparse.ArgumentTypeError(
+            f"{show_value(text, 40)} has more than {MAX_INT_DIGITS} digits; give a whole number >= 0 of at most "
+            f"{MAX_INT_DIGITS} digits (the counterexample files hold no longer integers)")
+    return non_negative_int(text)
+
+
 def add_parser(sub: Any) -> None:
     """Register the ``fuzz`` and ``replay`` subcommands on ``visnav``'s subparsers."""
     fz = sub.add_parser("fuzz", help="fuzz the supervisor's switching logic with hypothesis (exit 1 if a property fails)")
@@ -64,8 +78,8 @@ def add_parser(sub: Any) -> None:
                     help="supervisor to fuzz: resolved (default), paper (as written) or a mutant")
     fz.add_argument("--examples", type=positive_int, default=None,
                     help="examples per property (default: each property's CI budget)")
-    fz.add_argument("--seed", type=int, default=None,
-                    help="hypothesis seed (default: derandomised, the CI examples)")
+    fz.add_argument("--seed", type=_seed, default=None,
+                    help="hypothesis seed, a whole number >= 0 (default: derandomised, the CI examples)")
     fz.add_argument("--out", default=None, help=f"folder for counterexample files (default: {DEFAULT_OUT})")
     fz.add_argument("--json", action="store_true", help="print one JSON object")
     fz.add_argument("--progress", action="store_true", help="show the progress bar even when stderr is not a terminal")
@@ -239,18 +253,15 @@ def _replay_human(path: str, result: Any, show_all: bool) -> str:
 
 def cmd_replay(args: argparse.Namespace) -> int:
     """``visnav replay FILE``: run a counterexample again, show its trace and the violated property."""
+    from analysis.counterexamples import read_counterexample_text
     from visnav.fuzzing import CounterexampleError, counterexample_from_json, replay
 
     exit_ok, exit_failed, exit_bad = _exit_codes()
-    path = Path(args.file)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        print(f"visnav: error: replay {args.file!r}: no such file; give a counterexample written by visnav fuzz",
-              file=sys.stderr)
-        return exit_bad
-    except (OSError, UnicodeDecodeError) as err:
-        print(f"visnav: error: replay {args.file!r}: cannot read the file ({err})", file=sys.stderr)
+        text = read_counterexample_text(args.file)
+    except CounterexampleError as err:
+        print(f"visnav: error: replay {args.file!r}: {err.problem}; give a counterexample file written by "
+              "visnav fuzz or visnav verify", file=sys.stderr)
         return exit_bad
     from visnav.app.cli_verify import is_verification_counterexample, replay_verification
 

@@ -41,10 +41,10 @@ def classify(err: BaseException) -> int:
 
     if isinstance(err, KeyboardInterrupt):
         return EXIT_INTERRUPTED
+    if isinstance(err, (ParameterError, ModelDefinitionError)):  # first: a bad argument may also be an ExecutionError
+        return EXIT_BAD_INPUT
     if isinstance(err, (DivergenceError, NumericalFailure, ZenoError, ExecutionError)):
         return EXIT_DIVERGED
-    if isinstance(err, (ParameterError, ModelDefinitionError)):
-        return EXIT_BAD_INPUT
     for module, name in (("visnav.scenario", "ScenarioError"), ("visnav.app.files", "OutputError")):
         kind = getattr(sys.modules.get(module), name, None)
         if kind is not None and isinstance(err, kind):

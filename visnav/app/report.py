@@ -132,6 +132,22 @@ def automaton_digest(scenario: Scenario) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
+def _bounded_parameters(parameters: dict[str, Any]) -> dict[str, Any]:
+    """The scenario's tables with its free texts (its and its requirements' descriptions) bounded
+    (:func:`visnav.app.report_render.bounded_text`): a long description is not copied whole into
+    every report file; ``meta.scenario_digest`` still covers the full text."""
+    from visnav.app.report_render import bounded_text
+
+    out = dict(parameters)
+    if isinstance(out.get("description"), str):
+        out["description"] = bounded_text(out["description"])
+    if isinstance(out.get("requirements"), list):
+        out["requirements"] = [{**r, "description": bounded_text(r["description"])}
+                               if isinstance(r, dict) and isinstance(r.get("description"), str) else r
+                               for r in out["requirements"]]
+    return out
+
+
 # --------------------------------------------------------------------------- sections
 
 
@@ -154,7 +170,7 @@ def _model_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str
     checks = report.as_dict()
     checks["summary"] = findings_summary(checks["findings"])
     data = {
-        "parameters": tomllib.loads(scenario_to_toml(scenario)),
+        "parameters": _bounded_parameters(tomllib.loads(scenario_to_toml(scenario))),
         "automaton": {
             "modes": len(automaton.modes),
             "transitions": len(automaton.transitions),
@@ -258,10 +274,14 @@ def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict
     import dataclasses
 
     from visnav.app.figures_stiffness import stiffness_figures
-    from visnav.studies.stiffness import QUICK_SETTINGS, StudySettings, stiffness_study
+    from visnav.studies.stiffness import QUICK_SETTINGS, NoOcclusionError, StudySettings, stiffness_study
 
     settings = dataclasses.replace(QUICK_SETTINGS if options.quick else StudySettings(), seed=options.seed)
-    study = stiffness_study(scenario, settings)
+    try:
+        study = stiffness_study(scenario, settings)
+    except NoOcclusionError as err:  # a scenario without an occlusion: nothing to reconstruct, nothing to study
+        return ({"not_applicable": str(err), "figures": []},
+                [Claim(section="stiffness", status="measured", text=f"stiffness study not applicable: {err}")], {})
     data = study.as_dict(include_timing=False)
     figures = stiffness_figures(study)
     data["figures"] = sorted(figures)

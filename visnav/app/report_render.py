@@ -22,9 +22,25 @@ from typing import Any
 from visnav.app.verification_report import VERDICT_LABELS
 
 __all__ = ["Block", "report_blocks", "findings_blocks", "structural_blocks", "render_markdown", "render_html",
-           "SECTION_RENDERERS"]
+           "SECTION_RENDERERS", "TEXT_LIMIT", "bounded_text"]
 
 _BADGE = {"proven": "PROVEN", "measured": "MEASURED", "sampled": "SAMPLED"}
+
+TEXT_LIMIT = 2000
+"""Characters of a free text of the input (a description) copied into the documents."""
+
+
+_TRUNCATED = re.compile(r"… \(truncated, \d+ characters\)")
+
+
+def bounded_text(text: str, limit: int = TEXT_LIMIT) -> str:
+    """``text``, or its first ``limit`` characters and ``… (truncated, N characters)`` (N: the whole text's).
+
+    A text bounded already (``report.json`` holds the scenario's description bounded) is kept as it is.
+    """
+    if len(text) <= limit or _TRUNCATED.fullmatch(text, limit):
+        return text
+    return f"{text[:limit]}… (truncated, {len(text)} characters)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,12 +85,12 @@ def _model_blocks(data: dict[str, Any]) -> list[Block]:
     for table, values in model["parameters"].items():
         if isinstance(values, dict):
             for key, value in values.items():
-                rows.append([table, key, _fmt(value)])
+                rows.append([table, key, bounded_text(_fmt(value))])
         elif isinstance(values, list):
             rows.append([table, f"{len(values)} entries", _fmt([v.get("name", "") if isinstance(v, dict) else v
                                                                  for v in values])])
         else:
-            rows.append(["", table, _fmt(values)])
+            rows.append(["", table, bounded_text(_fmt(values))])
     blocks.append(Block("table", (["table", "parameter", "value"], rows)))
     blocks.append(Block("figure", ("mode_graph", "Mode graph of the supervisor automaton")))
     checks = model["structural_checks"]
@@ -231,10 +247,10 @@ def _verification_blocks(data: dict[str, Any]) -> list[Block]:
         blocks.append(Block("p", "Re-run a counterexample with `visnav replay FILE` (files next to this report: "
                                  + ", ".join(f"[{f}]({f})" for f in replay) + ")."))
     blocks.append(Block("table", (["requirement", "formula", "meaning"],
-                                  [[r["name"], f"`{' '.join(r['formula'].split())}`", r["description"]]
+                                  [[r["name"], f"`{' '.join(r['formula'].split())}`", bounded_text(r["description"])]
                                    for r in ver["requirements"]])))
     box = ver["parameters"]
-    desc = (ver["description"] + ". ") if ver["description"] else ""
+    desc = (bounded_text(ver["description"]) + ". ") if ver["description"] else ""
     blocks.append(Block("p", f"{desc}Horizon {_fmt(ver['horizon_s'])} s; box of {len(box)} parameter(s) "
                              f"(source `{ver['source']}`). Coverage: per parameter, the share of ten equal bins a "
                              "simulated point fell in; a row's coverage is the smallest share."))
@@ -309,6 +325,9 @@ def _analysis_blocks(data: dict[str, Any]) -> list[Block]:
 def _stiffness_blocks(data: dict[str, Any]) -> list[Block]:
     st = data["stiffness"]
     blocks = [Block("h2", "Stiffness of the reconstruction ODE (13) and the integrator choice")]
+    if "not_applicable" in st:
+        return blocks + [Block("p", f"Not applicable to this scenario: {st['not_applicable']}"),
+                         Block("claims", _claims_of(data, "stiffness"))]
     rows = [[order, _fmt(row["alpha_deg"]), _fmt(row.get("published_deg")), _fmt(row["error_deg"])]
             for order, row in st["stability"]["a_alpha"].items()]
     blocks.append(Block("table", (["BDF order", "A(α) measured [deg]", "published [deg]", "difference [deg]"], rows)))

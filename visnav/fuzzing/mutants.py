@@ -12,7 +12,7 @@ changed priority, a changed target, a subclass that changes one case of µ).
 Nothing is monkeypatched; the resolved automaton is untouched.
 
 ============================  =====================================================================
-mutant                        defect (the open question of NOTES.md it answers the other way)
+mutant                        defect (the open question of docs/supervisor.md it answers the other way)
 ============================  =====================================================================
 ``drop_dl_latch``             dL follows d_coll instead of being latched when LEAVE is set (Q5):
                               case 3 of (2) is identically 1 and the release guards never hold

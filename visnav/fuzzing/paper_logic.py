@@ -13,7 +13,7 @@ Two things live here:
   are in ``docs/fuzzing.md``).
 
 To execute the text some readings are unavoidable; each is the most literal
-one (:data:`READINGS`).  The open questions of NOTES.md are left as the
+one (:data:`READINGS`).  The open questions of docs/supervisor.md are left as the
 paper leaves them: AVOID and LEAVE are never reset, the cases are evaluated
 in printed order, nothing arms the "ϑ = 0" test, and there is no release
 phase.

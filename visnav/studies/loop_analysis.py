@@ -33,6 +33,7 @@ from analysis.margins import frequency_response_data, loop_model, loop_transfer,
 
 from visnav import model
 from visnav.geometry import proximity
+from visnav.parameters import PATH_CLEARANCE_M
 from visnav.studies.goal_loops import PanTaskModel, VisualServoingModel, goal_loop_findings, pan_task_model, visual_servoing_model
 from hybrid.jsonable import to_jsonable
 from visnav.parameters import K_PATH_RANGE, Scenario
@@ -47,8 +48,8 @@ from visnav.studies.path_following import (
 
 __all__ = ["Analysis", "analyse", "entry_angles_from_simulation", "DEFAULT_CLEARANCE_M"]
 
-DEFAULT_CLEARANCE_M = 0.1
-"""Default clearance the admissible gains must guarantee [m]."""
+DEFAULT_CLEARANCE_M = PATH_CLEARANCE_M
+"""Default clearance the admissible gains must guarantee [m] (the scenario validator keeps d0 above it)."""
 
 _K_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 31))
 _V_CURVE = tuple(float(v) for v in np.linspace(0.05, 0.6, 12))

@@ -85,6 +85,7 @@ from visnav.simulation import SimulationResult, simulate
 
 __all__ = [
     "StiffnessStudyError",
+    "NoOcclusionError",
     "StudySettings",
     "QUICK_SETTINGS",
     "ReconstructionWindow",
@@ -146,6 +147,11 @@ level the fixed-step schemes reach (BDF6: 1e-13 to 5e-13)."""
 
 class StiffnessStudyError(ValueError):
     """The scenario or the settings do not allow the study (no occlusion, short history, bad settings)."""
+
+
+class NoOcclusionError(StiffnessStudyError):
+    """The run has no occlusion window to study (no hidden feature, or too early for the BDF history): the
+    study does not apply to that scenario (a report says so instead of failing)."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -299,7 +305,7 @@ def occlusion_window(result: SimulationResult) -> ReconstructionWindow:
     scenario = result.scenario
     hidden = trace.record("n_hidden") > 0
     if not hidden.any():
-        raise StiffnessStudyError(
+        raise NoOcclusionError(
             f"scenario {scenario.name!r}: no feature is ever hidden, so there is no occlusion to reconstruct; "
             f"use a scenario whose tall obstacle hides the target (e.g. 'paper')"
         )
@@ -309,7 +315,7 @@ def occlusion_window(result: SimulationResult) -> ReconstructionWindow:
     start = int(first) - 1
     last = int(stop) - 1
     if start < HISTORY_PERIODS:
-        raise StiffnessStudyError(
+        raise NoOcclusionError(
             f"scenario {scenario.name!r}: the occlusion starts at sample {first} (t = {trace.times[first]:g} s) but "
             f"the study needs {HISTORY_PERIODS} measured periods before it; start the robot further away"
         )

@@ -145,6 +145,7 @@ HOSTILE = st.sampled_from([
     10 ** 30, -(10 ** 18), 0, 1, True, False, "", "text", "nan", [], [1.0], [1.0, 2.0, 3.0, 4.0], {"x": 1.0},
 ]) | st.floats(allow_nan=True, allow_infinity=True) | st.integers(min_value=-(10 ** 20), max_value=10 ** 20) \
     | st.text(max_size=8)
+HOSTILE = HOSTILE.map(lambda v: json.loads(json.dumps(v)) if isinstance(v, (list, dict)) else v)  # fresh containers
 
 
 def _set(data: Any, path: tuple, value: Any) -> None:
@@ -257,6 +258,7 @@ def _valid_counterexample() -> dict[str, Any]:
 
 VALID_CX = _valid_counterexample()
 CX_HOSTILE = HOSTILE | st.just(None) | st.lists(st.lists(st.floats(), max_size=3), max_size=3)
+"""(``HOSTILE`` draws fresh lists and tables: a drawn container is never shared between examples.)"""
 
 
 @st.composite

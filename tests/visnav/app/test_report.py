@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import io
 import json
 import os
+import re
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -141,3 +146,120 @@ def test_html_report_renders_in_headless_chromium(quick_dirs):
     for complete, width, height, alt in images:
         assert complete and width > 100 and height > 100, alt
     assert "Verification report" in heading
+
+
+# --------------------------------------------------------------------------- a failing task, a long description
+
+ROOT = Path(__file__).resolve().parents[3]
+LONG_DESCRIPTION = "".join(f"word{i} " for i in range(80_000))  # 789 kB (a scenario file holds at most 1 MB)
+ONE_REQUIREMENT = '''
+[[requirements]]
+name = "mu_in_unit_interval"
+description = "mu_coll and mu_occ lie in [0, 1]."
+formula = "always[0, 4] (-1e-9 <= mu_coll <= 1 + 1e-9 and -1e-9 <= mu_occ <= 1 + 1e-9)"
+'''
+
+
+@pytest.fixture(scope="module")
+def failing_task(tmp_path_factory):
+    """The paper scenario cut to 4 s (its goal is not reached: a timeout), one requirement that holds and a
+    789 kB description, reported quickly: verification (budget 1), model and simulation sections only."""
+    from visnav.app import report
+
+    text = (ROOT / "visnav" / "scenarios" / "paper.toml").read_text()
+    short = text.replace("duration_s = 120.0", "duration_s = 4.0")
+    short = re.sub(r'^description = ".*"$', lambda m: f'description = "{LONG_DESCRIPTION}"', short, count=1,
+                   flags=re.M)
+    assert short.count("duration_s = 4.0") == 1 and LONG_DESCRIPTION in short
+    short = short[:short.index("[[requirements]]")] + ONE_REQUIREMENT
+    folder = tmp_path_factory.mktemp("failing_task")
+    (folder / "short.toml").write_text(short)
+    out = folder / "report"
+    runs, built = {}, []
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report, "_SECTIONS", tuple((n, f) for n, f in report._SECTIONS if n in ("model", "simulation")))
+        real_build = report.build_report
+        patch.setattr(report, "build_report", lambda *a, **k: built[0] if built else built.append(
+            real_build(*a, **k)) or built[0])
+        for mode in ("human", "json"):  # the second run writes the report the first one built
+            stdout = io.StringIO()
+            with contextlib.redirect_stdout(stdout):
+                code = main(["report", "--scenario", str(folder / "short.toml"), "--quick", "--budget", "1",
+                             "--out", str(out)] + (["--json"] if mode == "json" else []))
+            runs[mode] = (code, stdout.getvalue())
+    return folder / "short.toml", out, runs
+
+
+def test_a_failing_task_exits_1_and_says_so(failing_task):
+    _, out, runs = failing_task
+    data = json.loads((out / "report.json").read_text())
+    assert data["sections"] == ["verification", "model", "simulation"]
+    assert data["verdict"] == "not_falsified"  # the requirement holds: the exit code comes from the task
+    metrics = data["simulation"]["metrics"]
+    assert metrics["success"] is False and metrics["termination"] == "end_time"
+    code, printed = runs["human"]
+    assert code == 1
+    assert printed.splitlines()[0].startswith(
+        "visnav report paper (quick): NOT FALSIFIED; TASK FAILED in the nominal simulation (end_time); ")
+    code, printed = runs["json"]
+    summary = json.loads(printed)
+    assert code == 1 and summary["exit_code"] == 1 and summary["task_achieved"] is False
+    assert summary["verdict"] == "not_falsified"
+
+
+def test_a_long_description_is_truncated_in_every_report_file(failing_task):
+    from visnav.app.report_render import TEXT_LIMIT
+    from visnav.scenario import load_scenario, scenario_digest
+
+    source, out, _ = failing_task
+    marker = f"… (truncated, {len(LONG_DESCRIPTION)} characters)"
+    shown = LONG_DESCRIPTION[:TEXT_LIMIT] + marker
+    data = json.loads((out / "report.json").read_text())
+    assert data["model"]["parameters"]["description"] == shown
+    for name in ("report.md", "report.html", "report.json"):
+        text = (out / name).read_text()
+        assert text.count(LONG_DESCRIPTION[:TEXT_LIMIT]) == 1 and marker in text, name
+        assert LONG_DESCRIPTION[:TEXT_LIMIT + 10] not in text, name
+        assert len(text) < 700_000, name  # without the bound each held the 789 kB
+    # the digest still covers the whole text: the scenario with the shown text has another one
+    scenario = load_scenario(str(source))
+    assert data["meta"]["scenario_digest"] == scenario_digest(scenario)
+    assert scenario_digest(dataclasses.replace(scenario, description=shown)) != data["meta"]["scenario_digest"]
+
+
+def test_bounded_text_keeps_short_texts_and_marks_the_cut():
+    from visnav.app.report_render import bounded_text
+
+    assert bounded_text("x" * 2000) == "x" * 2000
+    cut = bounded_text("x" * 2001 + "y")
+    assert cut == "x" * 2000 + "… (truncated, 2002 characters)"
+    assert bounded_text(cut) == cut  # report.json's bounded text is not cut again in the documents
+
+
+@pytest.mark.parametrize("target", [["--scenario", "paper"], ["--problem", "examples/thermostat.py:problem"]])
+def test_a_folder_holding_other_files_is_refused_before_the_work(tmp_path, capsys, monkeypatch, target):
+    monkeypatch.chdir(ROOT)
+    (tmp_path / "notes.txt").write_text("mine")
+    assert main(["report", *target, "--quick", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "holds 1 file(s) that are not part of a visnav report (notes.txt)" in err and str(tmp_path) in err
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def test_a_scenario_without_occlusion_gets_a_stiffness_section_saying_it_does_not_apply(monkeypatch):
+    import visnav.studies.stiffness as stiffness
+    from visnav.app import report as report_module
+    from visnav.app.report_render import _stiffness_blocks
+    from visnav.scenario import load_scenario
+
+    reason = "scenario 'x': no feature is ever hidden, so there is no occlusion to reconstruct"
+
+    def no_occlusion(scenario, settings):
+        raise stiffness.NoOcclusionError(reason)
+
+    monkeypatch.setattr(stiffness, "stiffness_study", no_occlusion)
+    data, claims, figures = report_module._stiffness_section(load_scenario("paper"), ReportOptions.for_mode(quick=True))
+    assert data == {"not_applicable": reason, "figures": []} and figures == {}
+    assert [c.status for c in claims] == ["measured"] and reason in claims[0].text
+    blocks = _stiffness_blocks({"stiffness": data, "claims": [dataclasses.asdict(c) for c in claims]})
+    assert any(reason in str(b) for b in blocks)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -66,6 +67,9 @@ def test_cli_fuzz_human_summary(capsys):
     (["fuzz", "--examples", "0"], "0 is not positive"),
     (["fuzz", "--examples", "-3"], "-3 is not positive"),
     (["fuzz", "--variant", "nope"], "unknown variant 'nope'; known variants: resolved, paper, drop_dl_latch"),
+    (["fuzz", "--seed", "-1"], "argument --seed: -1 is negative; give a whole number >= 0"),
+    (["fuzz", "--seed", "0.5"], "argument --seed: '0.5' is not an integer; give a whole number >= 0"),
+    (["fuzz", "--seed", "9" * 5000], "has more than 300 digits; give a whole number >= 0 of at most 300 digits"),
 ])
 def test_cli_fuzz_bad_arguments_exit_2(args, message, capsys):
     with pytest.raises(SystemExit) as info:
@@ -116,3 +120,89 @@ def test_cli_replay_of_a_file_with_an_invalid_scenario_exits_2(tmp_path, capsys)
     captured = capsys.readouterr()
     assert captured.out == ""
     assert f"visnav: error: replay: counterexample '{path}': scenario: envelopes.d_minus_m = 0.9" in captured.err
+
+
+def _scenario_data():
+    from visnav.scenario import load_scenario
+
+    cx = Counterexample(property="no_collision", variant="resolved", kind="scenario", message="m",
+                        scenario=load_scenario("paper"))
+    return json.loads(counterexample_to_json(cx))
+
+
+def _edit(data, edit):
+    edit(data)
+    return json.dumps(data)
+
+
+_VALID = json.dumps(_valid_text())
+_ROW = "[1.0, 1.6, 1.0, 160.0, 320.0, 0.0, 0.0, 1.0]"
+
+# (id, the file: bytes, text, or "dir"/"fifo"/"huge", key words of the message)
+HOSTILE = [
+    ("nested-5000", "[" * 5000 + "]" * 5000, ["malformed counterexample file", "line 1, column 65",
+                                              "nested more than 64 levels deep"]),
+    ("integer-5000-digits", _VALID.replace('"seed": null', '"seed": ' + "9" * 5000),
+     ["malformed counterexample file: seed: an integer of 5000 digits (at most 300 are read)"]),
+    ("property-a-list", json.dumps({"format": "visnav-fuzz-counterexample", "version": 1, "property": ["x"]}),
+     ["property = ['x']: expected a string, one of: mu_range"]),
+    ("scenario-d-minus-above-d-plus", lambda: _edit(_scenario_data(), lambda d: d["scenario"]["envelopes"].update(
+        d_minus_m=0.9)), ["scenario: envelopes.d_minus_m = 0.9: expected d_minus_m < d_zero_m < d_plus_m"]),
+    ("scenario-nan-duration", lambda: _edit(_scenario_data(), lambda d: d["scenario"].update(duration_s="nan")),
+     ["scenario: duration_s = 'nan': expected a number [s]"]),
+    ("scenario-NaN-token", lambda: _edit(_scenario_data(), lambda d: d["scenario"].update(duration_s=float("nan"))),
+     ["scenario.duration_s: NaN is not a JSON number"]),
+    ("scenario-period-5e-324", lambda: _edit(_scenario_data(), lambda d: d["scenario"].update(
+        sampling_period_s=5e-324)), ["scenario: duration_s = 120.0: expected a run of at most"]),
+    ("scenario-unknown-key", lambda: _edit(_scenario_data(), lambda d: d["scenario"]["gains"].update(lamda=1.0)),
+     ["scenario: gains.lamda = 1.0: expected one of the keys"]),
+    ("unknown-top-level-key", lambda: _edit(_valid_text(), lambda d: d.update(comment="x")),
+     ["unknown key 'comment'; the known keys are channels, format, kind, measurements"]),
+    ("directory", "dir", ["is a folder, not a file", "give a counterexample file written by visnav fuzz"]),
+    ("fifo", "fifo", ["is not a regular file (a device, FIFO or socket)"]),
+    ("empty", "", ["malformed counterexample file: the file is empty"]),
+    ("invalid-utf8", b'{"format": "visnav-fuzz-counterexample", "property": "\xff"}',
+     ["not UTF-8 text: byte 0xff at line 1, column 55"]),
+    ("bom", "\ufeff" + _VALID, ["malformed counterexample file: it starts with a byte-order mark (U+FEFF)"]),
+    ("over-50-MB", "huge", ["the file is 50,000,001 bytes, more than the 50,000,000 bytes"]),
+    ("NaN-token", _VALID.replace(_ROW, _ROW.replace("1.6", "NaN")), ["measurements[0][1]: NaN is not a JSON number"]),
+    ("Infinity-token", _VALID.replace(_ROW, _ROW.replace("160.0", "-Infinity")),
+     ["measurements[0][3]: -Infinity is not a JSON number"]),
+    ("overflowing-number", _VALID.replace(_ROW, _ROW.replace("320.0", "3e999")),
+     ["measurements[0][4]: a number too large for a float"]),
+    ("wrong-format", _VALID.replace('"visnav-fuzz-counterexample"', '"visnav-fuzz-counterexample-2"'),
+     ["not a counterexample file (format = 'visnav-fuzz-counterexample-2', expected 'visnav-fuzz-counterexample')"]),
+    ("version-2", _VALID.replace('"version": 1', '"version": 2'),
+     ["format version 2 is not supported (this visnav reads version 1)"]),
+    ("version-a-string", _VALID.replace('"version": 1', '"version": "1"'),
+     ["version = '1': expected the integer 1, found a string"]),
+    ("version-true", _VALID.replace('"version": 1', '"version": true'), ["version = True: expected the integer 1"]),
+    ("duplicate-key", _VALID[:-1] + ', "variant": "paper"}',
+     ["malformed counterexample file: the top-level object: duplicate key 'variant'"]),
+    ("top-level-array", "[" + _VALID + "]", ["not a counterexample file: the top level is an array"]),
+    ("unpaired-surrogate", _VALID.replace('"message": "m"', '"message": "\\ud83d"'),
+     ["violation.message: string '\\ud83d' has an unpaired surrogate"]),
+]
+
+
+@pytest.mark.parametrize("content, words", [h[1:] for h in HOSTILE], ids=[h[0] for h in HOSTILE])
+def test_cli_replay_of_a_hostile_file_exits_2_with_a_precise_message(content, words, tmp_path, capsys):
+    path = tmp_path / "cx.json"
+    if content == "dir":
+        path.mkdir()
+    elif content == "fifo":
+        os.mkfifo(path)
+    elif content == "huge":
+        with open(path, "wb") as handle:
+            handle.truncate(50_000_001)  # sparse: no disk used, nothing read
+    else:
+        content = content() if callable(content) else content
+        path.write_bytes(content if isinstance(content, bytes) else content.encode("utf-8", "surrogatepass"))
+    assert main(["replay", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.startswith("visnav: error: replay") and captured.err.count("\n") == 1
+    assert str(path) in captured.err
+    for word in words:
+        assert word in captured.err
+    assert "Traceback" not in captured.err and "internal error" not in captured.err

@@ -129,3 +129,83 @@ def test_the_file_text_is_stable():
     back = counterexample_from_json(text, "t.json")
     assert back.measurements == cx.measurements and back.sample == 1
     assert dict(back.details) == {"mu": ["inf", 0.5]}  # details are free-form JSON, read back as written
+
+
+def _without(key):
+    return lambda d: {k: v for k, v in d.items() if k != key}
+
+
+def _set(path, value):
+    """A mutation setting ``d[path[0]][path[1]]... = value`` (missing objects created)."""
+    def mutate(d):
+        d = json.loads(json.dumps(d))
+        target = d
+        for key in path[:-1]:
+            target = target[key] if isinstance(target, list) else target.setdefault(key, {})
+        target[path[-1]] = value
+        return d
+    return mutate
+
+
+@pytest.mark.parametrize("mutate, message", [
+    # the tester's file: a list where the property name goes
+    (lambda d: {"format": FORMAT, "version": 1, "property": ["x"]},
+     r"property = \['x'\]: expected a string, one of: mu_range, .*; found an array"),
+    (_without("property"), r"missing key 'property'; expected a property name, one of: mu_range, "),
+    (_set(["variant"], 3), r"variant = 3: expected a string, one of: resolved, paper, .*; found an integer"),
+    (_without("kind"), r"missing key 'kind'; expected 'signals' \(the kind of property 'mu_range'\)"),
+    (_set(["extra"], 1), r"unknown key 'extra'; the known keys are channels, format, kind, measurements, property, "
+                         r"seed, space, variant, version, violation \(remove the others\)"),
+    (_set(["scenario"], {}), r"unknown key 'scenario'; the known keys are channels"),
+    (_without("channels"), r"missing key 'channels' \(required: format, version, property, variant, kind, violation, "
+                           r"space, channels, measurements\)"),
+    (_without("space"), r"missing key 'space'"),
+    (_without("violation"), r"missing key 'violation'"),
+    (_set(["violation"], "boom"), r"violation: expected an object with a 'message' string, found a string"),
+    (_set(["violation", "message"], None), r"violation.message = None: expected a string"),
+    (_set(["violation", "when"], 0), r"violation: unknown key 'when'; the known keys are details, message, sample"),
+    (_set(["violation", "sample"], -1), r"violation.sample = -1: expected an integer >= 0 or null"),
+    (_set(["violation", "sample"], 1.0), r"violation.sample = 1.0: expected an integer or null"),
+    (_set(["violation", "details"], [1]), r"violation.details = \[1\]: expected an object, found an array"),
+    (_set(["seed"], "7"), r"seed = '7': expected an integer or null"),
+    (_set(["channels"], "d_coll_0_m"), r"channels = 'd_coll_0_m': expected a list of channel names"),
+    (_set(["channels", 1], "d_coll_7_m"), r"channels\[1\] = 'd_coll_7_m': expected 'd_coll_1_m' \(the channels are "
+                                          r"d_coll_0_m, d_coll_1_m, side"),
+    (_set(["space", "n_obstacles"], 10 ** 200), r"channels: 8 names for a space of space.n_obstacles = 1000.*\.\.\. "
+                                                r"obstacle\(s\); expected n_obstacles \+ 6 names"),
+    (_set(["space", "n_obstacles"], 0), r"space: MeasurementSpace.n_obstacles = 0: expected an integer >= 1"),
+    (_set(["space", "envelopes", "d_minus_m"], 0.9),
+     r"space\.envelopes\.d_minus_m = 0\.9: expected d_minus_m < d_zero_m < d_plus_m"),
+    (_set(["space", "settings", "detection_hysteresis_m"], 0.0),
+     r"space\.settings\.detection_hysteresis_m = 0\.0: expected a value > 0 \[m\]"),
+    (_set(["space", "period_s"], "nan"), r"space\.period_s = nan: expected a finite number \[s\]"),
+    (_set(["space", "period_s"], 5e-324), r"space\.period_s = 5e-324 \(checked as the sampling period of a 1 s run\)"),
+    (_set(["space", "max_step_d_m"], -0.01), r"space\.max_step_d_m = -0\.01: expected a finite value > 0"),
+    (_set(["space", "camera_half_width_px"], "inf"), r"space\.camera_half_width_px = inf: expected a finite value"),
+    (_set(["measurements", 0, 0], True), r"measurements\[0\] = True: expected a number"),
+])
+def test_every_field_is_present_and_typed(mutate, message):
+    with pytest.raises(CounterexampleError, match=message) as info:
+        counterexample_from_json(json.dumps(mutate(_valid_text())), "f.json")
+    assert info.value.source == "f.json"
+
+
+@pytest.mark.parametrize("table, key, value, message", [
+    (None, "sampling_period_s", 5e-324, r"'f\.json': scenario: duration_s = 120\.0: expected a run of at most"),
+    (None, "bogus", 1, r"scenario: bogus = 1: expected one of the keys name, description"),
+    ("envelopes", "D_plus_px", "inf", r"scenario: envelopes\.D_plus_px = 'inf': expected a number"),
+])
+def test_the_scenario_validator_decides_as_for_simulate(table, key, value, message):
+    """The same validator as ``visnav simulate`` (its run bound included): refused, not run."""
+    _, data = _scenario_text()
+    (data["scenario"][table] if table else data["scenario"])[key] = value
+    with pytest.raises(CounterexampleError, match=message):
+        counterexample_from_json(json.dumps(data), "f.json")
+
+
+def test_a_scenario_file_has_no_channels_and_an_optional_seed():
+    cx, data = _scenario_text()
+    with pytest.raises(CounterexampleError, match=r"unknown keys 'channels', 'measurements'; the known keys are "
+                                                  r"format, kind, property, scenario, seed, space"):
+        counterexample_from_json(json.dumps({**data, "channels": [], "measurements": []}), "f.json")
+    assert counterexample_from_json(json.dumps(_without("seed")(data)), "f.json") == cx  # seed: null by default
