@@ -12,12 +12,17 @@ results whatever the executor, the number of workers or the interruptions.
 (:class:`InlineExecutor`), a process pool whose workers ignore SIGINT and exit
 when the campaign process dies (:func:`process_pool`), a Dask
 ``LocalCluster``, or a running Dask scheduler (probed with a bounded timeout,
-:func:`probe_scheduler`).  :func:`wilson_interval` and :func:`quantiles` are
+:func:`probe_scheduler`: a peer that is not a Dask scheduler is named so,
+whatever its first bytes make the Dask protocol do).  The Dask executors are
+watched (:class:`WatchedExecutor`): when no worker has been alive for
+``no_worker_timeout_s`` the tasks in flight fail with :class:`NoWorkerError`
+instead of waiting forever.  :func:`wilson_interval` and :func:`quantiles` are
 the statistics campaign summaries report.
 
 Errors name the library's parameters (``workers``, ``scheduler address``,
-``connect_timeout_s``); a front end shows its own names for them with
-:meth:`CampaignOptionError.render` and :meth:`SchedulerUnavailableError.render`.
+``connect_timeout_s``, ``no_worker_timeout_s``); a front end shows its own
+names for them with :meth:`CampaignOptionError.render`,
+:meth:`SchedulerUnavailableError.render` and :meth:`NoWorkerError.render`.
 Nothing here prints or writes files.
 
 Examples
@@ -37,6 +42,7 @@ import asyncio
 import collections
 import concurrent.futures as cf
 import contextlib
+import ipaddress
 import logging
 import math
 import multiprocessing
@@ -56,17 +62,22 @@ from hybrid.errors import ParameterError
 __all__ = [
     "ORDERS",
     "ORPHAN_POLL_S",
+    "DEFAULT_NO_WORKER_TIMEOUT_S",
     "QUANTILES",
     "WILSON_Z",
     "CampaignOptionError",
     "SchedulerUnavailableError",
+    "NotADaskSchedulerError",
+    "NoWorkerError",
     "CampaignBackend",
     "InlineExecutor",
+    "WatchedExecutor",
     "run_tasks",
     "campaign_executor",
     "process_pool",
     "probe_scheduler",
     "check_address",
+    "dask_worker_count",
     "wilson_interval",
     "quantiles",
 ]
@@ -83,7 +94,10 @@ QUANTILES = (0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 WILSON_Z = 1.959963984540054
 """Normal quantile of the 95 % Wilson score interval."""
 
-_ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:(\d{1,5})$")
+DEFAULT_NO_WORKER_TIMEOUT_S = 60.0
+"""How long a Dask campaign waits with no live worker before its tasks fail with :class:`NoWorkerError` [s]."""
+
+_ADDRESS = re.compile(r"^(tcp|tls)://(\[[^\s/\[\]]+\]|[^\s/:\[\]]+):(\d{1,5})$")
 _PLACEHOLDER = re.compile(r"\{(\w+)\}")
 _DISPLAY_NAMES = {"scheduler": "scheduler address"}
 """How the library's own messages name a parameter (default: its identifier)."""
@@ -125,15 +139,15 @@ class SchedulerUnavailableError(ConnectionError):
     ----------
     address : str
         The scheduler address tried.
-    timeout_s : float
-        The connect timeout [s].
+    timeout_s : float or None
+        The connect timeout [s] (``None``: the failure has nothing to do with time, e.g. no TLS set up).
     reason : str
-        What happened.
+        What happened (never empty).
     fix : str
         How to proceed (a template: see :class:`CampaignOptionError`).
     """
 
-    def __init__(self, address: str, timeout_s: float, reason: str, fix: str) -> None:
+    def __init__(self, address: str, timeout_s: float | None, reason: str, fix: str) -> None:
         self.address = address
         self.timeout_s = timeout_s
         self.reason = reason
@@ -143,11 +157,62 @@ class SchedulerUnavailableError(ConnectionError):
     def render(self, names: Mapping[str, str] | None = None) -> str:
         """The message with parameters named by ``names`` (as :meth:`CampaignOptionError.render`)."""
         names = {} if names is None else names
-        return (f"{_render('{scheduler}', names)} {self.address!r}: {self.reason} within the connect timeout of "
-                f"{self.timeout_s:g} s; fix: {_render(self.fix, names)}")
+        within = "" if self.timeout_s is None else f" within the connect timeout of {self.timeout_s:g} s"
+        return f"{_render('{scheduler}', names)} {self.address!r}: {self.reason}{within}; fix: {_render(self.fix, names)}"
 
     def __reduce__(self):
-        return (SchedulerUnavailableError, (self.address, self.timeout_s, self.reason, self.fix))
+        return (type(self), (self.address, self.timeout_s, self.reason, self.fix))
+
+
+class NotADaskSchedulerError(SchedulerUnavailableError):
+    """The peer at the scheduler address answers, but not as a Dask scheduler (another service, a Dask worker).
+
+    ``reason`` says what it sent or how reading it as the Dask protocol failed.
+    """
+
+    def render(self, names: Mapping[str, str] | None = None) -> str:
+        """The message with parameters named by ``names`` (as :meth:`CampaignOptionError.render`)."""
+        names = {} if names is None else names
+        return (f"{_render('{scheduler}', names)} {self.address!r}: not a Dask scheduler at {self.address} "
+                f"({self.reason}); fix: {_render(self.fix, names)}")
+
+
+class NoWorkerError(RuntimeError):
+    """No Dask worker has been alive for the watchdog's time: the campaign's tasks cannot progress.
+
+    Attributes
+    ----------
+    where : str
+        The cluster (``"dask scheduler tcp://...: ..."``).
+    timeout_s : float
+        The time without a live worker [s] (``no_worker_timeout_s``).
+    detail : str
+        Why no worker was counted (empty, or e.g. the scheduler not answering).
+    """
+
+    def __init__(self, where: str, timeout_s: float, detail: str = "") -> None:
+        self.where = where
+        self.timeout_s = timeout_s
+        self.detail = detail
+        super().__init__(self.render())
+
+    def render(self, names: Mapping[str, str] | None = None) -> str:
+        """The message with parameters named by ``names`` (``no_worker_timeout_s`` by its CLI flag, say)."""
+        names = {} if names is None else names
+        detail = f"; {self.detail}" if self.detail else ""
+        return (f"no Dask worker alive for {self.timeout_s:g} s (the limit of "
+                f"{_render('{no_worker_timeout_s}', names)}) on {self.where}{detail}")
+
+    def __reduce__(self):
+        return (NoWorkerError, (self.where, self.timeout_s, self.detail))
+
+
+def _describe(err: BaseException, limit: int = 160) -> str:
+    """``Type: message`` of an exception, never an empty reason."""
+    text = " ".join(str(err).split())
+    if len(text) > limit:
+        text = text[:limit] + "..."
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
 
 
 def _check_int(name: str, value: object, minimum: int, fix: str) -> int:
@@ -181,6 +246,138 @@ class InlineExecutor(cf.Executor):
         except Exception as err:  # noqa: BLE001 - delivered through the future, as other executors do
             future.set_exception(err)
         return future
+
+
+class _Proxy(cf.Future):
+    """The future :class:`WatchedExecutor` hands out for one of its inner executor's futures."""
+
+    def __init__(self, inner: cf.Future) -> None:
+        super().__init__()
+        self._inner = inner
+
+    def cancel(self) -> bool:
+        """Cancel the inner future; this one is cancelled only if that succeeds (as a plain future)."""
+        if not self._inner.cancel():
+            return super().cancelled()
+        return super().cancel()
+
+
+class WatchedExecutor(cf.Executor):
+    """An executor whose pending futures fail with :class:`NoWorkerError` once no worker has been alive for a time.
+
+    A thread asks ``workers()`` every ``poll_s`` seconds; once it has answered 0 (or failed) without a
+    break for ``timeout_s``, every future not yet done fails with :class:`NoWorkerError`, and so do later
+    submissions.  A Dask cluster whose workers are all gone otherwise keeps its tasks pending forever.
+
+    Parameters
+    ----------
+    inner : concurrent.futures.Executor
+        The executor that runs the tasks (a Dask ``ClientExecutor``, typically).
+    workers : callable
+        ``() -> int``: the number of live workers (bounded in time; an exception counts as none).
+    timeout_s : float
+        Time without a live worker before the futures fail [s].
+    where : str
+        The cluster, for the message.
+    poll_s : float, optional
+        Between two questions [s] (default ``min(1, timeout_s / 4)``).
+
+    Raises
+    ------
+    CampaignOptionError
+        ``timeout_s`` or ``poll_s`` not a positive number of seconds.
+    """
+
+    def __init__(self, inner: cf.Executor, workers: Callable[[], int], timeout_s: float, *, where: str,
+                 poll_s: float | None = None) -> None:
+        self._timeout = _check_seconds("no_worker_timeout_s", timeout_s, "e.g. 60")
+        self._poll = _check_seconds("poll_s", min(1.0, self._timeout / 4) if poll_s is None else poll_s, "e.g. 1")
+        self._inner = inner
+        self._workers = workers
+        self._where = where
+        self._lock = threading.RLock()
+        self._outstanding: dict[_Proxy, cf.Future] = {}
+        self._failure: NoWorkerError | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="campaign-worker-watchdog", daemon=True)
+        self._thread.start()
+
+    @property
+    def failure(self) -> NoWorkerError | None:
+        """The error the futures failed with, once the watchdog fired."""
+        return self._failure
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future:
+        """Submit to the inner executor; a future that fails if no worker is alive for ``timeout_s``."""
+        if self._failure is not None:
+            failed: cf.Future = cf.Future()
+            failed.set_exception(self._failure)
+            return failed
+        inner = self._inner.submit(fn, *args, **kwargs)
+        outer = _Proxy(inner)
+        with self._lock:
+            if self._failure is not None:
+                outer.set_exception(self._failure)
+                inner.cancel()
+                return outer
+            self._outstanding[outer] = inner
+        inner.add_done_callback(lambda done, outer=outer: self._settle(outer, done))
+        return outer
+
+    def _settle(self, outer: _Proxy, inner: cf.Future) -> None:
+        with self._lock:
+            self._outstanding.pop(outer, None)
+            if outer.done():
+                return
+            if inner.cancelled():
+                cf.Future.cancel(outer)
+                outer.set_running_or_notify_cancel()
+            elif inner.exception() is not None:
+                outer.set_exception(inner.exception())
+            else:
+                outer.set_result(inner.result())
+
+    def _fail(self, error: NoWorkerError) -> None:
+        with self._lock:
+            self._failure = error
+            victims = list(self._outstanding.items())
+            self._outstanding.clear()
+            for outer, _ in victims:
+                if not outer.done():
+                    outer.set_exception(error)
+        for _, inner in victims:
+            inner.cancel()
+
+    def _watch(self) -> None:
+        since: float | None = None
+        detail = ""
+        while not self._stop.wait(self._poll):
+            try:
+                alive = int(self._workers())
+                detail = ""
+            except Exception as err:  # noqa: BLE001 - a scheduler that does not answer has no worker for us
+                alive = 0
+                detail = f"the scheduler did not answer ({_describe(err)})"
+            now = time.monotonic()
+            if alive > 0:
+                since = None
+                continue
+            since = now if since is None else since
+            if now - since >= self._timeout:
+                self._fail(NoWorkerError(self._where, self._timeout, detail))
+                return
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Stop the watchdog and shut the inner executor down."""
+        self._stop.set()
+        if cancel_futures:
+            with self._lock:
+                inner = list(self._outstanding.values())
+            for future in inner:
+                future.cancel()
+        self._inner.shutdown(wait=wait)
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=self._poll + 1.0)
 
 
 def _todo(indices: int | Iterable[int], skip: Collection[int]) -> list[int]:
@@ -412,40 +609,92 @@ def probe_scheduler(address: str, timeout_s: float) -> None:
     """Ask the Dask scheduler at ``address`` for its identity, within ``timeout_s`` overall.
 
     ``distributed.Client(address, timeout=...)`` can wait indefinitely on a peer
-    that accepts the connection but never answers; this probe cannot.
+    that accepts the connection but never answers; this probe cannot.  A peer that
+    is not a Dask scheduler (a service sending a banner, which the Dask protocol
+    reads as the length of a huge message: ``MemoryError``; a Dask worker) is
+    reported as such, whatever exception reading it raised.
 
     Raises
     ------
+    NotADaskSchedulerError
+        Something answers, but not a Dask scheduler.
     SchedulerUnavailableError
-        If nothing answers the identity request in time.
+        Nothing answers the identity request in time (the reason says what timed out, after how
+        long), or TLS is asked for and not configured.
     """
     from distributed.comm import connect
+    from distributed.security import Security
+
+    tls_fix = ("set distributed.comm.tls.ca-file, .client.cert and .client.key in the Dask configuration, "
+               "or give a tcp:// {scheduler}")
+    try:
+        connection_args = Security().get_connection_args("client") if address.startswith("tls://") else {}
+    except Exception as err:  # noqa: BLE001 - unreadable certificate files, a bad configuration
+        raise SchedulerUnavailableError(address, None, f"the Dask TLS configuration cannot be used "
+                                        f"({_describe(err)})", tls_fix) from err
+    stage = ["connecting and exchanging the Dask handshake"]
+    start = time.monotonic()
 
     async def ask() -> Any:
-        comm = await connect(address, timeout=timeout_s)
+        comm = await connect(address, timeout=timeout_s, **connection_args)
+        stage[0] = "waiting for the answer to an identity request"
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()
         finally:
             comm.abort()
 
+    retry = ("start one (`dask scheduler`, then `dask worker ADDRESS`), check the address and port, "
+             "or raise {connect_timeout_s}")
     try:
         reply = asyncio.run(asyncio.wait_for(ask(), timeout_s))
-    except (OSError, asyncio.TimeoutError, ValueError) as err:
+    except (asyncio.TimeoutError, TimeoutError) as err:
         raise SchedulerUnavailableError(
-            address, timeout_s, f"no Dask scheduler answered ({type(err).__name__}: {err})".replace(" ()", ""),
-            "start one (`dask scheduler`, then `dask worker ADDRESS`), check the address and port, "
-            "or raise {connect_timeout_s}",
-        ) from err
+            address, timeout_s, f"no Dask scheduler answered (timed out after {timeout_s:g} s {stage[0]})",
+            retry) from err
+    except OSError as err:
+        raise SchedulerUnavailableError(address, timeout_s, f"no Dask scheduler answered ({_describe(err)})",
+                                        retry) from err
+    except Exception as err:  # noqa: BLE001 - MemoryError, msgpack, struct...: the peer speaks another protocol
+        if address.startswith("tls://") and isinstance(err, TypeError) and "ssl" in str(err).lower():
+            raise SchedulerUnavailableError(
+                address, None, f"TLS is not configured for the Dask client ({_describe(err)})", tls_fix) from err
+        sent = _first_bytes(address, max(0.0, min(0.5, timeout_s - (time.monotonic() - start))))
+        raise NotADaskSchedulerError(
+            address, timeout_s, f"{sent}reading its first message as the Dask protocol failed: {_describe(err)}",
+            "give the {scheduler} of a Dask scheduler (`dask scheduler` prints it), not another service's port") from err
     if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
-        raise SchedulerUnavailableError(
-            address, timeout_s, f"the peer answered but is not a Dask scheduler ({reply!r:.80})",
-            "give the {scheduler} of a Dask scheduler",
-        )
+        kind = reply.get("type") if isinstance(reply, dict) else None
+        what = (f"it is a Dask {kind}" if isinstance(kind, str) else
+                f"it answered the identity request with {reply!r:.80}")
+        raise NotADaskSchedulerError(address, timeout_s, what,
+                                     "give the {scheduler} of a Dask scheduler (a worker's log names its scheduler)")
+
+
+def _first_bytes(address: str, wait_s: float) -> str:
+    """``"it sent b'...'; "``: what a TCP peer sends first (best effort, within ``wait_s``), for a message."""
+    match = _ADDRESS.match(address)
+    if match is None or match[1] != "tcp" or wait_s <= 0:
+        return ""
+    host = match[2].strip("[]")
+
+    async def peek() -> bytes:
+        reader, writer = await asyncio.open_connection(host, int(match[3]))
+        try:
+            return await reader.read(48)
+        finally:
+            writer.close()
+
+    try:
+        sent = asyncio.run(asyncio.wait_for(peek(), wait_s))
+    except Exception:  # noqa: BLE001 - only for the message
+        return ""
+    return f"it sent {sent!r}; " if sent else ""
 
 
 def check_address(address: object) -> str:
-    """``address`` if it reads ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` (port 1-65535).
+    """``address`` if it reads ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` (port 1-65535; an IPv6 host in
+    brackets, ``tcp://[::1]:8786``).
 
     Raises
     ------
@@ -453,9 +702,15 @@ def check_address(address: object) -> str:
         Naming the ``scheduler`` parameter.
     """
     match = _ADDRESS.match(address) if isinstance(address, str) else None
-    if match is None or not 0 < int(match[2]) < 65536:
-        raise CampaignOptionError("scheduler", address, "an address tcp://HOST:PORT (or tls://HOST:PORT)",
-                                  "e.g. {scheduler} tcp://127.0.0.1:8786")
+    ok = match is not None and 0 < int(match[3]) < 65536
+    if ok and match[2].startswith("["):
+        try:
+            ipaddress.IPv6Address(match[2][1:-1])
+        except ValueError:
+            ok = False
+    if not ok:
+        raise CampaignOptionError("scheduler", address, "an address tcp://HOST:PORT (or tls://HOST:PORT; an IPv6 "
+                                  "host in brackets: tcp://[::1]:8786)", "e.g. {scheduler} tcp://127.0.0.1:8786")
     return address  # type: ignore[return-value]
 
 
@@ -466,6 +721,7 @@ def campaign_executor(
     dask_local: int | None = None,
     scheduler: str | None = None,
     connect_timeout_s: float = 10.0,
+    no_worker_timeout_s: float = DEFAULT_NO_WORKER_TIMEOUT_S,
     preload: Sequence[str] = (),
 ) -> Iterator[CampaignBackend]:
     """An executor for a campaign, shut down (cluster included) on exit.
@@ -485,6 +741,10 @@ def campaign_executor(
         the task's module.
     connect_timeout_s : float
         Bound on reaching the scheduler, and on waiting for its first worker [s].
+    no_worker_timeout_s : float
+        Dask executors: once no worker has been alive for this long [s], the tasks in flight fail
+        with :class:`NoWorkerError` (:class:`WatchedExecutor`).  A process pool whose worker dies
+        fails at once (``BrokenProcessPool``).
     preload : sequence of str
         Modules the process pool's forkserver imports (:func:`process_pool`).
 
@@ -493,7 +753,8 @@ def campaign_executor(
     CampaignOptionError
         Bad option values.
     SchedulerUnavailableError
-        The scheduler does not answer, or has no worker, within ``connect_timeout_s``.
+        The scheduler does not answer, is not a Dask scheduler (:class:`NotADaskSchedulerError`), or
+        has no worker within ``connect_timeout_s``.
     """
     options = {"workers": workers, "dask_local": dask_local, "scheduler": scheduler}
     chosen = [name for name, value in options.items() if value is not None]
@@ -502,8 +763,9 @@ def campaign_executor(
         raise CampaignOptionError(chosen[1], options[chosen[1]], f"one executor option, but {listed} were given",
                                   "keep one of them")
     timeout = _check_seconds("connect_timeout_s", connect_timeout_s, "e.g. 10")
+    idle = _check_seconds("no_worker_timeout_s", no_worker_timeout_s, "e.g. 60")
     if scheduler is not None:
-        with _scheduler_backend(check_address(scheduler), timeout) as backend:
+        with _scheduler_backend(check_address(scheduler), timeout, idle) as backend:
             yield backend
         return
     if dask_local is not None:
@@ -512,9 +774,10 @@ def campaign_executor(
 
         with LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True, dashboard_address=None,
                           silence_logs=logging.ERROR) as cluster, Client(cluster, set_as_default=False) as client:
-            yield CampaignBackend(executor=client.get_executor(pure=False), kind="dask", workers=dask_local,
-                                  description=f"dask LocalCluster, {dask_local} workers",
-                                  window=max(4, 2 * dask_local))
+            description = f"dask LocalCluster, {dask_local} workers"
+            with _watched(client, idle, description) as executor:
+                yield CampaignBackend(executor=executor, kind="dask", workers=dask_local, description=description,
+                                      window=max(4, 2 * dask_local))
         return
     n = (os.cpu_count() or 1) if workers is None else workers
     _check_int("workers", n, 1, "give the number of worker processes, e.g. 2")
@@ -530,16 +793,32 @@ def campaign_executor(
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+def dask_worker_count(client: Any, timeout_s: float) -> int:
+    """Live workers of a Dask ``client``'s scheduler, asked with a bound of ``timeout_s`` [s]."""
+    info = client.sync(client.scheduler.identity, n_workers=0, callback_timeout=timeout_s)
+    return int(info["n_workers"])
+
+
 @contextlib.contextmanager
-def _scheduler_backend(scheduler: str, timeout_s: float) -> Iterator[CampaignBackend]:
+def _watched(client: Any, idle_s: float, where: str) -> Iterator[WatchedExecutor]:
+    executor = WatchedExecutor(client.get_executor(pure=False),
+                               lambda: dask_worker_count(client, max(1.0, min(5.0, idle_s))), idle_s, where=where)
+    try:
+        yield executor
+    finally:
+        executor.shutdown(wait=False)
+
+
+@contextlib.contextmanager
+def _scheduler_backend(scheduler: str, timeout_s: float, idle_s: float) -> Iterator[CampaignBackend]:
     """The executor of a running Dask scheduler (probed first), with at least one worker."""
     probe_scheduler(scheduler, timeout_s)
     from distributed import Client
 
     try:
         client = Client(scheduler, timeout=timeout_s, set_as_default=False)
-    except (OSError, asyncio.TimeoutError) as err:
-        raise SchedulerUnavailableError(scheduler, timeout_s, f"the client could not connect ({err})",
+    except Exception as err:  # noqa: BLE001 - after a good probe: a scheduler that went away, a refused client
+        raise SchedulerUnavailableError(scheduler, timeout_s, f"the client could not connect ({_describe(err)})",
                                         "check the scheduler and raise {connect_timeout_s}") from err
     try:
         try:
@@ -548,9 +827,10 @@ def _scheduler_backend(scheduler: str, timeout_s: float) -> Iterator[CampaignBac
             raise SchedulerUnavailableError(scheduler, timeout_s, "the scheduler has no worker",
                                             "start workers with `dask worker ADDRESS`") from err
         threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
-        yield CampaignBackend(executor=client.get_executor(pure=False), kind="dask", workers=threads,
-                              description=f"dask scheduler {scheduler}: {threads} worker threads",
-                              window=max(4, 2 * threads))
+        description = f"dask scheduler {scheduler}: {threads} worker threads"
+        with _watched(client, idle_s, f"dask scheduler {scheduler}") as executor:
+            yield CampaignBackend(executor=executor, kind="dask", workers=threads, description=description,
+                                  window=max(4, 2 * threads))
     finally:
         client.close()
 

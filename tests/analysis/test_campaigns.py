@@ -8,7 +8,9 @@ import concurrent.futures as cf
 import operator
 import os
 import pickle
+import re
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -20,10 +22,14 @@ import pytest
 from analysis.campaigns import (
     CampaignOptionError,
     InlineExecutor,
+    NoWorkerError,
+    NotADaskSchedulerError,
     SchedulerUnavailableError,
+    WatchedExecutor,
     _process_alive,
     campaign_executor,
     check_address,
+    probe_scheduler,
     process_pool,
     quantiles,
     run_tasks,
@@ -193,9 +199,205 @@ def test_errors_name_library_parameters_and_render_a_front_ends_names():
 def test_check_address():
     assert check_address("tcp://127.0.0.1:8786") == "tcp://127.0.0.1:8786"
     assert check_address("tls://scheduler:1") == "tls://scheduler:1"
-    for bad in ("127.0.0.1:8786", "tcp://host:0", "tcp://host:65536", "tcp://host", None):
-        with pytest.raises(CampaignOptionError, match=r"^scheduler address = .*expected an address tcp://HOST:PORT"):
+    assert check_address("tcp://[::1]:8786") == "tcp://[::1]:8786"  # IPv6 in brackets
+    assert check_address("tcp://[fe80::1%eth0]:8786") == "tcp://[fe80::1%eth0]:8786"
+    for bad in ("127.0.0.1:8786", "tcp://host:0", "tcp://host:65536", "tcp://host", None, "tcp://::1:8786",
+                "tcp://[::1]", "tcp://[not-v6]:8786", "tcp://[::1:8786"):
+        with pytest.raises(CampaignOptionError, match=r"^scheduler address = .*expected an address tcp://HOST:PORT "
+                                                      r"\(or tls://HOST:PORT; an IPv6 host in brackets: "
+                                                      r"tcp://\[::1\]:8786\)"):
             check_address(bad)
+
+
+# ---------------------------------------------------------------------------------------------
+# A scheduler address that is not a Dask scheduler; a cluster whose workers are gone
+# ---------------------------------------------------------------------------------------------
+
+
+class Peer:
+    """A TCP server on localhost (in a thread) that sends ``greeting`` to each client, or nothing."""
+
+    def __init__(self, greeting=b"", family=socket.AF_INET, host="127.0.0.1"):
+        self.server = socket.socket(family)
+        self.server.bind((host, 0))
+        self.server.listen(8)
+        port = self.server.getsockname()[1]
+        self.address = f"tcp://{host}:{port}" if family == socket.AF_INET else f"tcp://[{host}]:{port}"
+        self.greeting = greeting
+        self.clients = []
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self):
+        while True:
+            try:
+                client, _ = self.server.accept()
+            except OSError:
+                return
+            self.clients.append(client)
+            if self.greeting:
+                client.sendall(self.greeting)
+
+    def close(self):
+        self.server.close()
+        for client in self.clients:
+            client.close()
+
+
+BANNER = b"SSH-2.0-OpenSSH_9.2p1 Debian-2\r\n"
+
+
+def test_a_service_sending_a_banner_is_not_a_dask_scheduler():
+    """The Dask protocol reads the banner as a message of 2.82 EiB: MemoryError, caught and explained."""
+    peer = Peer(BANNER)
+    try:
+        start = time.perf_counter()
+        with pytest.raises(NotADaskSchedulerError) as info:
+            with campaign_executor(scheduler=peer.address, connect_timeout_s=2.0):
+                pass
+        assert time.perf_counter() - start < 2.0 + 1.5
+    finally:
+        peer.close()
+    err = info.value
+    assert isinstance(err, SchedulerUnavailableError)  # a front end's handler of unusable schedulers catches it
+    message = err.render({"scheduler": "--scheduler"})
+    assert message.startswith(f"--scheduler '{peer.address}': not a Dask scheduler at {peer.address} (it sent "
+                              f"{BANNER!r}; reading its first message as the Dask protocol failed: MemoryError: ")
+    assert message.endswith("; fix: give the --scheduler of a Dask scheduler (`dask scheduler` prints it), not "
+                            "another service's port")
+    assert str(pickle.loads(pickle.dumps(err))) == str(err)
+
+
+def test_a_silent_peer_times_out_with_a_reason():
+    peer = Peer()
+    try:
+        with pytest.raises(SchedulerUnavailableError) as info:
+            probe_scheduler(peer.address, 0.5)
+    finally:
+        peer.close()
+    assert not isinstance(info.value, NotADaskSchedulerError)
+    assert re.search(r"no Dask scheduler answered \(timed out after 0\.5 s (connecting and exchanging the Dask "
+                     r"handshake|waiting for the answer to an identity request)\) within the connect timeout of "
+                     r"0\.5 s", str(info.value)), str(info.value)
+    assert "TimeoutError: )" not in str(info.value) and "()" not in str(info.value)
+
+
+def test_tls_without_configuration_is_named_not_a_traceback():
+    with pytest.raises(SchedulerUnavailableError) as info:
+        probe_scheduler("tls://127.0.0.1:1", 1.0)
+    assert info.value.render({"scheduler": "--scheduler"}).startswith(
+        "--scheduler 'tls://127.0.0.1:1': TLS is not configured for the Dask client (TypeError: TLS expects a "
+        "`ssl_context` argument")
+    assert "within the connect timeout" not in str(info.value)  # nothing to do with time
+    assert str(info.value).endswith("fix: set distributed.comm.tls.ca-file, .client.cert and .client.key in the Dask "
+                                    "configuration, or give a tcp:// scheduler address")
+
+
+def test_an_ipv6_address_is_probed():
+    try:
+        peer = Peer(BANNER, socket.AF_INET6, "::1")
+    except OSError:
+        pytest.skip("no IPv6 loopback here")
+    try:
+        with pytest.raises(NotADaskSchedulerError, match=re.escape(f"not a Dask scheduler at {peer.address}")):
+            probe_scheduler(check_address(peer.address), 2.0)
+    finally:
+        peer.close()
+
+
+def blocked(event, index):
+    event.wait(10.0)
+    return index
+
+
+def test_watched_executor_fails_pending_futures_once_no_worker_is_alive():
+    release = threading.Event()
+    with cf.ThreadPoolExecutor(max_workers=2) as pool:
+        watched = WatchedExecutor(pool, lambda: 0, 0.3, where="a test cluster", poll_s=0.05)
+        start = time.perf_counter()
+        with pytest.raises(NoWorkerError) as info:
+            run_tasks(blocked, release, 6, watched, lambda i, r: None, window=3)
+        elapsed = time.perf_counter() - start
+        release.set()
+        watched.shutdown()
+    assert 0.3 <= elapsed < 0.3 + 1.0
+    assert str(info.value) == "no Dask worker alive for 0.3 s (the limit of no_worker_timeout_s) on a test cluster"
+    assert info.value.render({"no_worker_timeout_s": "--no-worker-timeout"}) == (
+        "no Dask worker alive for 0.3 s (the limit of --no-worker-timeout) on a test cluster")
+    assert watched.submit(operator.mul, 2, 3).exception() is info.value  # later submissions fail at once
+    assert str(pickle.loads(pickle.dumps(info.value))) == str(info.value)
+
+
+def test_watched_executor_runs_normally_while_workers_are_alive_or_come_back():
+    answers = iter([0, 0, 1] + [0] * 3 + [1] * 1000)  # never 0 for 0.3 s in a row (polled every 0.05 s)
+    with cf.ThreadPoolExecutor(max_workers=2) as pool:
+        watched = WatchedExecutor(pool, lambda: next(answers), 0.3, where="x", poll_s=0.05)
+        got = []
+        run_tasks(slow_square, 0.05, 6, watched, lambda i, r: got.append((i, r)), window=2)
+        watched.shutdown()
+    assert sorted(got) == [(i, i * i) for i in range(6)] and watched.failure is None
+
+
+def test_watched_executor_counts_a_silent_scheduler_as_no_worker():
+    def ask():
+        raise OSError("Timed out during handshake")
+
+    with cf.ThreadPoolExecutor(max_workers=1) as pool:
+        watched = WatchedExecutor(pool, ask, 0.2, where="x", poll_s=0.05)
+        release = threading.Event()
+        future = watched.submit(blocked, release, 0)
+        with pytest.raises(NoWorkerError, match=r"on x; the scheduler did not answer \(OSError: Timed out during "
+                                                r"handshake\)$"):
+            future.result(timeout=5.0)
+        release.set()
+        watched.shutdown()
+
+
+def test_watched_executor_cancels_through_to_the_inner_executor():
+    release = threading.Event()
+    with cf.ThreadPoolExecutor(max_workers=1) as pool:
+        watched = WatchedExecutor(pool, lambda: 1, 60.0, where="x")
+        running = watched.submit(blocked, release, 0)
+        queued = watched.submit(blocked, release, 1)
+        time.sleep(0.1)
+        assert queued.cancel() and queued.cancelled()  # still queued in the pool: cancelled there too
+        assert not running.cancel()  # running: as a plain future
+        release.set()
+        assert running.result(timeout=5.0) == 0
+        watched.shutdown()
+
+
+def test_a_dask_cluster_whose_workers_are_gone_stops_within_the_no_worker_timeout():
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://",
+                      dashboard_address=None) as cluster:
+        got = []
+
+        def sink(index, result):
+            got.append(index)
+            if index == 0:  # the only worker goes away: the next tasks would wait forever
+                threading.Thread(target=cluster.scale, args=(0,)).start()
+
+        with campaign_executor(scheduler=cluster.scheduler_address, connect_timeout_s=5.0,
+                               no_worker_timeout_s=0.5) as backend:
+            start = time.perf_counter()
+            with pytest.raises(NoWorkerError, match=rf"^no Dask worker alive for 0.5 s \(the limit of "
+                                                    rf"no_worker_timeout_s\) on dask scheduler "
+                                                    rf"{re.escape(cluster.scheduler_address)}$"):
+                run_tasks(time_then_index, 0.2, 20, backend.executor, sink, window=2, order="index")
+            assert time.perf_counter() - start < 0.2 + 0.5 + 3.0
+    assert got[0] == 0 and len(got) < 20
+
+
+def time_then_index(spec, index):
+    time.sleep(spec)
+    return index
+
+
+def test_no_worker_timeout_is_validated():
+    with pytest.raises(CampaignOptionError, match=r"^no_worker_timeout_s = 0: expected a positive number of seconds"):
+        with campaign_executor(workers=1, no_worker_timeout_s=0):
+            pass
 
 
 def test_wilson_interval_and_quantiles():

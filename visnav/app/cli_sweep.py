@@ -4,24 +4,31 @@
 
     visnav sweep [--scenario NAME|FILE] [--samples N] [--seed S] [--out DIR]
                  [--workers N | --dask-local N | --scheduler tcp://HOST:PORT]
-                 [--connect-timeout S] [--json] [--progress]
+                 [--connect-timeout S] [--no-worker-timeout S] [--json] [--progress]
 
 Writes ``DIR/results.jsonl`` (one line per finished sample, appended and
-``fsync``-ed as results arrive; see :mod:`visnav.app.campaign_store`) and, once
-every sample is done, ``DIR/summary.json``.  Rerunning the same command after
-an interruption (Ctrl-C, ``kill -9``, a crash) resumes the campaign: samples
-already stored are not run again, and the final files are byte-identical to
-those of an uninterrupted run.
+``fsync``-ed as results arrive, each bound to the campaign by its spec hash;
+see :mod:`visnav.app.campaign_store`) and, once every sample is done,
+``DIR/summary.json``.  Rerunning the same command after an interruption
+(Ctrl-C, ``kill -9``, a crash, a full disk, lost Dask workers) resumes the
+campaign: samples already stored are not run again, and the final files are
+byte-identical to those of an uninterrupted run.  One sweep at a time writes a
+folder (an ``flock`` held by the process).
 
-Exit codes: 0 the campaign completed (whatever its success rate), 1 the
-executor failed (results so far are kept), 2 bad input (scenario, options,
-output folder, a results file of another campaign, a scheduler that does not
-answer within ``--connect-timeout``), 130 interrupted (resumable).
+Exit codes: 0 the campaign completed (whatever its success rate), 2 bad input
+(scenario, options, output folder, a results file of another campaign, a folder
+another sweep is writing, a scheduler that does not answer within
+``--connect-timeout`` or is not a Dask scheduler), 3 the run could not complete
+(the executor failed, the disk is full, no Dask worker alive for
+``--no-worker-timeout``, ``summary.json`` cannot be written: what is stored
+stays valid, the message says what is kept, and the same command resumes),
+130 interrupted (resumable).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import math
 import sys
@@ -30,8 +37,8 @@ from typing import Any, TextIO
 
 from visnav.app.cli_types import (
     EXIT_BAD_INPUT,
+    EXIT_DIVERGED,
     EXIT_OK,
-    EXIT_TASK_FAILED,
     non_negative_int,
     positive_int,
     positive_seconds,
@@ -46,12 +53,18 @@ SUMMARY_FILE = "summary.json"
 DEFAULT_OUT = "out/sweep"
 DEFAULT_SAMPLES = 100
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
+DEFAULT_NO_WORKER_TIMEOUT_S = 60.0  # analysis.campaigns.DEFAULT_NO_WORKER_TIMEOUT_S (not imported: start-up time)
+EXIT_COULD_NOT_COMPLETE = EXIT_DIVERGED
+"""Exit code 3, "the run could not complete": what is stored stays valid and the same command resumes."""
+_RESOURCE_ERRNOS = frozenset(code for code in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG, errno.EIO,
+                                               errno.ENOMEM) if code is not None)
 
 FLAGS = {
     "workers": "--workers",
     "dask_local": "--dask-local",
     "scheduler": "--scheduler",
     "connect_timeout_s": "--connect-timeout",
+    "no_worker_timeout_s": "--no-worker-timeout",
     "samples": "--samples",
     "seed": "--seed",
 }
@@ -119,6 +132,9 @@ def add_parser(sub: Any) -> None:
                        help="run on the Dask cluster of this scheduler (its workers must have visnav installed)")
     p.add_argument("--connect-timeout", type=positive_seconds, default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
                    help=f"seconds to reach the scheduler and find a worker (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
+    p.add_argument("--no-worker-timeout", type=positive_seconds, default=DEFAULT_NO_WORKER_TIMEOUT_S, metavar="S",
+                   help="with --dask-local or --scheduler: stop (exit 3, resumable) once no Dask worker has been "
+                   f"alive for S seconds (default: {DEFAULT_NO_WORKER_TIMEOUT_S:g})")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the human summary")
     p.add_argument("--progress", action="store_true", help="show the progress bar even when stderr is not a terminal")
     p.set_defaults(func=_cmd_sweep)
@@ -195,10 +211,24 @@ def _human(out: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _error(text: str) -> None:
+    print(f"visnav: error: {text}", file=sys.stderr)
+
+
+def _strerror(err: OSError) -> str:
+    from visnav.app.campaign_store import os_error_reason
+
+    return os_error_reason(err)
+
+
+def _free_space_hint(err: OSError) -> str:
+    return "free some space" if getattr(err, "errno", None) in _RESOURCE_ERRNOS else "fix the cause"
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from analysis.campaigns import CampaignOptionError, SchedulerUnavailableError, campaign_executor
+    from analysis.campaigns import CampaignOptionError, NoWorkerError, SchedulerUnavailableError, campaign_executor
     from visnav.studies.campaign import PRELOAD, CampaignSpec, CampaignSpecError, run_campaign, summarise
-    from visnav.app.campaign_store import CampaignStoreError
+    from visnav.app.campaign_store import CampaignStoreError, CampaignStoreWriteError
     from visnav.app.files import prepare_output_dir
     from visnav.scenario import load_scenario
 
@@ -206,61 +236,103 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     try:
         spec = CampaignSpec(scenario=scenario, samples=args.samples, seed=args.seed)
     except CampaignSpecError as err:
-        print(f"visnav: error: {_error_text(err)}", file=sys.stderr)
+        _error(_error_text(err))
         return EXIT_BAD_INPUT
     folder = prepare_output_dir(args.out)  # OutputError: exit 2 in visnav.app.cli.main
     results_path = folder / RESULTS_FILE
+    summary_path = folder / SUMMARY_FILE
+    if (summary_path.exists() or summary_path.is_symlink()) and not summary_path.is_file():
+        _error(f"--out {str(folder)!r}: {SUMMARY_FILE} exists and is not a file (a folder, a broken link?), so the "
+               f"summary could not be written; move {summary_path} away, or choose another --out")
+        return EXIT_BAD_INPUT
     try:
         store, report = open_campaign_store(results_path, spec)
     except CampaignStoreError as err:
-        print(f"visnav: error: {err}", file=sys.stderr)
+        _error(str(err))
         return EXIT_BAD_INPUT
+    except CampaignStoreWriteError as err:
+        _error(f"{err}; {_free_space_hint(err)} and rerun the same command (nothing was run)")
+        return EXIT_COULD_NOT_COMPLETE if err.resource else EXIT_BAD_INPUT
     except OSError as err:
-        print(f"visnav: error: --out {str(folder)!r}: cannot write {RESULTS_FILE} ({err.strerror or err}); "
-              "choose a writable folder", file=sys.stderr)
+        if err.errno in _RESOURCE_ERRNOS:
+            _error(f"--out {str(folder)!r}: cannot write {RESULTS_FILE} ({_strerror(err)}); nothing was run; free "
+                   "some space and rerun the same command")
+            return EXIT_COULD_NOT_COMPLETE
+        _error(f"--out {str(folder)!r}: cannot write {RESULTS_FILE} ({_strerror(err)}); choose a writable folder")
         return EXIT_BAD_INPUT
+    if report.migrated:
+        print(f"visnav: warning: {results_path}: written by an older visnav (lines without the campaign's spec hash); "
+              f"its {report.results} results were bound to this campaign and the file rewritten in the current format",
+              file=sys.stderr)
     for bad in report.bad_lines:
         print(f"visnav: warning: {results_path}: {bad}; dropped", file=sys.stderr)
     if report.bad_lines:
         print(f"visnav: warning: {results_path}: kept {report.results} valid results and rewrote the file without "
               f"the {len(report.bad_lines)} bad line(s); their samples will be run again", file=sys.stderr)
     resumed = report.results
-    with store:
+    with store:  # closing never raises: every line was fsync-ed when it was appended
         progress = _Progress(sys.stderr, spec.samples, resumed, args.progress or sys.stderr.isatty())
 
         def sink(result: Any) -> None:
             store.append(result)
             progress.update()
 
+        def kept() -> str:
+            return f"{len(store.done)} of {spec.samples} samples are stored in {results_path}"
+
         start = time.perf_counter()
         description = "none needed (every sample was already stored)"
         try:
             if len(store.done) < spec.samples:
                 with campaign_executor(workers=args.workers, dask_local=args.dask_local, scheduler=args.scheduler,
-                                       connect_timeout_s=args.connect_timeout, preload=PRELOAD) as backend:
+                                       connect_timeout_s=args.connect_timeout,
+                                       no_worker_timeout_s=args.no_worker_timeout, preload=PRELOAD) as backend:
                     description = backend.description
                     run_campaign(spec, backend.executor, sink, skip=store.done, window=backend.window)
         except (CampaignOptionError, SchedulerUnavailableError) as err:
             progress.finish()
-            print(f"visnav: error: {_error_text(err)}", file=sys.stderr)
+            _error(_error_text(err))
             return EXIT_BAD_INPUT
         except KeyboardInterrupt:
             progress.finish()
-            print(f"visnav: interrupted: {len(store.done)} of {spec.samples} samples are stored in {results_path}; "
-                  "rerun the same command to resume", file=sys.stderr)
+            print(f"visnav: interrupted: {kept()}; rerun the same command to resume", file=sys.stderr)
             return EXIT_INTERRUPTED
+        except CampaignStoreWriteError as err:
+            progress.finish()
+            _error(f"the campaign stopped: {err.action} to {results_path} failed ({err.cause}); {kept()}, valid; "
+                   f"{_free_space_hint(err)} and rerun the same command to resume")
+            return EXIT_COULD_NOT_COMPLETE
+        except NoWorkerError as err:
+            progress.finish()
+            _error(f"the campaign stopped: {err.render(FLAGS)}; {kept()}; start Dask workers (`dask worker ADDRESS`) "
+                   "or raise --no-worker-timeout, and rerun the same command to resume")
+            return EXIT_COULD_NOT_COMPLETE
         except Exception as err:  # noqa: BLE001 - an executor or worker failure, reported with the resume hint
             progress.finish()
-            print(f"visnav: error: the campaign stopped ({type(err).__name__}: {err}); {len(store.done)} of "
-                  f"{spec.samples} samples are stored in {results_path}; rerun the same command to resume",
-                  file=sys.stderr)
-            return EXIT_TASK_FAILED
+            reason = " ".join(str(err).split())
+            _error(f"the campaign stopped ({type(err).__name__}{': ' + reason if reason else ''}); {kept()}; rerun "
+                   "the same command to resume")
+            return EXIT_COULD_NOT_COMPLETE
         wall = time.perf_counter() - start
         progress.finish()
-        store.compact()
+        try:
+            store.compact()
+        except CampaignStoreWriteError as err:
+            _error(f"every sample is done, but {err.action} failed ({err.cause}"
+                   + (f"; it needs about {err.needed_bytes} bytes free" if err.needed_bytes else "")
+                   + f"): {results_path} is kept as it was, complete and valid (all {spec.samples} samples, in the "
+                   f"order they finished); {_free_space_hint(err)} and rerun the same command: it runs nothing again, "
+                   f"puts the file in index order and writes {SUMMARY_FILE}")
+            return EXIT_COULD_NOT_COMPLETE
         summary = summarise(spec, store.results())
-    out = _write_summary(folder, spec, summary, description=description, resumed=resumed, wall=wall,
-                         dropped=[str(bad) for bad in report.bad_lines])
+        try:  # still holding the lock: no other sweep of this folder writes the summary meanwhile
+            out = _write_summary(folder, spec, summary, description=description, resumed=resumed, wall=wall,
+                                 dropped=[str(bad) for bad in report.bad_lines])
+        except OSError as err:
+            _error(f"every sample is done, but {summary_path} could not be written ({_strerror(err)}): "
+                   f"{results_path} is complete and valid (all {spec.samples} samples); {_free_space_hint(err)} and "
+                   f"rerun the same command: it runs nothing again and writes {SUMMARY_FILE}")
+            return EXIT_COULD_NOT_COMPLETE
     print(json.dumps(out, sort_keys=True) if args.json else _human(out))
     return EXIT_OK
 
