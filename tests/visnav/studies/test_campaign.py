@@ -578,7 +578,7 @@ def test_sweep_help_lists_the_options():
                           env={**os.environ, "COLUMNS": "200"})
     assert proc.returncode == 0
     for option in ("--scenario", "--samples", "--seed", "--out", "--workers", "--dask-local", "--scheduler",
-                   "--connect-timeout", "--json", "--progress"):
+                   "--connect-timeout", "--no-worker-timeout", "--json", "--progress"):
         assert option in proc.stdout
 
 
