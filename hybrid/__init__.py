@@ -26,6 +26,7 @@ from .errors import (
     HybridError,
     ModelDefinitionError,
     NumericalFailure,
+    UserFunctionError,
     ZenoError,
 )
 from .affine import AffineForm, NotAffine, NotAffineError, affine_form
@@ -36,7 +37,8 @@ from .region import Box
 from .system import HybridSystem
 
 _LAZY = {
-    **dict.fromkeys(("FlowSegment", "HybridEvent", "HybridTrajectory", "simulate_continuous"), "continuous"),
+    **dict.fromkeys(("FlowSegment", "HybridEvent", "HybridTrajectory", "simulate_continuous", "GuardResolutionWarning",
+                     "UnresolvedWindow"), "continuous"),
     **dict.fromkeys(("Plant", "SampledEvent", "SampledTrace", "settle", "simulate_sampled"), "sampled"),
 }
 
@@ -77,6 +79,9 @@ __all__ = [
     "ModelDefinitionError",
     "NumericalFailure",
     "ZenoError",
+    "UserFunctionError",
+    "GuardResolutionWarning",
+    "UnresolvedWindow",
     "mode_graph",
     "to_dot",
     "to_json",

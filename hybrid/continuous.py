@@ -9,9 +9,18 @@ After every accepted step it watches, on the step's dense output,
 * the mode's invariant (the flow leaving ``inv >= 0``),
 * the user's stop functions (``s >= 0`` ends the run),
 
-at the step's end *and* at ``sign_checks`` interior points, so a guard that
-becomes true and false again inside one step is still caught (a bounded
-``max_step`` tightens this further).  The first change is located by a
+at the step's end *and* at ``sign_checks`` evenly spaced interior points of
+the step's dense output, so a window (an interval where a watched function is
+on) longer than ``step / (sign_checks + 1)`` is always seen
+(:attr:`HybridTrajectory.resolution` is that spacing, the largest of the
+run).  Shorter windows are searched where the samples leave room for one: two
+samples of a function that is off, on one side of zero, closer to it than the
+function can move between them (1.5 × the largest rate seen in the segment)
+or than the samples bend, are refined on the dense output, 4 sub-intervals
+per level, down to ``refine_depth`` levels (:class:`_Refiner`); what is still
+undecided there is listed in :attr:`HybridTrajectory.unresolved` and reported
+by a :class:`~hybrid.errors.GuardResolutionWarning`, never dropped silently.
+The first change (in time order, hidden windows first) is located by a
 bracketing root finder (Anderson–Björck regula falsi with bisection
 safeguards) to ``event_tol`` in time; the located time is the right end
 of the final bracket, where the guard *is* satisfied.  What happens at that
@@ -31,17 +40,23 @@ Termination causes (``HybridTrajectory.termination``): ``"end_time"``,
 leaves the invariant with no transition enabled: a deadlock),
 ``"solver_failure"`` and ``"stop:<name>"`` for a user stop function.
 
-Errors in user code are never swallowed: a flow, guard, reset or output that
-raises or returns NaN or the wrong shape raises an
-:class:`~hybrid.errors.ExecutionError` naming the mode or transition, the
-state and the time (chained to the original exception);
+Errors in user code are never swallowed: a flow, output, guard, invariant,
+jump map, reset or stop function that raises becomes a
+:class:`~hybrid.errors.UserFunctionError` (an
+:class:`~hybrid.errors.ExecutionError`) naming the function, the mode (the
+source mode for a transition's), the time and the state, chained to the
+original exception, by the one mechanism of :func:`hybrid.system.call_user`
+(the :class:`~hybrid.system.HybridSystem` methods); one that returns NaN, a
+bool or the wrong shape raises an ``ExecutionError`` with the same naming;
 :class:`~hybrid.errors.NumericalFailure` becomes a
-:class:`~hybrid.errors.DivergenceError`.
+:class:`~hybrid.errors.DivergenceError` with the time, the mode, the cause and
+the state at the last finite point.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -56,10 +71,10 @@ except ImportError:  # pragma: no cover - private names moved: fall back to inte
     _Dop853DenseOutput = _RkDenseOutput = type("_Unavailable", (), {})
 
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
-from .errors import DivergenceError, ExecutionError, HybridError, NumericalFailure, ZenoError
+from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError, format_time
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import _BOOL_TYPES, Transition, crossed, refuse_bool
-from .system import HybridSystem
+from .model import _BOOL_TYPES, Transition, crossed
+from .system import HybridSystem, call_user, real_value
 from .system import format_state as _fmt
 
 __all__ = [
@@ -69,6 +84,7 @@ __all__ = [
     "FlowSegment",
     "ExecutionStats",
     "HybridTrajectory",
+    "UnresolvedWindow",
     "simulate_continuous",
     "locate_crossing",
 ]
@@ -162,13 +178,24 @@ class FlowSegment:
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ExecutionStats:
-    """Work done by one execution (deterministic for a given input)."""
+    """Work done by one execution (deterministic for a given input).
+
+    Attributes
+    ----------
+    steps, rhs_evaluations, root_iterations, events : int
+    guard_evaluations : int
+        Evaluations of the watched functions (all of a mode's watches count one each).
+    refinement_evaluations : int
+        Evaluations of all the watches at once made by the refinement (:class:`_Refiner`);
+        each is also counted in ``guard_evaluations``, once per watch.
+    """
 
     steps: int
     rhs_evaluations: int
     guard_evaluations: int
     root_iterations: int
     events: int
+    refinement_evaluations: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """JSON-ready view."""
@@ -178,6 +205,7 @@ class ExecutionStats:
             "guard_evaluations": self.guard_evaluations,
             "root_iterations": self.root_iterations,
             "events": self.events,
+            "refinement_evaluations": self.refinement_evaluations,
         }
 
 
@@ -204,6 +232,18 @@ class HybridTrajectory:
     final_mode : str
     final_memory : Mapping[str, float]
     stats : ExecutionStats
+    resolution : float
+        The guaranteed resolution of the run [s]: the largest spacing of the
+        uniform samples of the watched functions in any step (step length over
+        ``sign_checks + 1``).  Every window longer than this in which a guard,
+        the invariant or a stop function is on was seen.  ``0.0`` when nothing
+        was watched.
+    unresolved : tuple of UnresolvedWindow
+        Where a shorter window could not be ruled out at the finest refinement
+        (the samples were still closer to zero than the function can move
+        between them or than they bend); empty when everything was decided.
+        Also reported by a :class:`~hybrid.errors.GuardResolutionWarning`.  At
+        most :data:`UNRESOLVED_KEPT` (the first ones).
     """
 
     system: str
@@ -220,6 +260,8 @@ class HybridTrajectory:
     final_mode: str
     final_memory: Mapping[str, float]
     stats: ExecutionStats
+    resolution: float = 0.0
+    unresolved: tuple[UnresolvedWindow, ...] = ()
 
     @property
     def event_times(self) -> np.ndarray:
@@ -306,6 +348,8 @@ class HybridTrajectory:
             "zeno": None if self.zeno is None else self.zeno.as_dict(),
             "chatter": [c.as_dict() for c in self.chatter],
             "stats": self.stats.as_dict(),
+            "resolution": self.resolution,
+            "unresolved": [u.as_dict() for u in self.unresolved],
         }
 
 
@@ -415,20 +459,6 @@ class _Watch:
     transition: Transition | None = None
 
 
-def _real(value: Any, what: str, mode: str, t: float, x: Sequence[float]) -> float:
-    if value.__class__ is not float:
-        refuse_bool(value, f"{what} (mode {mode!r}, t = {t:.17g} s)")
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise ExecutionError(
-            f"{what} returned {value!r} in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}; expected one real number"
-        ) from None
-    if out != out:
-        raise ExecutionError(f"{what} is NaN in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}")
-    return out
-
-
 class _Run:
     """Calls into the user's model for one execution: counted, checked, errors named (private)."""
 
@@ -442,21 +472,42 @@ class _Run:
         self.n_signals = len(self.automaton.variables)
         self.shape = (system.dimension,)
         self.guard_evaluations = 0
+        self.refinement_evaluations = 0
+        self.unresolved = _UnresolvedLog()
+        self.last_point: tuple[float, tuple[float, ...]] | None = None  # last accepted (t, x), for DivergenceError
+
+    def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
+        """:class:`DivergenceError` for a :class:`NumericalFailure` raised at ``(t, x)`` in ``mode``.
+
+        It carries the state at the last finite point: ``x`` itself, or the last
+        accepted step point when ``x`` is not finite (a solver stage that blew up).
+        """
+        at: float = t
+        try:
+            state: tuple[float, ...] | None = tuple(float(c) for c in x)
+        except (TypeError, ValueError):
+            state = None
+        if (state is None or not all(math.isfinite(c) for c in state)) and self.last_point is not None:
+            at, state = self.last_point
+        return DivergenceError(t, mode, err.cause, state=state, state_names=self.system.state_names, state_time=at)
 
     def call(self, fn: Callable[..., Any], what: str, mode: str, t: float, x: Sequence[float], *args: Any) -> Any:
+        """A user function not reached through a :class:`HybridSystem` method (the stop functions)."""
         try:
-            return fn(*args)
+            return call_user(fn, args, function=what, mode=mode, time=t, state=x,
+                             state_names=self.system.state_names, system=self.system.name)
         except NumericalFailure as err:
-            raise DivergenceError(t, mode, err.cause) from err
-        except HybridError:
-            raise
-        except Exception as err:
-            raise ExecutionError(
-                f"{what} raised {type(err).__name__}: {err} in mode {mode!r} at t = {t:.17g} s, x = {_fmt(x)}"
-            ) from err
+            raise self.diverged(err, mode, t, x) from err
+
+    def checked(self, method: Callable[..., Any], mode: str, t: float, x: Sequence[float], *args: Any) -> Any:
+        """A :class:`HybridSystem` method (it names the failing function); a :class:`NumericalFailure` diverges."""
+        try:
+            return method(*args)
+        except NumericalFailure as err:
+            raise self.diverged(err, mode, t, x) from err
 
     def signals(self, mode: str, t: float, x: Sequence[float]) -> tuple[float, ...]:
-        return self.call(self.system.signals, "output", mode, t, x, t, x)
+        return self.checked(self.system.signals, mode, t, x, t, x, mode)
 
     def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
         self.guard_evaluations += 1
@@ -466,15 +517,12 @@ class _Run:
                 return g
         except Exception:
             pass
-        what = f"guard of transition {tr.name!r}"
-        return _real(self.call(tr.guard, what, tr.source, t, x, v, memory), what, tr.source, t, x)
+        return self.checked(self.system.guard, tr.source, t, x, tr, t, x, v, memory)
 
     def invariant(self, mode: str, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
-        inv = self.invariants[mode]
-        if inv is None:
+        if self.invariants[mode] is None:
             return math.inf
-        what = f"invariant of mode {mode!r}"
-        return _real(self.call(inv, what, mode, t, x, v, memory), what, mode, t, x)
+        return self.checked(self.system.invariant, mode, t, x, mode, t, x, v, memory)
 
     def flow_function(self, mode: str, memory: Mapping[str, float]) -> Callable[[float, np.ndarray], np.ndarray]:
         """``fun(t, y)`` for the scipy solver in ``mode``: a fast path, and the checked one on any doubt."""
@@ -492,8 +540,7 @@ class _Run:
                         return out
             except Exception:
                 pass
-            return np.array(self.call(self.system.flow, f"flow of mode {mode!r}", mode, tt, state, mode, tt, state,
-                                      memory))
+            return np.array(self.checked(self.system.flow, mode, tt, state, mode, tt, state, memory))
 
         return fun
 
@@ -563,7 +610,7 @@ class _Run:
             else:
                 what = f"stop function {w.name!r}"
                 s = self.call(self.stops[w.name], what, mode, t, x, t, x, mode, memory)
-                out.append(_real(s, what, mode, t, x))
+                out.append(real_value(s, what, mode, t, x))
         return out
 
     def fire(self, t: float) -> Callable[[Transition, tuple[float, ...], Sequence[float], Mapping[str, float]],
@@ -573,19 +620,8 @@ class _Run:
         def fire(tr: Transition, x: tuple[float, ...], v: Sequence[float], memory: Mapping[str, float]
                  ) -> tuple[tuple[float, ...], dict[str, float]]:
             mode = tr.source
-            new_x = self.call(self.system.jump, f"jump map of transition {tr.name!r}", mode, t, x, tr.name, t, x,
-                              memory)
-            new_memory = dict(memory)
-            if tr.reset is not None:
-                update = self.call(tr.reset, f"reset of transition {tr.name!r}", mode, t, x, v, memory)
-                if not isinstance(update, Mapping) or set(update) != set(tr.writes):
-                    got = sorted(update) if isinstance(update, Mapping) else repr(update)
-                    raise ExecutionError(
-                        f"reset of transition {tr.name!r} at t = {t:.17g} s, x = {_fmt(x)} returned {got}; "
-                        f"expected a mapping with exactly the declared writes {sorted(tr.writes)}"
-                    )
-                for name, value in update.items():
-                    new_memory[name] = _real(value, f"reset of transition {tr.name!r} ({name})", mode, t, x)
+            new_x = self.checked(self.system.jump, mode, t, x, tr.name, t, x, memory)
+            new_memory = self.checked(self.system.reset, mode, t, x, tr, t, x, v, memory)
             return new_x, new_memory
 
         return fire
@@ -624,6 +660,310 @@ class _Bracket:
     candidates: list[int]
 
 
+REFINE_SUBDIVISIONS = 4
+"""A refined sample interval is split into this many (three new evaluations)."""
+
+REFINE_BUDGET = 256
+"""Evaluations of the watches spent on refinement per solver step, at most."""
+
+RATE_SAFETY = 1.5
+"""The rate bound of a watched function is this times the largest rate seen between its samples."""
+
+COHERENCE = 0.5
+"""Samples resolve a function when their second differences are at most this times their first ones."""
+
+SWITCH_SLACK = 2.0
+"""An interval that switches on is refined (levels 0 and 1) when rate bound × spacing exceeds this × its rise."""
+
+UNRESOLVED_KEPT = 1000
+"""Places kept in :attr:`HybridTrajectory.unresolved` (the warning gives the total)."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class UnresolvedWindow:
+    """A place where a watched function may switch on and off again unseen (see :func:`simulate_continuous`).
+
+    At the finest refinement the function's samples on ``[t_start, t_end]`` are
+    still close enough to zero, for the rate at which it changes or for the
+    way they bend, that a window narrower than ``t_end - t_start`` cannot be
+    ruled out there (the tests of :class:`_Refiner`).
+
+    Attributes
+    ----------
+    mode : str
+        Mode of the segment.
+    role : str
+        ``"guard"``, ``"invariant"`` or ``"stop"``.
+    name : str
+        Transition, mode or stop-function name.
+    t_start, t_end : float
+        The interval between the two samples [s].
+    distance : float
+        Distance from zero of the nearer sample (in the function's units).
+    reach : float
+        How far the function may move between the samples by the test that
+        flagged them (rate bound × spacing, or the second difference of the
+        samples), at least ``distance``.
+    reason : str
+        ``"depth"`` (the finest spacing was reached) or ``"budget"``
+        (:data:`REFINE_BUDGET` evaluations were spent in the step).
+    """
+
+    mode: str
+    role: str
+    name: str
+    t_start: float
+    t_end: float
+    distance: float
+    reach: float
+    reason: str
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready view."""
+        return {"mode": self.mode, "role": self.role, "name": self.name, "t_start": self.t_start,
+                "t_end": self.t_end, "distance": self.distance, "reach": self.reach, "reason": self.reason}
+
+
+class _Refiner:
+    """Searches the sample intervals of a segment where a watch may switch on unseen (private).
+
+    Between two samples ``a``, ``b`` of a watched function that are off and on
+    the same side of zero (strictly below it; for a crossing watch also
+    strictly above it, where a dip to zero and back is a rising crossing),
+    the function can reach zero only if
+
+    * its rate of change exceeds ``(|a| + |b|) / h`` somewhere (``h`` the
+      spacing): the interval is flagged when that is at most the rate bound,
+      :data:`RATE_SAFETY` times the largest rate seen between samples of this
+      function so far in the segment (a mode's time scale is its own: the
+      bouncing ball's flights shrink a thousandfold); or
+    * the samples bend towards it: a second difference of the samples around
+      the interval at least the distance of the nearer sample from zero (a
+      parabola through three samples rises above their chord by an eighth of
+      its second difference).
+
+    Inside a refinement the rate bound is built on the rates of the
+    sub-intervals themselves where their samples resolve the function
+    (:meth:`bounds`), on the segment's largest otherwise.  Samples within
+    ``rate bound × event_tol`` of zero count as on zero (the event resolution:
+    the point a segment starts from after an event), and intervals with a
+    sample on zero or non-finite values are decided by their end values.  An
+    interval that switches on is refined too (at the step's level and the
+    first below) when the function had time to go to zero and back before
+    (:data:`SWITCH_SLACK`), so a window hidden before the visible crossing is
+    not passed over.  A flagged interval is split into
+    :data:`REFINE_SUBDIVISIONS` at points of the step's dense output and the
+    flagged sub-intervals again, in time order, down to ``depth`` levels; the
+    first switch-on found is the bracket.  What is still flagged at the finest
+    level (or when the step's :data:`REFINE_BUDGET` is spent) is recorded as an
+    :class:`UnresolvedWindow`, except the approach to a crossing found right
+    after it (a window there would only move that event by less than the
+    finest spacing).
+    """
+
+    __slots__ = ("values", "watches", "point", "depth", "mode", "budget", "evaluations", "unresolved", "rates",
+                 "event_tol", "crossing", "kinds")
+
+    def __init__(self, values: Callable[[float, tuple[float, ...]], list[float]], watches: Sequence[_Watch],
+                 point: Callable[[float], tuple[float, ...]], depth: int, mode: str, unresolved: _UnresolvedLog,
+                 rates: list[float], event_tol: float) -> None:
+        self.values, self.watches, self.point, self.depth, self.mode = values, watches, point, depth, mode
+        self.budget = REFINE_BUDGET
+        self.evaluations = 0
+        self.unresolved = unresolved
+        self.rates = rates  # largest |d phi / dt| seen per watch in the segment
+        self.event_tol = event_tol
+        self.crossing = [w.kind == "crossing" for w in watches]
+        self.kinds = [w.kind for w in watches]
+
+    def bounds(self, ts: Sequence[float], ps: Sequence[Sequence[float]]) -> list[float]:
+        """Rates for the bound inside a refinement, per watch; the segment's maxima updated.
+
+        A watch's samples resolve it when every second difference is at most
+        :data:`COHERENCE` times the largest first difference (its curvature is
+        seen); then its largest rate among these samples is used (a function
+        that is slow here is slow here: the ball's guard near an impact).
+        Otherwise (a kink, an extremum, samples that alias a faster variation)
+        the segment's largest rate is kept.
+        """
+        rates = self.rates
+        out = []
+        for k in range(len(rates)):
+            col = [row[k] for row in ps]
+            local = first = second = 0.0
+            for m in range(len(col) - 1):
+                d = abs(col[m + 1] - col[m])
+                h = ts[m + 1] - ts[m]
+                if d > first:
+                    first = d
+                if h > 0.0 and local * h < d < math.inf:
+                    local = d / h
+                if m + 2 < len(col):
+                    d2 = abs(col[m + 2] - 2.0 * col[m + 1] + col[m])
+                    if d2 > second:
+                        second = d2
+            if local > rates[k]:
+                rates[k] = local
+            out.append(local if second <= COHERENCE * first < math.inf else rates[k])
+        return out
+
+    def scan(self, ts: Sequence[float], ps: Sequence[Sequence[float]]) -> list[int]:
+        """The step's own samples: learn the rates; the watches some interval may need refining for.
+
+        A watch whose samples all sit strictly on one side of zero, farther
+        from it than the rate bound lets it move in a spacing and than they
+        bend, is clear everywhere in the step (the tests of :meth:`flags`,
+        all intervals at once); the others are returned.
+        """
+        n = len(ts) - 1
+        h = (ts[-1] - ts[0]) / n  # the step's samples are evenly spaced
+        if not h > 0.0:
+            return list(range(len(self.rates)))
+        rates = self.rates
+        band = RATE_SAFETY * self.event_tol
+        out = []
+        for k, col in enumerate(zip(*ps)):
+            move = max([abs(b - a) for a, b in zip(col, col[1:])])
+            if rates[k] * h < move < math.inf:
+                rates[k] = move / h
+            high = max(col)
+            if high < 0.0:
+                distance = -high
+            elif self.crossing[k] and min(col) > 0.0:
+                distance = min(col)
+            else:
+                out.append(k)
+                continue
+            bound = RATE_SAFETY * rates[k]
+            if not (2.0 * distance > bound * h and distance > band * rates[k]):
+                out.append(k)
+            elif n > 1 and not max([abs(a - 2.0 * b + c) for a, b, c in zip(col, col[1:], col[2:])]) < distance:
+                out.append(k)
+        return out
+
+    def flags(self, ts: Sequence[float], ps: Sequence[Sequence[float]], i: int, level: int,
+              rates: Sequence[float], only: Sequence[int] | None = None) -> list[tuple[int, float, float, str]]:
+        """Watches whose samples ``i``, ``i + 1`` may hide a switch-on: ``(k, distance, reach, test)``.
+
+        ``rates`` are the rates the bound is built on: the segment's largest
+        at the step's own samples (``level = 0``), those of :meth:`bounds`
+        below.  ``test`` is ``"rate"``,
+        ``"bend"`` or ``"switch"`` (an interval that switches on, refined at
+        ``level <= 1`` when the function had time to go to zero and back: rate
+        bound × spacing > :data:`SWITCH_SLACK` × ``(|a| + |b|)``; such
+        intervals are never recorded as unresolved).
+        """
+        a_row, b_row = ps[i], ps[i + 1]
+        h = ts[i + 1] - ts[i]
+        if not h > 0.0:
+            return []
+        left = ps[i - 1] if i >= 1 else None
+        right = ps[i + 2] if i + 2 < len(ps) else None
+        out = []
+        for k in (range(len(a_row)) if only is None else only):
+            a, b = a_row[k], b_row[k]
+            bound = RATE_SAFETY * rates[k]
+            if a < 0.0 and b < 0.0:
+                a, b = -a, -b
+            elif not (a > 0.0 and b > 0.0 and self.crossing[k]):
+                if level <= 1 and _switches_on(self.kinds[k], a, b) and math.isfinite(a) and math.isfinite(b):
+                    reach = bound * h
+                    if reach > SWITCH_SLACK * (abs(a) + abs(b)):
+                        out.append((k, min(abs(a), abs(b)), reach, "switch"))
+                continue
+            reach = bound * h  # how far the function can move between the samples
+            near = a if a < b else b
+            if near <= bound * self.event_tol or not (a + b < math.inf):
+                continue  # on zero at the event resolution, or no evidence
+            if a + b <= reach:
+                out.append((k, near, reach, "rate"))
+                continue
+            bend = 0.0
+            if left is not None:
+                d = abs(left[k] - 2.0 * a_row[k] + b_row[k])
+                if d < math.inf:
+                    bend = d
+            if right is not None:
+                d = abs(a_row[k] - 2.0 * b_row[k] + right[k])
+                if bend < d < math.inf:
+                    bend = d
+            if bend >= near:
+                out.append((k, near, bend, "bend"))
+        return out
+
+    def search(self, lo: float, hi: float, p_lo: list[float], p_hi: list[float],
+               flagged: list[tuple[int, float, float, str]], level: int, approach: Sequence[int] = ()
+               ) -> _Bracket | None:
+        """First switch-on inside ``[lo, hi]`` (sub-interval ``level`` of a step's sample interval), or ``None``.
+
+        ``approach``: watches that switch on right after ``hi`` (an interval still
+        flagged for them at the finest level is their approach to that
+        crossing, not recorded).
+        """
+        n = REFINE_SUBDIVISIONS
+        if level > self.depth or self.budget < n - 1 or hi - lo <= 8.0 * math.ulp(max(abs(lo), abs(hi))):
+            self._record(lo, hi, flagged, approach, "depth" if self.budget >= n - 1 else "budget")
+            return None
+        self.budget -= n - 1
+        self.evaluations += n - 1
+        ts = [lo] + [lo + (hi - lo) * j / n for j in range(1, n)] + [hi]
+        ps = [p_lo] + [self.values(tt, self.point(tt)) for tt in ts[1:-1]] + [p_hi]
+        bounds = self.bounds(ts, ps)
+        for m in range(n):
+            inner = self.flags(ts, ps, m, level, bounds)
+            if inner:
+                after = approach if m == n - 1 else _switched_on(self.watches, ps[m + 1], ps[m + 2])
+                found = self.search(ts[m], ts[m + 1], ps[m], ps[m + 1], inner, level + 1, after)
+                if found is not None:
+                    return found
+            candidates = _switched_on(self.watches, ps[m], ps[m + 1])
+            if candidates:
+                return _Bracket(ts[m], ts[m + 1], ps[m], ps[m + 1], candidates)
+        return None
+
+    def _record(self, lo: float, hi: float, flagged: list[tuple[int, float, float, str]], approach: Sequence[int],
+                reason: str) -> None:
+        for k, distance, reach, test in flagged:
+            if test == "switch" or k in approach:
+                continue
+            w = self.watches[k]
+            self.unresolved.add(UnresolvedWindow(mode=self.mode, role=w.role, name=w.name, t_start=lo, t_end=hi,
+                                                 distance=distance, reach=reach, reason=reason))
+
+
+def _switches_on(kind: str, before: float, after: float) -> bool:
+    """One watch of :func:`_switched_on`."""
+    if kind == "level":
+        return after >= 0.0 > before
+    if kind == "strict":
+        return after > 0.0 >= before
+    return before <= 0.0 <= after and before < after
+
+
+class _UnresolvedLog:
+    """The run's :class:`UnresolvedWindow` records: adjacent ones of one watch merged, the first kept (private)."""
+
+    __slots__ = ("items", "total")
+
+    def __init__(self) -> None:
+        self.items: list[UnresolvedWindow] = []
+        self.total = 0
+
+    def add(self, record: UnresolvedWindow) -> None:
+        for n in range(len(self.items) - 1, max(len(self.items) - 4, -1), -1):  # the last few: one per watch
+            last = self.items[n]
+            if (last.t_end == record.t_start and last.name == record.name and last.role == record.role
+                    and last.mode == record.mode):
+                self.items[n] = UnresolvedWindow(
+                    mode=last.mode, role=last.role, name=last.name, t_start=last.t_start, t_end=record.t_end,
+                    distance=min(last.distance, record.distance), reach=max(last.reach, record.reach),
+                    reason=last.reason)
+                return
+        self.total += 1
+        if len(self.items) < UNRESOLVED_KEPT:
+            self.items.append(record)
+
+
 def _find_switch(
     values: Callable[[float, tuple[float, ...]], list[float]],
     watches: Sequence[_Watch],
@@ -633,26 +973,53 @@ def _find_switch(
     phi_old: list[float],
     point: Callable[[float], tuple[float, ...]] | None,
     sign_checks: int,
+    refiner: _Refiner | None = None,
 ) -> tuple[_Bracket | None, list[float]]:
-    """Evaluate the watches at ``sign_checks`` interior points of a step, then at its end.
+    """Evaluate the watches at ``sign_checks`` interior points of a step and at its end; refine where they bend.
 
-    Returns the first sub-interval where a watch switches on (or ``None``) and
-    the watch values at the step's end (when nothing switched on).
+    The samples are evaluated in time order up to the first interval where a
+    watch switches on.  The intervals up to that one are then examined by
+    ``refiner`` (when given) in time order, so a window hidden between two
+    samples before the first visible switch-on wins.
+
+    Returns
+    -------
+    bracket, phi_end
+        The first (sub-)interval where a watch switches on, or ``None``; the
+        watch values at the step's end (when nothing switched on).
     """
-    lo, phi_lo = t_old, phi_old
-    for i in range(1, sign_checks + 2):
-        if i <= sign_checks and point is not None:
-            hi = t_old + (t_new - t_old) * i / (sign_checks + 1)
-            phi_hi = values(hi, point(hi))
-        elif i <= sign_checks:
-            continue
+    if point is None or sign_checks == 0:
+        phi_new = values(t_new, y_new)
+        candidates = _switched_on(watches, phi_old, phi_new)
+        return (_Bracket(t_old, t_new, phi_old, phi_new, candidates) if candidates else None), phi_new
+    n = sign_checks + 1
+    ts, ps = [t_old], [phi_old]
+    first_on: list[int] | None = None
+    for i in range(1, n + 1):
+        if i < n:
+            hi = t_old + (t_new - t_old) * i / n
+            phi = values(hi, point(hi))
         else:
-            hi, phi_hi = t_new, values(t_new, y_new)
-        candidates = _switched_on(watches, phi_lo, phi_hi)
-        if candidates:
-            return _Bracket(lo, hi, phi_lo, phi_hi, candidates), phi_hi
-        lo, phi_lo = hi, phi_hi
-    return None, phi_lo
+            hi, phi = t_new, values(t_new, y_new)
+        ts.append(hi)
+        ps.append(phi)
+        first_on = _switched_on(watches, ps[-2], phi) or None
+        if first_on is not None:
+            break
+    pairs = len(ts) - 1
+    if refiner is not None and refiner.depth > 0:
+        refiner.budget = REFINE_BUDGET
+        suspects = refiner.scan(ts, ps)
+        for i in range(pairs if suspects else 0):
+            flagged = refiner.flags(ts, ps, i, 0, refiner.rates, suspects)
+            if flagged:
+                approach = first_on if (first_on is not None and i == pairs - 2) else ()
+                found = refiner.search(ts[i], ts[i + 1], ps[i], ps[i + 1], flagged, 1, approach or ())
+                if found is not None:
+                    return found, ps[-1]
+    if first_on is not None:
+        return _Bracket(ts[-2], ts[-1], ps[-2], ps[-1], first_on), ps[-1]
+    return None, ps[-1]
 
 
 def _locate(
@@ -725,6 +1092,7 @@ class _Options:
     max_step: float
     event_tol: float
     sign_checks: int
+    refine_depth: int
     max_steps: int
     dense: bool
     t_end: float
@@ -740,6 +1108,7 @@ class _SegmentResult:
     rhs: int
     roots: int
     failure: str | None
+    resolution: float = 0.0  # largest spacing of the uniform samples of the watches in a step [s]
 
 
 def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: tuple[float, ...],
@@ -756,6 +1125,11 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     def values(tt: float, xx: tuple[float, ...]) -> list[float]:
         return run.values(watches, mode, seg_memory, tt, xx)
 
+    rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
+    refiner = (_Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
+                        opts.event_tol) if watches and opts.sign_checks and opts.refine_depth else None)
+    resolution = 0.0
+    run.last_point = (t, x)
     if t < opts.t_end:
         solver = METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
                                       rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step)
@@ -774,9 +1148,17 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
             t_old, t_new, y_new = float(solver.t_old), float(solver.t), tuple(solver.y.tolist())
             interp = solver.dense_output() if want_dense else None
             point = _point_evaluator(interp) if interp is not None and opts.sign_checks and watches else None
-            bracket, phi_old = (_find_switch(values, watches, t_old, t_new, y_new, phi_old, point, opts.sign_checks)
-                                if watches else (None, phi_old))
+            if watches:
+                spacing = (t_new - t_old) / (opts.sign_checks + 1 if point is not None else 1)
+                resolution = spacing if spacing > resolution else resolution
+                if refiner is not None and point is not None:
+                    refiner.point = point
+                bracket, phi_old = _find_switch(values, watches, t_old, t_new, y_new, phi_old, point,
+                                                opts.sign_checks, refiner if point is not None else None)
+            else:
+                bracket = None
             if bracket is None:
+                run.last_point = (t_new, y_new)
                 times.append(t_new)
                 states.append(y_new)
                 if interp is not None:
@@ -800,8 +1182,10 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
         states=_readonly(np.array(states).reshape(len(states), -1)), memory=tuple(sorted(seg_memory.items())),
         dense=dense_out,
     )
+    if refiner is not None:
+        run.refinement_evaluations += refiner.evaluations
     return _SegmentResult(segment=segment, event=event, on=on, watches=watches, steps=steps, rhs=rhs, roots=roots,
-                          failure=failure)
+                          failure=failure, resolution=resolution)
 
 
 def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
@@ -876,6 +1260,7 @@ class _Book:
         self.jump_times: list[float] = []
         self.j = 0
         self.steps = self.rhs = self.roots = 0
+        self.resolution = 0.0
         self.termination, self.detail = "end_time", ""
         self.zeno_report: ZenoReport | None = None
         self.zeno_dt = zeno_dt
@@ -885,6 +1270,7 @@ class _Book:
         self.steps += result.steps
         self.rhs += result.rhs
         self.roots += result.roots
+        self.resolution = max(self.resolution, result.resolution)
 
     def record(self, t: float, instant: Instant) -> None:
         for n, step in enumerate(instant.jumps):
@@ -997,6 +1383,7 @@ def simulate_continuous(
     max_step: float = math.inf,
     event_tol: float = 1e-12,
     sign_checks: int = 3,
+    refine_depth: int = 10,
     max_jumps: int = 100_000,
     max_jumps_per_instant: int = MAX_JUMPS_PER_INSTANT,
     max_steps: int = 10_000_000,
@@ -1030,7 +1417,21 @@ def simulate_continuous(
         Width of the final event bracket [s] (at least 4 ulp of the time).
     sign_checks : int
         Interior points of every step where the watched functions are also
-        evaluated (catches a guard entered and left inside one step).
+        evaluated, evenly spaced: a window (an interval where a guard, the
+        invariant or a stop function is on) longer than
+        ``step / (sign_checks + 1)`` always contains a sample and is found
+        (:attr:`HybridTrajectory.resolution` is the largest such spacing of
+        the run).  ``0``: the step's end only, as ``solve_ivp`` does (no
+        refinement either).
+    refine_depth : int
+        Shorter windows: where the samples of a function bend towards zero by
+        at least their distance from it (second difference >= distance), the
+        interval between them is split into 4 at points of the dense output,
+        recursively, down to ``refine_depth`` levels (spacing
+        ``step / (sign_checks + 1) / 4**refine_depth``; at most
+        :data:`REFINE_BUDGET` evaluations per step).  Bends still unresolved
+        there are listed in :attr:`HybridTrajectory.unresolved` and reported by
+        one :class:`~hybrid.errors.GuardResolutionWarning`.  ``0`` disables it.
     max_jumps : int
         Total jumps before termination ``"jump_limit"``.
     max_jumps_per_instant : int
@@ -1069,21 +1470,30 @@ def simulate_continuous(
     Raises
     ------
     ExecutionError
-        Bad arguments; user functions that raise, return NaN or the wrong shape;
+        Bad arguments; user functions that return NaN or the wrong shape;
         non-determinism (equal priorities enabled together); a jump landing
         outside the target mode's invariant with nothing enabled there.
+    UserFunctionError
+        A user function raised (an :class:`ExecutionError` naming the
+        function, the mode, the time and the state, the original chained).
     ZenoError
         With ``zeno="raise"``.
     DivergenceError
-        A :class:`~hybrid.errors.NumericalFailure` raised by user code.
+        A :class:`~hybrid.errors.NumericalFailure` raised by user code (time,
+        mode, cause and the state at the last finite point).
+
+    Warns
+    -----
+    GuardResolutionWarning
+        Once per run, when :attr:`HybridTrajectory.unresolved` is not empty.
     """
     _check_arguments(system, duration=duration, method=method, rtol=rtol, atol=atol, max_step=max_step,
                      event_tol=event_tol, invariant_tol=invariant_tol, zeno=zeno, sign_checks=sign_checks,
-                     max_jumps=max_jumps, max_jumps_per_instant=max_jumps_per_instant, max_steps=max_steps,
+                     refine_depth=refine_depth, max_jumps=max_jumps, max_jumps_per_instant=max_jumps_per_instant, max_steps=max_steps,
                      chatter_switches=chatter_switches, chatter_window=chatter_window)
     mode, x, memory = _initial_state(system, x0, initial_mode, initial_memory)
     opts = _Options(method=method, rtol=rtol, atol=atol, max_step=max_step, event_tol=event_tol,
-                    sign_checks=sign_checks, max_steps=max_steps, dense=dense, t_end=float(t0) + float(duration))
+                    sign_checks=sign_checks, refine_depth=refine_depth, max_steps=max_steps, dense=dense, t_end=float(t0) + float(duration))
     run = _Run(system, dict(stops or {}), invariant_tol)
     book = _Book(zeno_interval if zeno_interval is not None else 1e-6 * float(duration))
     t = float(t0)
@@ -1129,18 +1539,34 @@ def simulate_continuous(
             break
     chatter = (find_chatter(book.events, window=chatter_window, min_switches=chatter_switches)
                if chatter_window is not None else ())
+    if run.unresolved.total:
+        warnings.warn(_unresolved_message(system.name, run.unresolved), GuardResolutionWarning, stacklevel=2)
     return HybridTrajectory(
         system=system.name, mode_names=system.automaton.mode_names, state_names=system.state_names,
         segments=tuple(book.segments), events=tuple(book.events), termination=book.termination,
         detail=book.detail, zeno=book.zeno_report, chatter=chatter, final_time=t, final_state=x, final_mode=mode,
         final_memory=dict(memory),
         stats=ExecutionStats(steps=book.steps, rhs_evaluations=book.rhs, guard_evaluations=run.guard_evaluations,
-                             root_iterations=book.roots, events=len(book.events)),
+                             root_iterations=book.roots, events=len(book.events),
+                             refinement_evaluations=run.refinement_evaluations),
+        resolution=book.resolution, unresolved=tuple(run.unresolved.items),
+    )
+
+
+def _unresolved_message(name: str, log: _UnresolvedLog) -> str:
+    first = log.items[0]
+    return (
+        f"simulate_continuous({name!r}): {log.total} place(s) where a watched function may switch on and off "
+        f"between samples unseen; the first: the {first.role} {first.name!r} in mode {first.mode!r} on "
+        f"[{format_time(first.t_start)}, {format_time(first.t_end)}] s, {first.distance:.3g} from zero where it "
+        f"may move by {first.reach:.3g} ({first.reason} of the refinement reached); listed in "
+        "HybridTrajectory.unresolved; fix: a smaller max_step, or a larger sign_checks or refine_depth"
     )
 
 
 def _check_arguments(system: Any, *, duration: float, method: str, rtol: float, atol: float, max_step: float,
-                     event_tol: float, invariant_tol: float, zeno: str, sign_checks: int, max_jumps: int,
+                     event_tol: float, invariant_tol: float, zeno: str, sign_checks: int, refine_depth: int,
+                     max_jumps: int,
                      max_jumps_per_instant: int, max_steps: int, chatter_switches: int,
                      chatter_window: float | None) -> None:
     """Raise :class:`ExecutionError` naming the first bad argument of :func:`simulate_continuous`."""
@@ -1158,7 +1584,8 @@ def _check_arguments(system: Any, *, duration: float, method: str, rtol: float, 
             raise ExecutionError(f"simulate_continuous: {name} = {value!r}; expected a {'positive' if positive else 'non-negative'} finite number")
     if zeno not in ("stop", "continue", "raise"):
         raise ExecutionError(f"simulate_continuous: zeno = {zeno!r}; expected 'stop', 'continue' or 'raise'")
-    for name, value, least in (("sign_checks", sign_checks, 0), ("max_jumps", max_jumps, 1),
+    for name, value, least in (("sign_checks", sign_checks, 0), ("refine_depth", refine_depth, 0),
+                               ("max_jumps", max_jumps, 1),
                                ("max_jumps_per_instant", max_jumps_per_instant, 1), ("max_steps", max_steps, 1),
                                ("chatter_switches", chatter_switches, 2)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:

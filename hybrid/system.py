@@ -15,6 +15,20 @@ In the vocabulary of the HyEQ toolbox, a :class:`HybridSystem` gives
 
 The jump map and the memory reset both read the *pre-jump* values.
 
+Every call into the model made through a :class:`HybridSystem` method
+(:meth:`~HybridSystem.flow`, :meth:`~HybridSystem.signals`,
+:meth:`~HybridSystem.jump`, :meth:`~HybridSystem.guard`,
+:meth:`~HybridSystem.invariant`, :meth:`~HybridSystem.reset`) goes through
+one mechanism, :func:`call_user`: an exception raised by the user's function
+becomes a :class:`~hybrid.errors.UserFunctionError` naming the function, the
+mode (the source mode for a transition's functions), the time and the state,
+with the original chained (``raise ... from err``).  Two kinds pass through
+unchanged: :class:`~hybrid.errors.NumericalFailure` (the executors turn it
+into a :class:`~hybrid.errors.DivergenceError` with their own context) and
+errors that already carry that context (``UserFunctionError``,
+``DivergenceError``).  Wrong shapes, NaN and bools are refused with the same
+naming.
+
 Examples
 --------
 >>> from hybrid import HybridAutomaton, Mode, Transition
@@ -36,11 +50,22 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import Any
 
-from .errors import ExecutionError, ModelDefinitionError
-from .model import HybridAutomaton
+from .errors import (
+    DivergenceError,
+    ExecutionError,
+    ModelDefinitionError,
+    NumericalFailure,
+    UserFunctionError,
+    format_time,
+)
+from .model import _BOOL_TYPES, HybridAutomaton, Transition, refuse_bool
 
-__all__ = ["FlowMap", "JumpMap", "OutputMap", "HybridSystem"]
+__all__ = ["FlowMap", "JumpMap", "OutputMap", "HybridSystem", "call_user", "real_value", "format_state"]
+
+PASSED_THROUGH: tuple[type[BaseException], ...] = (NumericalFailure, UserFunctionError, DivergenceError)
+"""Exceptions that :func:`call_user` lets through unchanged (see the module docstring)."""
 
 FlowMap = Callable[[float, Sequence[float], Mapping[str, float]], Sequence[float]]
 """``f(t, x, m) -> ẋ`` of one mode, shape ``(n,)``."""
@@ -166,42 +191,142 @@ class HybridSystem:
 
         Raises
         ------
+        UserFunctionError
+            The flow raised (chained), naming the mode, the state and the time.
         ExecutionError
             Wrong length or a NaN, naming the mode, the state and the time.
+        NumericalFailure
+            Raised by the flow itself: passed through (see :func:`call_user`).
         """
-        value = self.flows[mode](t, x, memory)
+        value = call_user(self.flows[mode], (t, x, memory), function=f"flow of mode {mode!r}", mode=mode,
+                          time=t, state=x, state_names=self.state_names, system=self.name)
         return self._checked(value, f"flow of mode {mode!r}", t, x)
 
     def jump(self, transition: str, t: float, x: Sequence[float], memory: Mapping[str, float]) -> tuple[float, ...]:
-        """Continuous state after ``transition`` (identity without a jump map)."""
+        """Continuous state after ``transition`` (identity without a jump map).
+
+        Raises
+        ------
+        UserFunctionError
+            The jump map raised (chained), naming the transition, its source mode, the state and the time.
+        ExecutionError
+            Wrong length or a NaN.
+        """
         r = self.jumps.get(transition)
         if r is None:
             return tuple(float(c) for c in x)
-        return self._checked(r(x, memory), f"jump map of transition {transition!r}", t, x)
+        try:
+            value = r(x, memory)
+        except PASSED_THROUGH:
+            raise
+        except Exception as err:
+            raise self._failure(f"jump map of transition {transition!r}", err, self._source(transition), t, x) from err
+        return self._checked(value, f"jump map of transition {transition!r}", t, x)
 
-    def signals(self, t: float, x: Sequence[float]) -> tuple[float, ...]:
-        """Signals ``v`` read by guards and invariants."""
+    def signals(self, t: float, x: Sequence[float], mode: str | None = None) -> tuple[float, ...]:
+        """Signals ``v`` read by guards and invariants.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        x : sequence of float
+            Continuous state.
+        mode : str or None
+            The active mode, named by the errors (executors give it).
+
+        Raises
+        ------
+        UserFunctionError
+            The output map raised (chained).
+        ExecutionError
+            It returned the wrong number of values or a NaN.
+        """
         if self.output is None:
             return tuple(float(c) for c in x)
-        v = self.output(t, x)
+        v = call_user(self.output, (t, x), function="output", mode=mode, time=t, state=x,
+                      state_names=self.state_names, system=self.name)
+        where = f"{'' if mode is None else f' in mode {mode!r}'} at t = {format_time(t)} s, x = {format_state(x)}"
         try:
             n = len(v)
         except TypeError:
             raise ExecutionError(
-                f"system {self.name!r}: output returned {v!r} at t = {t:.17g} s, x = {format_state(x)}; "
+                f"system {self.name!r}: output returned {v!r}{where}; "
                 f"expected {len(self.automaton.variables)} values ({', '.join(self.automaton.variables)})"
             ) from None
         if n != len(self.automaton.variables):
             raise ExecutionError(
-                f"system {self.name!r}: output returned {n} values at t = {t:.17g} s, x = {format_state(x)}; "
+                f"system {self.name!r}: output returned {n} values{where}; "
                 f"expected {len(self.automaton.variables)} ({', '.join(self.automaton.variables)})"
             )
         for name, value in zip(self.automaton.variables, v):
             if value != value:
-                raise ExecutionError(
-                    f"system {self.name!r}: output {name!r} is NaN at t = {t:.17g} s, x = {format_state(x)}"
-                )
+                raise ExecutionError(f"system {self.name!r}: output {name!r} is NaN{where}")
         return tuple(v)
+
+    def guard(self, transition: Transition, t: float, x: Sequence[float], v: Sequence[float],
+              memory: Mapping[str, float]) -> float:
+        """``g(v, m)`` of ``transition``: one real number, named errors otherwise.
+
+        Raises
+        ------
+        UserFunctionError
+            The guard raised (chained).
+        ExecutionError
+            It returned a bool, a non-number or NaN.
+        """
+        what = f"guard of transition {transition.name!r}"
+        value = call_user(transition.guard, (v, memory), function=what, mode=transition.source, time=t, state=x,
+                          state_names=self.state_names, system=self.name)
+        return real_value(value, what, transition.source, t, x)
+
+    def invariant(self, mode: str, t: float, x: Sequence[float], v: Sequence[float],
+                  memory: Mapping[str, float]) -> float:
+        """``inv(v, m)`` of ``mode`` (``inf`` without an invariant); errors as :meth:`guard`."""
+        inv = self.automaton.mode(mode).invariant
+        if inv is None:
+            return math.inf
+        what = f"invariant of mode {mode!r}"
+        value = call_user(inv, (v, memory), function=what, mode=mode, time=t, state=x,
+                          state_names=self.state_names, system=self.name)
+        return real_value(value, what, mode, t, x)
+
+    def reset(self, transition: Transition, t: float, x: Sequence[float], v: Sequence[float],
+              memory: Mapping[str, float]) -> dict[str, float]:
+        """Memory after ``transition``'s reset (a copy of ``memory`` without one).
+
+        Raises
+        ------
+        UserFunctionError
+            The reset raised (chained).
+        ExecutionError
+            It did not return exactly the declared ``writes``, or a value is not a real number.
+        """
+        new_memory = dict(memory)
+        if transition.reset is None:
+            return new_memory
+        what = f"reset of transition {transition.name!r}"
+        update = call_user(transition.reset, (v, memory), function=what, mode=transition.source, time=t, state=x,
+                           state_names=self.state_names, system=self.name)
+        if not isinstance(update, Mapping) or set(update) != set(transition.writes):
+            got = sorted(update) if isinstance(update, Mapping) else repr(update)
+            raise ExecutionError(
+                f"reset of transition {transition.name!r} at t = {format_time(t)} s, x = {format_state(x)} returned "
+                f"{got}; expected a mapping with exactly the declared writes {sorted(transition.writes)}"
+            )
+        for name, value in update.items():
+            new_memory[name] = real_value(value, f"{what} ({name})", transition.source, t, x)
+        return new_memory
+
+    def _source(self, transition: str) -> str | None:
+        for tr in self.automaton.transitions:
+            if tr.name == transition:
+                return tr.source
+        return None
+
+    def _failure(self, what: str, err: Exception, mode: str | None, t: float, x: Sequence[float]) -> UserFunctionError:
+        return UserFunctionError(what, err, mode=mode, time=t, state=_state_or_none(x),
+                                 state_names=self.state_names, system=self.name)
 
     def _checked(self, value: Sequence[float], what: str, t: float, x: Sequence[float]) -> tuple[float, ...]:
         try:
@@ -222,6 +347,88 @@ class HybridSystem:
                     f"system {self.name!r}: {what} gives NaN for {name!r} at t = {t:.17g} s, x = {format_state(x)}"
                 )
         return out
+
+
+def call_user(fn: Callable[..., Any], args: Sequence[Any], *, function: str, mode: str | None = None,
+              time: float | None = None, state: Sequence[float] | None = None,
+              state_names: Sequence[str] | None = None, system: str | None = None) -> Any:
+    """``fn(*args)``, an exception it raises re-raised as :class:`~hybrid.errors.UserFunctionError`.
+
+    The one way the executors call the user's functions (through the
+    :class:`HybridSystem` methods, and directly for the continuous executor's
+    stop functions).
+
+    Parameters
+    ----------
+    fn : callable
+        The user's function.
+    args : sequence
+        Its arguments.
+    function : str
+        Its description for the message (``"flow of mode 'on'"``).
+    mode, time, state, state_names, system
+        The context named by the message (see :class:`~hybrid.errors.UserFunctionError`).
+
+    Returns
+    -------
+    object
+        What ``fn`` returned (unchecked).
+
+    Raises
+    ------
+    UserFunctionError
+        ``fn`` raised; the original is chained as ``__cause__``.
+    NumericalFailure, DivergenceError
+        Passed through (:data:`PASSED_THROUGH`), as is an inner ``UserFunctionError``.
+
+    Examples
+    --------
+    >>> from hybrid.errors import UserFunctionError
+    >>> try:
+    ...     call_user(lambda v, m: 1.0 / v[0], ((0.0,), {}), function="guard of transition 'hit'", mode="wait",
+    ...               time=0.5, state=(0.0,), state_names=("x",))
+    ... except UserFunctionError as err:
+    ...     print(str(err).split("; fix")[0])
+    guard of transition 'hit' raised ZeroDivisionError: float division by zero in mode 'wait' at t = 0.5 s, x = (x=0)
+    """
+    try:
+        return fn(*args)
+    except PASSED_THROUGH:
+        raise
+    except Exception as err:
+        raise UserFunctionError(function, err, mode=mode, time=time, state=_state_or_none(state),
+                                state_names=state_names, system=system) from err
+
+
+def real_value(value: Any, what: str, mode: str | None, t: float, x: Sequence[float]) -> float:
+    """``float(value)`` of a guard, invariant, stop or reset value; a bool, non-number or NaN is refused.
+
+    Raises
+    ------
+    ExecutionError
+        Naming ``what``, the mode, the time and the state.
+    """
+    if value.__class__ is float and value == value:
+        return value
+    if isinstance(value, _BOOL_TYPES):
+        refuse_bool(value, f"{what} (mode {mode!r}, t = {t:.17g} s)")
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ExecutionError(
+            f"{what} returned {value!r} in mode {mode!r} at t = {t:.17g} s, x = {format_state(x)}; "
+            "expected one real number"
+        ) from None
+    if out != out:
+        raise ExecutionError(f"{what} is NaN in mode {mode!r} at t = {t:.17g} s, x = {format_state(x)}")
+    return out
+
+
+def _state_or_none(x: Any) -> tuple[float, ...] | None:
+    try:
+        return tuple(float(c) for c in x)
+    except (TypeError, ValueError):
+        return None
 
 
 def format_state(x: Sequence[float]) -> str:
