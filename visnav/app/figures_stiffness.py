@@ -24,6 +24,7 @@ __all__ = [
     "stability_regions_figure",
     "error_vs_step_figure",
     "error_vs_time_figure",
+    "error_vs_evaluations_figure",
     "stiffness_ratio_figure",
     "stiffness_figures",
 ]
@@ -145,6 +146,34 @@ def error_vs_time_figure(study: StiffnessStudy) -> Figure:
     return fig
 
 
+def error_vs_evaluations_figure(study: StiffnessStudy) -> Figure:
+    """Error against the evaluations of ``F`` and its Jacobian on the reconstruction problem, with the Pareto
+    front by evaluations: the cost axis of :func:`error_vs_time_figure` without the machine's clock, so the
+    figure is the same bytes on every machine (the report's)."""
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    accuracy = {**study.plots["paper_accuracy"], **study.plots["reference_accuracy"]}
+    for scheme in FIXED_STEP_SCHEMES + REFERENCE_SCHEMES:
+        if scheme not in accuracy:
+            continue
+        ls = "-" if scheme in FIXED_STEP_SCHEMES else "--"
+        ax.loglog(accuracy[scheme]["evaluations"], accuracy[scheme]["errors"], ls, marker=_MARKERS.get(scheme, "."),
+                  color=_COLORS[scheme], label=scheme)
+    front = study.data["accuracy"]["paper"].get("pareto_front_by_evaluations", [])
+    if front:
+        pts = [(accuracy[p["scheme"]]["evaluations"][p["index"]], accuracy[p["scheme"]]["errors"][p["index"]])
+               for p in front]
+        pts.sort()
+        ax.loglog([p[0] for p in pts], [p[1] for p in pts], color="k", lw=2, alpha=0.25, label="Pareto front")
+    ax.set_xlabel("evaluations of F and its Jacobian")
+    ax.set_ylabel("max(|ΔX|, |ΔY|, |Δz|/z)")
+    ax.set_title("Cost and accuracy on the reconstruction problem\n(fixed-step: steps 0.2…0.0125 s; "
+                 "references: rtol ladder)")
+    ax.grid(True, which="both", lw=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    return fig
+
+
 def stiffness_ratio_figure(study: StiffnessStudy) -> Figure:
     """Stiffness ratio, raw Lambert ratio and ``h ρ(∂F/∂ψ)`` over the run's reconstruction samples."""
     spec = study.plots["paper_spectrum"]
@@ -167,11 +196,14 @@ def stiffness_ratio_figure(study: StiffnessStudy) -> Figure:
     return fig
 
 
-def stiffness_figures(study: StiffnessStudy) -> dict[str, Figure]:
-    """The four figures keyed by file stem."""
+def stiffness_figures(study: StiffnessStudy, *, reproducible: bool = False) -> dict[str, Figure]:
+    """The four figures keyed by file stem; ``reproducible``: the cost against evaluations instead of wall-clock
+    time (the report's choice: every byte of it is the same on every machine)."""
+    cost = ({"stiffness_error_vs_evaluations": error_vs_evaluations_figure(study)} if reproducible
+            else {"stiffness_error_vs_time": error_vs_time_figure(study)})
     return {
         "stiffness_regions": stability_regions_figure(study),
         "stiffness_error_vs_step": error_vs_step_figure(study),
-        "stiffness_error_vs_time": error_vs_time_figure(study),
+        **cost,
         "stiffness_ratio": stiffness_ratio_figure(study),
     }

@@ -283,7 +283,7 @@ def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict
         return ({"not_applicable": str(err), "figures": []},
                 [Claim(section="stiffness", status="measured", text=f"stiffness study not applicable: {err}")], {})
     data = study.as_dict(include_timing=False)
-    figures = stiffness_figures(study)
+    figures = stiffness_figures(study, reproducible=True)
     data["figures"] = sorted(figures)
     ans = data["answer"]
     a_alpha = data["stability"]["a_alpha"]

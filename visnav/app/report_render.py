@@ -342,6 +342,8 @@ def _stiffness_blocks(data: dict[str, Any]) -> list[Block]:
                 "stiffness_error_vs_step": "Error against the step (observed order)",
                 "stiffness_error_vs_time": "Error against wall time (measured on the machine that wrote this "
                                            "report: the one figure that is not reproducible byte for byte)",
+                "stiffness_error_vs_evaluations": "Error against the evaluations of F and its Jacobian (the cost "
+                                                  "without the machine's clock; wall times: visnav stiffness --timing)",
                 "stiffness_ratio": "Stiffness ratio along the run"}
     for stem in st["figures"]:
         blocks.append(Block("figure", (stem, captions.get(stem, stem))))

@@ -282,6 +282,13 @@ def test_figures_render(quick_study):
     assert set(figures) == {"stiffness_regions", "stiffness_error_vs_step", "stiffness_error_vs_time",
                             "stiffness_ratio"}
     assert all(len(fig.axes) >= 1 for fig in figures.values())
+    reproducible = stiffness_figures(quick_study, reproducible=True)
+    assert set(reproducible) == {"stiffness_regions", "stiffness_error_vs_step", "stiffness_error_vs_evaluations",
+                                 "stiffness_ratio"}
+    ax = reproducible["stiffness_error_vs_evaluations"].axes[0]
+    accuracy = {**quick_study.plots["paper_accuracy"], **quick_study.plots["reference_accuracy"]}
+    plotted = {tuple(line.get_xdata()) for line in ax.get_lines()}
+    assert tuple(accuracy["bdf4"]["evaluations"]) in plotted  # the x axis is the evaluation count
 
 
 def test_cli_bad_input_exits_2(capsys):
