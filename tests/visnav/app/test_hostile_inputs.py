@@ -7,10 +7,11 @@ Every case runs a ``visnav`` command in-process and asserts the contract:
 * it ends within a bound (a hang is a failure, never a wait);
 * an accepted input gives the same answer twice (nothing changes silently).
 
-Four generators: scenario files (``mode-graph --scenario FILE``: loading, validation, the
+Five generators: scenario files (``mode-graph --scenario FILE``: loading, validation, the
 supervisor's construction), counterexample files (``replay FILE``), argument lists of every
-subcommand (hostile values of every option), and raw bytes (BOM, invalid UTF-8, truncation, deep
-nesting, huge numbers).  The CI budget (``CI`` set) runs {CI_CASES} cases in all; locally a tenth.
+subcommand (hostile values of every option), raw bytes (BOM, invalid UTF-8, truncation, deep
+nesting, huge numbers), and campaign results files (read back by the store ``visnav sweep``
+resumes from: refused with its message, or every result kept is one the campaign wrote).  The CI budget (``CI`` set) runs {CI_CASES} cases in all; locally a tenth.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ import visnav.app.cli as cli
 from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TASK_FAILED
 
 CI_CASES = 2000
-SHARE = {"scenario": 0.4, "counterexample": 0.25, "argv": 0.2, "bytes": 0.15}
+SHARE = {"scenario": 0.35, "counterexample": 0.2, "argv": 0.15, "bytes": 0.15, "results": 0.15}
 CASE_BOUND_S = 30.0
 """No case may run longer: the cheapest commands are used, and a refusal must come before any run."""
 
@@ -329,3 +330,97 @@ def argv_lists(draw) -> list[str]:
 def test_generated_argument_lists(argv):
     # every list carries an unknown option or an unreadable scenario: it must be refused before anything runs
     assert_contract(argv, {EXIT_BAD_INPUT})
+
+
+# --------------------------------------------------------------------------- results files of a campaign
+RESULT_MUTATIONS = st.lists(st.one_of(
+    st.tuples(st.just("cut"), st.integers(0, 400)),
+    st.tuples(st.just("garbage"), st.integers(0, 6), st.sampled_from([b"{", b"nul\x00", b"\xff\xfe", b"[]", b"{}",
+                                                                      b'{"result": 1}', b"1e999", b"-" * 300])),
+    st.tuples(st.just("nest"), st.integers(0, 6), st.sampled_from([70, 1000, 20000])),
+    st.tuples(st.just("foreign"), st.integers(1, 5)),
+    st.tuples(st.just("value"), st.integers(1, 5), HOSTILE),
+    st.tuples(st.just("duplicate"), st.integers(1, 5)),
+    st.tuples(st.just("header"), HOSTILE),
+), min_size=1, max_size=3)
+"""Edits of a valid results file: cut bytes, garbage or deeply nested lines, a line of another campaign (its own
+valid checksum), a changed value, a duplicated line, a changed header."""
+
+
+def _mutated_results(lines: list[bytes], edits: list[tuple], other: list[bytes]) -> bytes:
+    import copy
+
+    out = list(lines)
+    for edit in edits:
+        kind = edit[0]
+        if kind == "garbage":
+            out.insert(min(edit[1], len(out)), edit[2])
+        elif kind == "nest":
+            out.insert(min(edit[1], len(out)), b"[" * edit[2] + b"]" * edit[2])
+        elif kind == "foreign" and edit[1] < len(out):
+            out[edit[1]] = other[min(edit[1], len(other) - 1)]
+        elif kind == "value" and edit[1] < len(out):
+            try:
+                line = json.loads(out[edit[1]])
+                line["result"]["value"] = copy.deepcopy(edit[2])
+                out[edit[1]] = json.dumps(line, allow_nan=True).encode()
+            except (ValueError, TypeError, KeyError):
+                pass
+        elif kind == "duplicate" and edit[1] < len(out):
+            out.insert(edit[1], out[edit[1]])
+        elif kind == "header":
+            try:
+                header = json.loads(out[0])
+                header["spec_hash"] = copy.deepcopy(edit[1])
+                out[0] = json.dumps(header, allow_nan=True).encode()
+            except (ValueError, TypeError, KeyError, IndexError):
+                pass
+    data = b"\n".join(out) + b"\n"
+    cut = next((e[1] for e in edits if e[0] == "cut"), None)
+    return data if cut is None else data[:max(0, len(data) - cut)]
+
+
+def _results_file(folder: Path, spec_hash: str, offset: float = 0.0) -> tuple[list[bytes], list[dict]]:
+    from visnav.app.campaign_store import ResultCodec, open_store
+
+    codec = ResultCodec(to_dict=dict, from_dict=dict, index=lambda r: r["i"])
+    results = [{"i": i, "value": offset + 0.25 * i, "outcome": "success"} for i in range(5)]
+    store, _ = open_store(folder / "results.jsonl", {"format": "harness", "version": 1, "spec_hash": spec_hash},
+                          codec, samples=5)
+    try:
+        for r in results:
+            store.append(r)
+    finally:
+        store.close()
+    return (folder / "results.jsonl").read_bytes().splitlines(), results
+
+
+@_settings("results")
+@given(edits=RESULT_MUTATIONS)
+def test_generated_results_files(tmp_path_factory, edits):
+    from visnav.app.campaign_store import CampaignStoreError, ResultCodec, open_store
+
+    other_folder = tmp_path_factory.mktemp("other")
+    other, _ = _results_file(other_folder, "another-campaign", offset=100.0)  # its results differ from ours
+    folder = tmp_path_factory.mktemp("results")
+    lines, written = _results_file(folder, "this-campaign")
+    (folder / "results.jsonl").write_bytes(_mutated_results(lines, edits, other))
+    codec = ResultCodec(to_dict=dict, from_dict=dict, index=lambda r: r["i"])
+    header = {"format": "harness", "version": 1, "spec_hash": "this-campaign"}
+    try:
+        store, report = open_store(folder / "results.jsonl", header, codec, samples=5)
+    except CampaignStoreError as err:  # the documented refusal: names the file and the fix
+        assert "results.jsonl" in str(err) and "Traceback" not in str(err)
+        return
+    try:
+        kept = list(store.results())
+    finally:
+        store.close()
+    for result in kept:  # nothing changes silently: every result read back is one this campaign wrote
+        assert result in written, (result, report)
+    assert len({r["i"] for r in kept}) == len(kept)
+    again_store, again = open_store(folder / "results.jsonl", header, codec, samples=5)  # repaired: clean now
+    try:
+        assert list(again_store.results()) == kept and again.bad_lines == ()
+    finally:
+        again_store.close()
