@@ -276,7 +276,9 @@ def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict
     from visnav.app.figures_stiffness import stiffness_figures
     from visnav.studies.stiffness import QUICK_SETTINGS, NoOcclusionError, StudySettings, stiffness_study
 
-    settings = dataclasses.replace(QUICK_SETTINGS if options.quick else StudySettings(), seed=options.seed)
+    # one timing run per integration: the report plots the cost against evaluations, never the clock
+    settings = dataclasses.replace(QUICK_SETTINGS if options.quick else StudySettings(), seed=options.seed,
+                                   timing_repeats=1)
     try:
         study = stiffness_study(scenario, settings)
     except NoOcclusionError as err:  # a scenario without an occlusion: nothing to reconstruct, nothing to study

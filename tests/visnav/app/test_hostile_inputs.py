@@ -395,15 +395,20 @@ def _results_file(folder: Path, spec_hash: str, offset: float = 0.0) -> tuple[li
     return (folder / "results.jsonl").read_bytes().splitlines(), results
 
 
+_STORES: dict[str, Any] = {}
+
+
 @_settings("results")
 @given(edits=RESULT_MUTATIONS)
 def test_generated_results_files(tmp_path_factory, edits):
     from visnav.app.campaign_store import CampaignStoreError, ResultCodec, open_store
 
-    other_folder = tmp_path_factory.mktemp("other")
-    other, _ = _results_file(other_folder, "another-campaign", offset=100.0)  # its results differ from ours
+    if not _STORES:  # one valid file of each campaign, copied into every case
+        _STORES["other"] = _results_file(tmp_path_factory.mktemp("other"), "another-campaign", offset=100.0)[0]
+        _STORES["this"] = _results_file(tmp_path_factory.mktemp("this"), "this-campaign")
+    other = _STORES["other"]  # its results differ from ours
+    lines, written = _STORES["this"]
     folder = tmp_path_factory.mktemp("results")
-    lines, written = _results_file(folder, "this-campaign")
     (folder / "results.jsonl").write_bytes(_mutated_results(lines, edits, other))
     codec = ResultCodec(to_dict=dict, from_dict=dict, index=lambda r: r["i"])
     header = {"format": "harness", "version": 1, "spec_hash": "this-campaign"}
