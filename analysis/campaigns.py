@@ -789,8 +789,25 @@ def campaign_executor(
     try:
         yield CampaignBackend(executor=pool, kind="process", workers=n, description=f"process pool, {n} workers",
                               window=2 * n)
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    except BaseException:
+        # interrupted or failed: what finished was delivered (run_campaign drains within its grace); a blocking
+        # shutdown can hang when the interrupt hit the pool mid-submit, so the workers are stopped instead
+        # (their tasks are recomputed on resume: results depend on (seed, index) only)
+        _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _stop_pool(pool: cf.ProcessPoolExecutor, join_s: float = 5.0) -> None:
+    """Shut ``pool`` down without waiting on its queues, then end its worker processes (joined, else terminated)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + join_s
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.terminate()
+            process.join(1.0)
 
 
 def dask_worker_count(client: Any, timeout_s: float) -> int:
