@@ -34,7 +34,7 @@ import visnav.app.cli as cli
 from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TASK_FAILED
 
 CI_CASES = 2000
-SHARE = {"scenario": 0.35, "counterexample": 0.2, "argv": 0.15, "bytes": 0.15, "results": 0.15}
+SHARE = {"scenario": 0.3, "counterexample": 0.2, "argv": 0.2, "bytes": 0.15, "results": 0.15}
 CASE_BOUND_S = 30.0
 """No case may run longer: the cheapest commands are used, and a refusal must come before any run."""
 
