@@ -55,9 +55,7 @@ import hashlib
 import json
 import os
 import re
-import signal
 import socket
-import threading
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -66,7 +64,7 @@ from typing import Any
 
 from hybrid.jsonable import canonical_json
 
-from visnav.app.files import OutputError, write_text_atomic
+from visnav.app.files import OutputError, sigint_deferred, write_text_atomic
 
 try:  # advisory lock against two campaigns writing one folder (POSIX only)
     import fcntl
@@ -376,24 +374,6 @@ def _spec_differences(found: Any, wanted: Any, quiet: tuple[str, ...]) -> str:
     return f" ({'; '.join(shown)})" if shown else ""
 
 
-@contextlib.contextmanager
-def _sigint_deferred() -> Iterator[None]:
-    """Hold back ``KeyboardInterrupt`` until the block ends (main thread, default handler only)."""
-    if threading.current_thread() is not threading.main_thread() or (
-        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
-    ):
-        yield
-        return
-    received: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-    if received:
-        raise KeyboardInterrupt
-
-
 def _write_all(fd: int, data: bytes) -> None:
     view = memoryview(data)
     while view:
@@ -580,7 +560,7 @@ class CampaignStore:
                                           OSError(errno.EIO, "an earlier write failed and could not be undone"),
                                           kept.replace("kept and valid", "kept (the cut line is dropped on resume)"))
         line = (_result_line(self._codec, result, self._spec_hash) + "\n").encode("utf-8")
-        with _sigint_deferred():  # a Ctrl-C here is raised once the line is durable and counted
+        with sigint_deferred():  # a Ctrl-C here is raised once the line is durable and counted
             size = os.lseek(self._fd, 0, os.SEEK_END)
             try:
                 _write_all(self._fd, line)

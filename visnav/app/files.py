@@ -12,16 +12,21 @@ naming the path and the fix.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import io
 import os
 import re
 import shutil
+import signal
 import tempfile
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 __all__ = [
+    "sigint_deferred",
     "OutputError", "PARTIAL_MARK", "prepare_output_dir", "write_bytes_atomic", "write_text_atomic",
     "figure_png_bytes", "figures_png", "write_png", "write_figures", "output_error", "clean_partial_files",
     "is_partial_name", "partial_prefix", "file_mode", "folder_mode",
@@ -256,3 +261,21 @@ def write_png(folder: Path, png: dict[str, bytes]) -> dict[str, Path]:
 def write_figures(folder: Path, figures: dict[str, object]) -> dict[str, Path]:
     """Render (:func:`figures_png`) and write (:func:`write_png`) matplotlib figures."""
     return write_png(folder, figures_png(figures))
+
+
+@contextlib.contextmanager
+def sigint_deferred() -> Iterator[None]:
+    """Hold back ``KeyboardInterrupt`` until the block ends (main thread, default handler only): the one
+    mechanism by which a write that must not be cut (a results line, a folder swap) finishes before Ctrl-C acts."""
+    if threading.current_thread() is not threading.main_thread() or (
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+    received: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if received:
+        raise KeyboardInterrupt

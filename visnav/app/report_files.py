@@ -35,16 +35,15 @@ import os
 import re
 import secrets
 import shutil
-import signal
 import stat
 import sys
 import tempfile
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from visnav.app.files import (
+    sigint_deferred,
     OutputError,
     clean_partial_files,
     figures_png,
@@ -203,23 +202,6 @@ def _exchange(first: Path, second: Path) -> bool:
     raise OSError(code, os.strerror(code), str(second))
 
 
-@contextlib.contextmanager
-def _sigint_held() -> Iterator[None]:
-    """Hold back ``KeyboardInterrupt`` until the block ends (main thread, default handler only)."""
-    if threading.current_thread() is not threading.main_thread() or (
-            signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
-        yield
-        return
-    received: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-    if received:
-        raise KeyboardInterrupt
-
-
 def _swap_in(staging: Path, real: Path) -> Path | None:
     """Put the folder ``staging`` at ``real``; return where the old ``real`` now is (``None``: there was none)."""
     if not os.path.lexists(real):
@@ -332,7 +314,7 @@ def write_report(report: Report, folder: str | os.PathLike[str]) -> list[Path]:
         os.chmod(staging, mode)
         written = _write_into(staging, report, png, documents)
         _fsync_dir(staging)
-        with _sigint_held():
+        with sigint_deferred():
             old = _swap_in(staging, real)
             swapped = True
     except BaseException as err:
