@@ -8,6 +8,8 @@ grids and loci, computed only when a figure is drawn); this module draws them
 
 from __future__ import annotations
 
+from typing import Any
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -121,22 +123,19 @@ def error_vs_step_figure(study: StiffnessStudy) -> Figure:
     return fig
 
 
-def error_vs_time_figure(study: StiffnessStudy) -> Figure:
-    """Error against wall-clock time (medians) on the reconstruction problem, with the Pareto front."""
+def _cost_figure(costs: dict[str, Any], errors: dict[str, Any], front: list[tuple[float, float]],
+                 xlabel: str) -> Figure:
+    """Error against a cost per scheme (fixed-step solid, references dashed), with the Pareto front."""
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    accuracy = {**study.plots["paper_accuracy"], **study.plots["reference_accuracy"]}
     for scheme in FIXED_STEP_SCHEMES + REFERENCE_SCHEMES:
-        if scheme not in accuracy or scheme not in study.timing:
+        if scheme not in costs:
             continue
-        walls = study.timing[scheme]["wall_s"]
         ls = "-" if scheme in FIXED_STEP_SCHEMES else "--"
-        ax.loglog(walls, accuracy[scheme]["errors"], ls, marker=_MARKERS.get(scheme, "."), color=_COLORS[scheme],
+        ax.loglog(costs[scheme], errors[scheme], ls, marker=_MARKERS.get(scheme, "."), color=_COLORS[scheme],
                   label=scheme)
-    front = study.timing.get("pareto_front", [])
     if front:
-        ax.loglog([p["wall_s"] for p in front], [p["error"] for p in front], color="k", lw=2, alpha=0.25,
-                  label="Pareto front")
-    ax.set_xlabel("wall-clock time [s] (median)")
+        ax.loglog([p[0] for p in front], [p[1] for p in front], color="k", lw=2, alpha=0.25, label="Pareto front")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("max(|ΔX|, |ΔY|, |Δz|/z)")
     ax.set_title("Cost and accuracy on the reconstruction problem\n(fixed-step: steps 0.2…0.0125 s; "
                  "references: rtol ladder)")
@@ -144,34 +143,30 @@ def error_vs_time_figure(study: StiffnessStudy) -> Figure:
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     return fig
+
+
+def _accuracy(study: StiffnessStudy) -> dict[str, Any]:
+    return {**study.plots["paper_accuracy"], **study.plots["reference_accuracy"]}
+
+
+def error_vs_time_figure(study: StiffnessStudy) -> Figure:
+    """Error against wall-clock time (medians) on the reconstruction problem, with the Pareto front."""
+    accuracy = _accuracy(study)
+    schemes = [k for k in accuracy if k in study.timing]
+    front = [(p["wall_s"], p["error"]) for p in study.timing.get("pareto_front", [])]
+    return _cost_figure({k: study.timing[k]["wall_s"] for k in schemes}, {k: accuracy[k]["errors"] for k in schemes},
+                        front, "wall-clock time [s] (median)")
 
 
 def error_vs_evaluations_figure(study: StiffnessStudy) -> Figure:
     """Error against the evaluations of ``F`` and its Jacobian on the reconstruction problem, with the Pareto
     front by evaluations: the cost axis of :func:`error_vs_time_figure` without the machine's clock, so the
     figure is the same bytes on every machine (the report's)."""
-    fig, ax = plt.subplots(figsize=(8, 5.5))
-    accuracy = {**study.plots["paper_accuracy"], **study.plots["reference_accuracy"]}
-    for scheme in FIXED_STEP_SCHEMES + REFERENCE_SCHEMES:
-        if scheme not in accuracy:
-            continue
-        ls = "-" if scheme in FIXED_STEP_SCHEMES else "--"
-        ax.loglog(accuracy[scheme]["evaluations"], accuracy[scheme]["errors"], ls, marker=_MARKERS.get(scheme, "."),
-                  color=_COLORS[scheme], label=scheme)
-    front = study.data["accuracy"]["paper"].get("pareto_front_by_evaluations", [])
-    if front:
-        pts = [(accuracy[p["scheme"]]["evaluations"][p["index"]], accuracy[p["scheme"]]["errors"][p["index"]])
-               for p in front]
-        pts.sort()
-        ax.loglog([p[0] for p in pts], [p[1] for p in pts], color="k", lw=2, alpha=0.25, label="Pareto front")
-    ax.set_xlabel("evaluations of F and its Jacobian")
-    ax.set_ylabel("max(|ΔX|, |ΔY|, |Δz|/z)")
-    ax.set_title("Cost and accuracy on the reconstruction problem\n(fixed-step: steps 0.2…0.0125 s; "
-                 "references: rtol ladder)")
-    ax.grid(True, which="both", lw=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    return fig
+    accuracy = _accuracy(study)
+    front = sorted((accuracy[p["scheme"]]["evaluations"][p["index"]], accuracy[p["scheme"]]["errors"][p["index"]])
+                   for p in study.data["accuracy"]["paper"].get("pareto_front_by_evaluations", []))
+    return _cost_figure({k: r["evaluations"] for k, r in accuracy.items()}, {k: r["errors"] for k, r in accuracy.items()},
+                        front, "evaluations of F and its Jacobian")
 
 
 def stiffness_ratio_figure(study: StiffnessStudy) -> Figure:
