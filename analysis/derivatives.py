@@ -22,7 +22,7 @@ Examples
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,7 +32,7 @@ import numpy as np
 from hybrid import HybridSystem
 from hybrid.errors import ParameterError
 
-__all__ = ["VectorField", "mode_vector_field", "FD_STEP"]
+__all__ = ["VectorField", "DifferentiableMap", "mode_vector_field", "differentiable_map", "FD_STEP"]
 
 FD_STEP = 1e-6
 """Relative step of the central-difference fallback (error ~ step² · |f'''|, round-off ~ eps/step)."""
@@ -70,52 +70,93 @@ class VectorField:
         return np.asarray(self._jacobian(np.asarray(x, dtype=float)), dtype=float).reshape(n, n)
 
 
-def _symbolic_expression(system: HybridSystem, mode: str, x: Any, t: float, memory: Mapping[str, float]) -> Any:
-    from hybrid.symbolic import SymbolicVector, to_casadi
+def _trace(function: Callable[[list[Any]], Sequence[Any]], n: int, probe: np.ndarray,
+           plain: Callable[[np.ndarray], np.ndarray]) -> tuple[ca.Function, ca.Function] | str:
+    """CasADi value and Jacobian functions of ``function`` (called with ``n`` SX scalars), or why it does not trace.
 
-    flow = system.flows[mode]
-    if isinstance(flow, SymbolicVector):
-        coords = {name: x[i] for i, name in enumerate(system.state_names)}
-        return ca.vertcat(*[to_casadi(c, coords, dict(memory), t) for c in flow.components])
-    out = flow(t, [x[i] for i in range(x.shape[0])], memory)
-    return ca.vertcat(*[ca.SX(c) if isinstance(c, (int, float)) else c for c in out])
-
-
-def _traced(system: HybridSystem, mode: str, t: float, memory: Mapping[str, float],
-            probe: np.ndarray) -> tuple[ca.Function, ca.Function] | str:
-    """The CasADi value and Jacobian functions, or why the flow does not trace."""
-    n = system.dimension
+    The traced expression must equal ``plain`` (the float evaluation) at ``probe``: a function that
+    branches on its input, or converts it to a float (``math.sin`` gives NaN on a symbol), is caught.
+    """
     x = ca.SX.sym("x", n)
     try:
-        expr = _symbolic_expression(system, mode, x, t, memory)
+        out = function([x[i] for i in range(n)])
+        expr = ca.vertcat(*[ca.SX(c) if isinstance(c, (int, float)) else c for c in out])
     except Exception as err:  # a function written for floats only: fall back, and say why
-        return f"the flow does not accept CasADi symbols ({type(err).__name__}: {err})"
-    if not isinstance(expr, ca.SX) or expr.numel() != n:
-        return f"the traced flow has {getattr(expr, 'numel', lambda: '?')()} components for {n} states"
+        return f"it does not accept CasADi symbols ({type(err).__name__}: {err})"
+    if not isinstance(expr, ca.SX):
+        return f"it returned {type(expr).__name__} values for symbolic input"
+    names = {str(x[i]) for i in range(n)}
+    if any(str(sym) not in names for sym in ca.symvar(expr)):
+        return "its traced expression depends on symbols other than the state"
     value = ca.Function("f", [x], [expr])
-    if ca.symvar(expr) and any(str(s) not in {str(x[i]) for i in range(n)} for s in ca.symvar(expr)):
-        return "the traced flow depends on symbols other than the state"
     traced = np.asarray(value(probe).full(), dtype=float).reshape(-1)
-    plain = np.asarray(system.flow(mode, t, tuple(probe), memory), dtype=float)
-    if not np.allclose(traced, plain, rtol=1e-12, atol=1e-12 * (1.0 + np.abs(plain).max())):
-        return f"the traced flow {traced.tolist()} differs from the flow {plain.tolist()} at x = {probe.tolist()}"
+    reference = np.asarray(plain(probe), dtype=float).reshape(-1)
+    if traced.shape != reference.shape or not np.allclose(
+            traced, reference, rtol=1e-12, atol=1e-12 * (1.0 + float(np.abs(reference).max(initial=0.0)))):
+        return f"the traced values {traced.tolist()} differ from the function's {reference.tolist()} at x = {probe.tolist()}"
     return value, ca.Function("J", [x], [ca.jacobian(expr, x)])
 
 
-def _finite_differences(system: HybridSystem, mode: str, t: float, memory: Mapping[str, float]) -> tuple[Any, Any]:
-    def value(x: np.ndarray) -> np.ndarray:
-        return np.asarray(system.flow(mode, t, tuple(float(c) for c in x), memory), dtype=float)
-
+def _central_differences(plain: Callable[[np.ndarray], np.ndarray]) -> Callable[[np.ndarray], np.ndarray]:
     def jacobian(x: np.ndarray) -> np.ndarray:
         cols = []
         for i in range(x.size):
             h = FD_STEP * max(1.0, abs(x[i]))
             e = np.zeros(x.size)
             e[i] = h
-            cols.append((value(x + e) - value(x - e)) / (2.0 * h))
+            cols.append((np.asarray(plain(x + e), dtype=float).reshape(-1)
+                         - np.asarray(plain(x - e), dtype=float).reshape(-1)) / (2.0 * h))
         return np.column_stack(cols)
 
-    return value, jacobian
+    return jacobian
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class DifferentiableMap:
+    """A map ``x -> y`` of a system's states with its Jacobian (``method``: ``"casadi"`` or ``"finite differences"``)."""
+
+    what: str
+    method: str
+    reason: str
+    _value: Any
+    _jacobian: Any
+
+    def value(self, x: Sequence[float]) -> np.ndarray:
+        """``F(x)``, shape ``(k,)``."""
+        return np.asarray(self._value(np.asarray(x, dtype=float)), dtype=float).reshape(-1)
+
+    def jacobian(self, x: Sequence[float]) -> np.ndarray:
+        """``∂F/∂x (x)``, shape ``(k, n)``."""
+        x = np.asarray(x, dtype=float)
+        return np.asarray(self._jacobian(x), dtype=float).reshape(-1, x.size)
+
+
+def differentiable_map(what: str, symbolic: Callable[[list[Any]], Sequence[Any]],
+                       plain: Callable[[np.ndarray], Sequence[float]], n: int,
+                       probe: Sequence[float] | None = None) -> DifferentiableMap:
+    """``symbolic`` traced by CasADi (checked against ``plain`` at ``probe``), else central differences of ``plain``.
+
+    Parameters
+    ----------
+    what : str
+        Name for messages (``"flow of mode 'on'"``).
+    symbolic : callable
+        ``F(list of n scalars) -> sequence``: the user's functions composed, called once with SX symbols.
+    plain : callable
+        ``F(ndarray (n,)) -> sequence of float``: the same through the system's checked evaluation.
+    n : int
+    probe : sequence of float or None
+        Where the two are compared (default ``0.5, …``).
+    """
+    point = np.full(n, 0.5) if probe is None else np.asarray(probe, dtype=float).reshape(-1)
+    traced = _trace(symbolic, n, point, lambda x: np.asarray(plain(x), dtype=float))
+    if isinstance(traced, str):
+        return DifferentiableMap(what=what, method="finite differences", reason=f"{what}: {traced}",
+                                 _value=lambda x: np.asarray(plain(x), dtype=float),
+                                 _jacobian=_central_differences(lambda x: np.asarray(plain(x), dtype=float)))
+    f, jac = traced
+    return DifferentiableMap(what=what, method="casadi", reason="", _value=lambda x: f(x).full(),
+                             _jacobian=lambda x: jac(x).full())
 
 
 def mode_vector_field(system: HybridSystem, mode: str, *, t: float = 0.0, memory: Mapping[str, float] | None = None,
@@ -150,13 +191,19 @@ def mode_vector_field(system: HybridSystem, mode: str, *, t: float = 0.0, memory
         raise ParameterError("probe", tuple(np.asarray(probe).tolist()) if probe is not None else None,
                              f"{n} finite values ({', '.join(system.state_names)})", "give one value per state")
     mem = dict(system.automaton.initial_memory() if memory is None else memory)
-    traced = _traced(system, mode, float(t), mem, point)
-    if isinstance(traced, str):
-        value, jacobian = _finite_differences(system, mode, float(t), mem)
-        method, reason = "finite differences", traced
-    else:
-        f, jac = traced
-        value, jacobian = (lambda x, f=f: f(x).full()), (lambda x, j=jac: j(x).full())
-        method, reason = "casadi", ""
-    return VectorField(system=system.name, mode=mode, state_names=system.state_names, method=method, reason=reason,
-                       _value=value, _jacobian=jacobian)
+    flow = system.flows[mode]
+    ts = float(t)
+    mapped = differentiable_map(
+        f"flow of mode {mode!r}", lambda xs: _symbolic_flow(flow, system.state_names, xs, ts, mem),
+        lambda x: system.flow(mode, ts, tuple(float(c) for c in x), mem), n, point)
+    return VectorField(system=system.name, mode=mode, state_names=system.state_names, method=mapped.method,
+                       reason=mapped.reason, _value=mapped._value, _jacobian=mapped._jacobian)
+
+
+def _symbolic_flow(flow: Any, names: Sequence[str], xs: list[Any], t: float, memory: Mapping[str, float]) -> Any:
+    from hybrid.symbolic import SymbolicVector, to_casadi
+
+    if isinstance(flow, SymbolicVector):
+        coords = dict(zip(names, xs))
+        return [to_casadi(c, coords, dict(memory), t) for c in flow.components]
+    return flow(t, xs, memory)

@@ -55,7 +55,7 @@ def test_the_thermostat_modes_have_virtual_equilibria_outside_their_invariants(s
 def test_an_equilibrium_inside_its_invariant_is_one_and_finite_differences_stand_in_for_tracing():
     system = pendulum(friction=0.5)
     field = mode_vector_field(system, "swing")
-    assert field.method == "finite differences" and "differs from the flow" in field.reason  # math.sin(SX) is NaN: the probe catches it
+    assert field.method == "finite differences" and "differ from the function" in field.reason  # math.sin(SX) is NaN: the probe catches it
     x = np.array([0.3, -0.2, 1.0])
     exact = np.array([[0.0, 1.0, 0.0], [-9.81 * math.cos(0.3), -0.5, 0.0], [0.0, 0.0, 0.0]])
     assert np.abs(field.jacobian(x) - exact).max() < 1e-8  # central differences, step 1e-6: error ~1e-10
