@@ -12,8 +12,11 @@ which of the three it is:
   the hybrid system near ``x*``);
 * ``"virtual"``: outside the mode's invariant (the linearisation describes a point never reached in
   this mode);
-* ``"switching"``: inside the invariant but an outgoing guard is enabled there (the system jumps
-  away before it settles).
+* ``"switching"``: inside the invariant but an outgoing guard holds there strictly (the system
+  jumps away before it settles).
+
+A point on the boundary of the invariant (within ``tol``, relative) counts as inside: a common
+equilibrium of modes whose regions meet there, as the origin of a switched linear system.
 
 The equilibrium is found by Newton's method on ``f_q`` with the Jacobian of
 :func:`analysis.derivatives.mode_vector_field` (CasADi through the user's own flow; one step for an
@@ -119,12 +122,15 @@ def _point(name: str, value: Sequence[float], n: int, states: Sequence[str]) -> 
     return x
 
 
-def _classify(system: HybridSystem, mode: str, x: np.ndarray, memory: Mapping[str, float]) -> tuple[str, float, tuple[str, ...]]:
+def _classify(system: HybridSystem, mode: str, x: np.ndarray, memory: Mapping[str, float],
+              tol: float) -> tuple[str, float, tuple[str, ...]]:
+    """Inside when ``inv >= −tol·(1 + ‖x‖∞)``: Newton's round-off must not push a point of the boundary out."""
     v = system.signals(0.0, tuple(x), mode)
+    margin = tol * (1.0 + float(np.abs(x).max(initial=0.0)))
     inv = system.invariant(mode, 0.0, tuple(x), v, memory)
     enabled = tuple(t.name for t in system.automaton.outgoing(mode)
-                    if system.guard(t, 0.0, tuple(x), v, memory) >= 0.0)
-    if inv < 0.0:
+                    if system.guard(t, 0.0, tuple(x), v, memory) > margin)
+    if inv < -margin:
         return "virtual", inv, enabled
     return ("switching" if enabled else "equilibrium"), inv, enabled
 
@@ -187,7 +193,7 @@ def mode_equilibrium(
                                invariant_value=math.nan, enabled_transitions=(), jacobian=None, modes=(),
                                hurwitz=False, derivatives=field.method,
                                finding=_finding("none", mode, None, math.nan, (), False, text))
-    kind, inv, enabled = _classify(system, mode, x, mem)
+    kind, inv, enabled = _classify(system, mode, x, mem, tol)
     a = field.jacobian(x)
     a.setflags(write=False)
     modes = eigen_modes(a)

@@ -334,7 +334,12 @@ def _margin(p: np.ndarray, family: Sequence[np.ndarray]) -> float:
 def common_quadratic_lyapunov(
     family: Sequence[np.ndarray], names: Sequence[str] | None = None, *, seed: int = 0
 ) -> CommonLyapunov:
-    """Search a common quadratic Lyapunov function; fall back on a dwell time.
+    """Search a common quadratic Lyapunov function; fall back on a dwell time (superseded: see below).
+
+    Kept as the baseline of ``benchmarks/bench_lmi.py``.  The toolkit decides the question with
+    :func:`analysis.lmi.common_quadratic_lyapunov_lmi` (an LMI, re-checked exactly, with a proof of
+    absence) and :func:`analysis.lmi.dwell_time_lyapunov`; this local search proves nothing when it
+    fails.
 
     The search minimises ``max_i λmax(A_iᵀ P + P A_i)/λmin(P)`` over
     ``P = L Lᵀ`` (Nelder–Mead from the individual solutions and their sum,

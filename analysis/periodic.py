@@ -39,7 +39,7 @@ from scipy.integrate import solve_ivp
 
 from hybrid import HybridSystem
 from hybrid.continuous import HybridTrajectory, simulate_continuous
-from hybrid.errors import ExecutionError, ParameterError
+from hybrid.errors import ExecutionError, ParameterError, ZenoError
 from hybrid.jsonable import to_jsonable
 
 from analysis.derivatives import DifferentiableMap, differentiable_map, mode_vector_field
@@ -212,6 +212,10 @@ def _revolve(system: HybridSystem, section: Any, x_minus: np.ndarray, memory: di
         hits = [e for e in run.events if e.transition == section.name]
         if hits:
             hit = hits[0]
+            if hit.time <= 0.0:
+                raise ZenoError(f"periodic orbit of {system.name!r} through {section.name!r}: the revolution from "
+                                f"x = {x_plus.tolist()} takes no time (an instantaneous cycle of jumps, Zeno), "
+                                "so there is no periodic orbit to analyse; separate the guards (hysteresis)")
             jumps = tuple(e.transition for e in run.events if e.jump <= hit.jump)
             return _Revolution(np.asarray(hit.state_before, dtype=float), float(hit.time), jumps, run)
         if len(run.events) >= max_jumps:

@@ -301,6 +301,8 @@ def hybrid_problem(
     proofs: Mapping[str, Callable[[], Proof]] | None = None,
     structural: Callable[[], Any] | None = None,
     check_box: Any = None,
+    stability: bool | Callable[[], Any] = False,
+    stability_section: str | None = None,
     source: str = "",
 ) -> VerificationProblem:
     """A verification problem for a continuous-time hybrid system.
@@ -323,6 +325,12 @@ def hybrid_problem(
         The structural checks: a callable, or by default :func:`hybrid.check` of the
         nominal system over ``check_box`` (a :class:`hybrid.Box` of the states, or one per
         mode; ``None``: the graph checks only).
+    stability, stability_section :
+        ``True`` adds the stability analysis of the nominal system from the nominal initial
+        state and mode (:class:`analysis.stability.StabilityChecks`: equilibria against their
+        modes, LMI certificates for a common linear equilibrium, or the limit cycle through the
+        guard of ``stability_section``, by default the last transition of a run over the
+        horizon); a callable is used as it is; ``False``: none.
     """
     build = _builder(system, HybridSystem, f"problem {name!r}")
     probe = build({p.name: p.at(0.0) for p in _box(initial, parameters, list(initial), name)})
@@ -340,8 +348,31 @@ def hybrid_problem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=(*probe.state_names, *memory, *variables), labels={"mode": a.mode_names},
         description=description, proofs=dict(proofs or {}),
-        structural=structural or StructuralChecks(model=probe, box=check_box), source=source, automaton=a,
+        structural=structural or StructuralChecks(model=probe, box=check_box),
+        stability=_stability(stability, stability_section, probe, initial, box, initial_mode, float(horizon), name),
+        source=source, automaton=a,
     )
+
+
+def _stability(stability: bool | Callable[[], Any], section: str | None, probe: HybridSystem,
+               initial: Mapping[str, Parameter | float], box: Sequence[Parameter],
+               initial_mode: str | Callable[[Mapping[str, float]], str] | None, horizon: float,
+               name: str) -> Callable[[], Any] | None:
+    """The stability analysis of :func:`hybrid_problem`: ``None``, the user's callable, or the nominal one."""
+    from analysis.stability import StabilityChecks
+
+    if stability is False or stability is None:
+        return None
+    if stability is True:
+        nominal = {p.name: p.at(0.0) for p in box}
+        x0 = _point_values(nominal, initial)
+        mode = initial_mode(nominal) if callable(initial_mode) else initial_mode
+        return StabilityChecks(model=probe, initial_state=tuple(float(x0[s]) for s in probe.state_names),
+                               initial_mode=mode, horizon=horizon, section=section)
+    if callable(stability):
+        return stability
+    raise ProblemError(f"problem {name!r}: stability", stability, "True, False or a callable () -> StabilityAnalysis",
+                       "write stability=True to analyse the nominal system")
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

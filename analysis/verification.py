@@ -227,6 +227,10 @@ class VerificationProblem:
     structural : callable or None
         ``() -> hybrid.check.CheckReport`` (or any object with ``findings``): the
         structural checks of the automaton, summarised in reports.
+    stability : callable or None
+        ``() -> analysis.stability.StabilityAnalysis`` (or any object with ``claims``,
+        ``verdict`` and ``as_dict()``): the stability analysis the report adds
+        (:class:`analysis.stability.StabilityChecks`).
     automaton : hybrid.HybridAutomaton or None
         The switching logic (``visnav mode-graph``); ``None`` when the simulator hides it.
     source : str
@@ -244,6 +248,7 @@ class VerificationProblem:
     description: str = ""
     proofs: Mapping[str, Callable[[], Proof]] = field(default_factory=dict)
     structural: Callable[[], Any] | None = None
+    stability: Callable[[], Any] | None = None
     source: str = ""
     automaton: Any = None
     parsed: tuple[ParsedRequirement, ...] = field(init=False, repr=False, compare=False)
@@ -271,6 +276,9 @@ class VerificationProblem:
         if not requirements:
             raise ProblemError("VerificationProblem.requirements", requirements, "at least one Requirement",
                                "add Requirement(name=..., formula=...)")
+        if self.stability is not None and not callable(self.stability):
+            raise ProblemError("VerificationProblem.stability", self.stability, "a callable () -> StabilityAnalysis",
+                               "pass analysis.stability.StabilityChecks(...) or stability=True to hybrid_problem")
         unknown = sorted(set(self.proofs) - {r.name for r in requirements if isinstance(r, Requirement)})
         if unknown:
             raise ProblemError("VerificationProblem.proofs", unknown, "names of the problem's requirements",
@@ -312,5 +320,5 @@ class VerificationProblem:
             name=self.name, simulate=self.simulate, parameters=self.parameters, horizon=self.horizon,
             requirements=tuple(requirements), signals=self.signals, labels=self.labels,
             description=self.description, proofs={k: v for k, v in self.proofs.items() if k in names},
-            structural=self.structural, source=self.source, automaton=self.automaton,
+            structural=self.structural, stability=self.stability, source=self.source, automaton=self.automaton,
         )

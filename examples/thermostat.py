@@ -12,6 +12,10 @@ Two requirements:
     once the heater switches on it stays on for at least 0.25 s, and once off,
     off for at least 0.25 s (the relay's wear limit).
 
+``stability=True`` adds the stability analysis to the report (and to ``visnav analyse --problem``):
+both modes' equilibria (10 °C and 30 °C) lie outside their invariants, so the steady state is the
+limit cycle between the thresholds, found by shooting on the guard of ``heat_off``.
+
 Verify it with::
 
     visnav verify examples/thermostat.py:problem      # band 1 °C: not falsified (exit 0)
@@ -102,6 +106,7 @@ def thermostat_problem(band: float = 1.0) -> VerificationProblem:
         sample_period=0.25,
         requirements=REQUIREMENTS,
         check_box=Box(bounds={"T": (15.0, 25.0)}),
+        stability=True,
         description=f"on/off thermostat, hysteresis band {band:g} °C around {SETPOINT_C:g} °C",
     )
 

@@ -73,3 +73,18 @@ def test_cli_verify_resumes_from_its_journal_with_identical_results(tmp_path):
     assert first.returncode == second.returncode == 0
     assert json.loads(first.stdout) == json.loads(second.stdout)
     assert (tmp_path / "r" / "evaluations.jsonl").read_text() == journal
+
+
+def test_cli_analyse_problem_finds_the_limit_cycle(tmp_path, capsys):
+    from visnav.app.cli import main
+
+    assert main(["analyse", "--problem", f"{EXAMPLE}:problem", "--json", "--out", str(tmp_path / "a")]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["verdict"] == "stable" and [e["kind"] for e in data["equilibria"]] == ["virtual", "virtual"]
+    assert abs(data["orbit"]["period"] - 2 * math.log(10.5 / 9.5) / 0.1) < 1e-9
+    assert (tmp_path / "a" / "stability.json").is_file() and (tmp_path / "a" / "stability_orbit.png").is_file()
+    problem = load_problem(f"{EXAMPLE}:problem")
+    bare = tmp_path / "bare.py"  # the same problem without stability=True: told how to ask for it, exit 2
+    bare.write_text(EXAMPLE.read_text().replace("stability=True,", ""))
+    assert main(["analyse", "--problem", f"{bare}:problem"]) == 2
+    assert "has no stability analysis" in capsys.readouterr().err and problem.stability is not None

@@ -57,6 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
     graph.set_defaults(func=_cmd_mode_graph)
     ana = sub.add_parser("analyse", help="linearisation, Lyapunov certificate, admissible gains, stability margins")
     ana.add_argument("--scenario", default="paper", help="built-in scenario name or path to a TOML file")
+    ana.add_argument("--problem", default=None, metavar="SPEC",
+                     help="the stability analysis of a verification problem instead (PKG.MOD:OBJ or FILE.py:OBJ, "
+                          "built with hybrid_problem(..., stability=True)): equilibria against their modes, LMI "
+                          "certificates, periodic orbits")
     ana.add_argument("--clearance", type=float, default=None,
                      help="clearance [m] the admissible gains must guarantee (default: 0.1)")
     ana.add_argument("--json", action="store_true", help="print the analysis as one JSON object")
@@ -437,8 +441,8 @@ def _analyse_human(d: dict[str, Any]) -> str:
         )
     lines.append(f"  admissible k                {pf['admissible']['finding']}")
     sw = pf["switched"]
-    lines.append(f"  switched family             common quadratic V {'found' if sw['found'] else 'not found'}"
-                 + ("" if sw["found"] else f", dwell time {sw['dwell_time_s']} s") + f" ({sw['family']})")
+    lines.append(f"  switched family             {sw['finding']} [{sw['claim'].upper()}: {sw['recheck']['method']}] "
+                 f"({sw['family']})")
     goal = d["goal"]
     task = ", ".join(f"{re:.6g}" for re, _ in goal["visual_servoing_task"]["eigenvalues"])
     full = ", ".join(f"{re:.3g}" for re, _ in goal["closed_loop"]["eigenvalues"])
@@ -477,12 +481,53 @@ def _analyse_human(d: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _stability_human(d: dict[str, Any]) -> str:
+    lines = [f"analyse {d['system']}: {d['verdict'].upper()}"]
+    lines += [f"  {c['status'].upper():<12} {c['text']}" + ("" if c["status"] != "not decided" else f" [{c['method']}]")
+              for c in d["claims"]]
+    orbit = d["orbit"]
+    if orbit is not None:
+        lines.append(f"  orbit: period {orbit['period']:.10g} s through {orbit['section']!r}, nontrivial multipliers "
+                     f"{orbit['nontrivial_multipliers']}")
+    return "\n".join(lines)
+
+
+def _cmd_analyse_problem(args: argparse.Namespace) -> int:
+    from visnav.app.figures_verification import orbit_figure
+    from visnav.app.files import prepare_output_dir, write_figures, write_text_atomic
+
+    problem = _user_problem(args.problem)
+    if isinstance(problem, int):
+        return problem
+    if problem.stability is None:
+        print(f"visnav: error: --problem {args.problem}: the problem {problem.name!r} has no stability analysis; "
+              "expected a problem built with hybrid_problem(..., stability=True) (or a stability callable); "
+              "fix: add stability=True where the problem is built", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    folder = prepare_output_dir(args.out) if args.out else None
+    analysis = problem.stability()
+    out = analysis.as_dict()
+    written = []
+    if folder is not None:
+        write_text_atomic(folder / "stability.json", json.dumps(out, indent=1, sort_keys=True) + "\n")
+        written.append(str(folder / "stability.json"))
+        if analysis.orbit is not None:
+            written += [str(p) for p in write_figures(folder, {"stability_orbit": orbit_figure(analysis.orbit)}).values()]
+    if args.json:
+        print(json.dumps(out, sort_keys=True))
+    else:
+        print(_stability_human(out) + "".join(f"\n  wrote {path}" for path in written))
+    return EXIT_OK
+
+
 def _cmd_analyse(args: argparse.Namespace) -> int:
     from visnav.studies.loop_analysis import DEFAULT_CLEARANCE_M, analyse
     from visnav.scenario import load_scenario, scenario_digest
 
     from visnav.app.files import prepare_output_dir, write_figures, write_text_atomic
 
+    if args.problem is not None:
+        return _cmd_analyse_problem(args)
     scenario = load_scenario(args.scenario)
     folder = prepare_output_dir(args.out) if args.out else None
     clearance = DEFAULT_CLEARANCE_M if args.clearance is None else args.clearance

@@ -15,6 +15,11 @@
     The lowest robustness seen against the number of simulations, one line per
     requirement (symmetric-log axis when the values span decades or signs).
 
+:func:`orbit_figure`
+    A periodic orbit (:class:`analysis.periodic.PeriodicOrbit`): the states over one period with the
+    modes shaded, the orbit in the plane of its first two states, and the Floquet multipliers against
+    the unit circle.
+
 Rendering code only (Agg backend, nothing shown); the caller writes the figures.
 """
 
@@ -37,7 +42,7 @@ from analysis.stl import Formula, SignalTrace, TraceError  # noqa: E402
 from analysis.stl.syntax import BinOp, Compare, Func, Neg, Num, canonical  # noqa: E402
 
 __all__ = ["Quantity", "RequirementPanel", "compared_quantities", "expression_values", "run_figure",
-           "robustness_history_figure"]
+           "robustness_history_figure", "orbit_figure"]
 
 MAX_QUANTITIES = 6
 """Quantities drawn per panel (the deciding atom's first)."""
@@ -357,5 +362,43 @@ def robustness_history_figure(histories: Mapping[str, Sequence[float]], *, title
     else:
         ax.legend(fontsize=7, loc="best")
     ax.grid(True, lw=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def orbit_figure(orbit: object) -> Figure:
+    """One revolution of a periodic orbit: states against time, phase plane, Floquet multipliers."""
+    times = np.asarray(orbit.times, dtype=float)
+    states = np.asarray(orbit.states, dtype=float).reshape(times.size, -1)
+    names = tuple(orbit.state_names)
+    modes = list(orbit.modes)
+    plane = states.shape[1] >= 2
+    fig, axes = plt.subplots(1, 3 if plane else 2, figsize=(12 if plane else 9, 3.6))
+    ax = axes[0]
+    colours = _mode_colours(sorted(set(modes)))
+    start = 0
+    for k in range(1, len(modes) + 1):
+        if k == len(modes) or modes[k] != modes[start]:
+            ax.axvspan(times[start], times[k - 1], color=colours[modes[start]], alpha=0.15, lw=0)
+            start = k
+    for j, name in enumerate(names):
+        ax.plot(times, states[:, j], lw=1.2, label=name)
+    ax.set_xlabel("time in the revolution [s]")
+    ax.set_title(f"period {orbit.period:.6g} s")
+    ax.legend(handles=[*ax.get_legend_handles_labels()[0],
+                       *(Patch(color=c, alpha=0.3, label=m) for m, c in colours.items())], fontsize=7)
+    if plane:
+        axes[1].plot(states[:, 0], states[:, 1], lw=1.2)
+        axes[1].plot(states[0, 0], states[0, 1], "ko", ms=4)
+        axes[1].set_xlabel(names[0])
+        axes[1].set_ylabel(names[1])
+        axes[1].set_title("orbit (dot: on the section)")
+    ax = axes[-1]
+    circle = np.linspace(0.0, 2.0 * math.pi, 200)
+    ax.plot(np.cos(circle), np.sin(circle), color="0.6", lw=0.8)
+    mult = np.asarray([complex(*m) if isinstance(m, (tuple, list)) else complex(m) for m in orbit.multipliers])
+    ax.plot(mult.real, mult.imag, "x", color="tab:red", ms=7)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"Floquet multipliers: {orbit.verdict}")
     fig.tight_layout()
     return fig

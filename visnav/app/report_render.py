@@ -275,6 +275,33 @@ def _structure_blocks(data: dict[str, Any]) -> list[Block]:
     return blocks
 
 
+def _complex(re: float, im: float) -> str:
+    return f"{re:.4g}" if im == 0 else f"{re:.4g}{im:+.4g}i"
+
+
+def _stability_blocks(data: dict[str, Any]) -> list[Block]:
+    st = data["stability"]
+    blocks = [Block("h2", f"Stability of `{st['system']}`"), Block("p", f"Verdict: **{st['verdict']}**. {st['finding']}")]
+    blocks.append(Block("table", (["mode", "equilibrium", "x*", "eigenvalues", "finding"], [
+        [e["mode"], e["kind"], _fmt(e["point"]) if e["point"] is not None else "none",
+         ", ".join(_complex(re, im) for re, im in e["eigenvalues"]), e["finding"]]
+        for e in st["equilibria"]])))
+    if st["orbit"] is not None:
+        o = st["orbit"]
+        blocks.append(Block("table", (["periodic orbit", "value"], [
+            ["section", f"`{o['section']}`"], ["period [s]", _fmt(o["period"])],
+            ["fixed point", _fmt(o["fixed_point"])],
+            ["nontrivial Floquet multipliers", _fmt(o["nontrivial_multipliers"])],
+            ["verdict", o["verdict"]], ["shooting", f"{o['iterations']} iterations, residual {_fmt(o['residual'])}"]])))
+        for stem in st["figures"]:
+            blocks.append(Block("figure", (stem, "One revolution of the periodic orbit and its Floquet multipliers")))
+    undecided = [c for c in st["claims"] if c["status"] == "not decided"]
+    if undecided:
+        blocks.append(Block("p", "Not decided: " + "; ".join(f"{c['text']} ({c['method']})" for c in undecided)))
+    blocks.append(Block("claims", _claims_of(data, "stability")))
+    return blocks
+
+
 def _simulation_blocks(data: dict[str, Any]) -> list[Block]:
     sim = data["simulation"]
     m = sim["metrics"]
@@ -396,6 +423,7 @@ def _campaign_blocks(data: dict[str, Any]) -> list[Block]:
 SECTION_RENDERERS: dict[str, Callable[[dict[str, Any]], list[Block]]] = {
     "verification": _verification_blocks,
     "structure": _structure_blocks,
+    "stability": _stability_blocks,
     "model": _model_blocks,
     "simulation": _simulation_blocks,
     "analysis": _analysis_blocks,

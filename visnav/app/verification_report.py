@@ -59,6 +59,7 @@ __all__ = [
     "dependency_versions",
     "verification_section",
     "structure_section",
+    "stability_section",
     "findings_summary",
     "assemble_report",
     "build_problem_report",
@@ -69,7 +70,7 @@ CLAIM_STATUSES = ("proven", "measured", "sampled")
 """How a claim was obtained, strongest first."""
 
 DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx", "matplotlib", "dask",
-                "distributed", "z3-solver")
+                "distributed", "z3-solver", "cvxpy", "clarabel", "scs")
 """Packages whose versions the report records."""
 
 VERDICT_LABELS = {"proven": "PROVEN", "falsified": "FALSIFIED", "not_falsified": "NOT FALSIFIED",
@@ -430,6 +431,29 @@ def structure_section(problem: Any) -> Section | None:
     return Section(data=to_jsonable(data, nonfinite="string"), claims=tuple(claims))
 
 
+def stability_section(problem: Any) -> Section | None:
+    """The stability analysis of ``problem`` (``problem.stability()``); ``None`` when it has none.
+
+    Data: the analysis (:meth:`analysis.stability.StabilityAnalysis.as_dict`). Claims: the analysis'
+    proven claims as PROVEN and its measured ones as MEASURED; a conclusion it could not reach is not a
+    claim (it stays in the data, with why, and the document shows it).  Figure: the periodic orbit
+    when there is one (:func:`visnav.app.figures_verification.orbit_figure`).
+    """
+    from visnav.app.figures_verification import orbit_figure
+
+    if problem.stability is None:
+        return None
+    analysis = problem.stability()
+    data = analysis.as_dict()
+    claims = tuple(Claim(text=c.text, status=c.status, section="stability") for c in analysis.claims
+                   if c.status in CLAIM_STATUSES)
+    figures = {}
+    if analysis.orbit is not None:
+        figures["stability_orbit"] = orbit_figure(analysis.orbit)
+    data["figures"] = sorted(figures)
+    return Section(data=to_jsonable(data, nonfinite="string"), claims=claims, figures=figures)
+
+
 # --------------------------------------------------------------------------- the document
 
 
@@ -507,6 +531,12 @@ def build_problem_report(problem: Any, *, spec: str, options: Mapping[str, Any] 
         start = time.perf_counter()
         sections.append(("structure", structure_section(problem)))
         timings["structure"] = time.perf_counter() - start
+    if problem.stability is not None:
+        if progress is not None:
+            progress("stability")
+        start = time.perf_counter()
+        sections.append(("stability", stability_section(problem)))
+        timings["stability"] = time.perf_counter() - start
     option_text = "".join(f" --{k} {v}" for k, v in sorted((options or {}).items()))
     meta = {"tool": "visnav report", "problem": problem.name, "source": spec, "quick": quick,
             "seeds": {"report": seed}, "budgets": {"verify_budget": budget}, "method": method,

@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from analysis.linearise import common_quadratic_lyapunov, quadratic_lyapunov
+from analysis.linearise import quadratic_lyapunov
+from analysis.lmi import common_quadratic_lyapunov_lmi
 from analysis.margins import frequency_response_data, loop_model, loop_transfer, margins, sampled_loop_transfer
 
 from visnav import model
@@ -225,7 +226,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
               for a in angles]
     family = [path_following_model(k=k, v=v * s, d_zero=env.d_zero_m, radius=radii[0]).linearisation().jacobian
               for s in (0.25, 0.5, 1.0)]
-    switched = common_quadratic_lyapunov(family, ["v_coll/4", "v_coll/2", "v_coll"])
+    switched = common_quadratic_lyapunov_lmi(family, ["v_coll/4", "v_coll/2", "v_coll"])
 
     loops: dict[str, Any] = {}
     responses: dict[str, Any] = {}
@@ -294,7 +295,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
             ],
             "admissible_k": None if admissible.interval is None else list(admissible.interval),
             "admissible": admissible.as_dict(),
-            "switched": {**switched.as_dict(),
+            "switched": {**switched.as_dict(), "claim": "proven" if switched.proven else "not proven",
                          "family": "path-following linearisation at v_coll/4, v_coll/2, v_coll (the blend ramps v)"},
         },
         "goal": goal.as_dict(),

@@ -77,13 +77,13 @@ def zero_band():
 def test_not_falsified_problem_has_its_verdict_table_first():
     problem, report = _report(f"{THERMOSTAT}:problem")
     data = report.data
-    assert data["verdict"] == "not_falsified" and data["sections"] == ["verification", "structure"]
+    assert data["verdict"] == "not_falsified" and data["sections"] == ["verification", "structure", "stability"]
     rows = data["verification"]["requirements"]
     assert [r["name"] for r in rows] == list(problem.requirement_names)
     assert all(r["verdict"] == "not_falsified" and r["counterexample_file"] is None for r in rows)
     assert all(f"{BUDGET} simulations, lowest at" in r["evidence"] and "coverage" in r["evidence"] for r in rows)
     assert report.files == {}
-    assert {"verification_nominal", "verification_robustness"} == set(report.figures)
+    assert {"verification_nominal", "verification_robustness", "stability_orbit"} == set(report.figures)
     md, _ = _documents(report)
     body = md.split("\n## ", 2)
     assert body[1].startswith("Verification of `thermostat-band-1`")  # the first section, before the claims
@@ -98,6 +98,14 @@ def test_not_falsified_problem_has_its_verdict_table_first():
     # the graph checks (exact), then one claim per check that makes one (an undecided check makes none)
     assert [c["status"] for c in structure] == ["proven"] + [REPORT_STATUS[c["status"]] for c in checks.values()
                                                              if c["status"] in REPORT_STATUS]
+    # stability=True: both equilibria are virtual (outside their modes), the steady state is the limit cycle
+    stability = data["stability"]
+    assert [e["kind"] for e in stability["equilibria"]] == ["virtual", "virtual"]
+    assert stability["verdict"] == "stable" and stability["orbit"]["verdict"] == "orbitally stable"
+    period = 2 * __import__("math").log(10.5 / 9.5) / 0.1  # nominal rate 0.1, thresholds 19.5 and 20.5
+    assert abs(stability["orbit"]["period"] - period) < 1e-9
+    assert "## Stability of `thermostat`" in md and "virtual equilibrium, outside the mode" in md
+    assert [c["status"] for c in data["claims"] if c["section"] == "stability"] == ["measured"] * 3
     assert structure[0]["text"].startswith("graph checks of thermostat (exact, on the mode graph)")
     assert structure[1]["text"].startswith("nondeterminism of thermostat: no two transitions of equal priority")
     assert {c["status"] for c in data["claims"] if c["section"] == "verification"} == {"sampled"}
@@ -220,7 +228,8 @@ def test_long_finding_lists_are_collapsed():
     md, html = _documents(report)
     assert "<details>" in html and "<summary>All 41 findings</summary>" in html
     assert "<details>\n<summary>All 41 findings</summary>\n" in md
-    section = html[html.index("<h2>Structural checks of"):html.index("<h2>Reproducibility")]
+    start = html.index("<h2>Structural checks of")
+    section = html[start:html.index("<h2>", start + 4)]
     visible = re.sub(r"<details>.*?</details>", "", section, flags=re.S)
     assert visible.count("<table>") == 2  # the counts and the worst few
     for table in re.findall(r"<table>.*?</table>", visible, flags=re.S):

@@ -1,0 +1,55 @@
+"""The stability analysis picks the certificate that fits: LMIs at a common equilibrium, a limit cycle otherwise."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.stability import analyse_stability
+from hybrid import HybridAutomaton, HybridSystem, Mode, Transition
+from hybrid.errors import ParameterError
+from hybrid.examples import thermostat
+
+
+def switched_linear(a1: np.ndarray, a2: np.ndarray) -> HybridSystem:
+    """Two linear modes switched on the sign of x·y (regions meeting at the common equilibrium, the origin)."""
+    automaton = HybridAutomaton(
+        name="switched", variables=("x", "y"), initial_mode="a",
+        modes=(Mode(name="a", invariant=lambda v, m: v[0] * v[1]), Mode(name="b", invariant=lambda v, m: -v[0] * v[1])),
+        transitions=(Transition(name="ab", source="a", target="b", guard=lambda v, m: -v[0] * v[1]),
+                     Transition(name="ba", source="b", target="a", guard=lambda v, m: v[0] * v[1])))
+
+    def flow(a: np.ndarray):
+        return lambda t, x, m: (a[0, 0] * x[0] + a[0, 1] * x[1], a[1, 0] * x[0] + a[1, 1] * x[1])
+
+    return HybridSystem(automaton=automaton, state_names=("x", "y"), flows={"a": flow(a1), "b": flow(a2)})
+
+
+def test_a_common_quadratic_lyapunov_function_proves_stability_under_arbitrary_switching():
+    result = analyse_stability(switched_linear(np.array([[-1.0, 2.0], [0.0, -1.0]]), np.array([[-1.0, 0.0], [1.0, -2.0]])),
+                               initial_state=(1.0, 0.5))
+    assert result.verdict == "stable" and result.switched.status == "exists" and result.orbit is None
+    assert [c.status for c in result.claims][-1] == "proven" and "arbitrary switching" in result.finding
+
+
+def test_without_one_the_absence_and_a_dwell_time_are_proven_and_nothing_is_concluded():
+    result = analyse_stability(switched_linear(np.array([[-0.1, 1.0], [-10.0, -0.1]]),
+                                               np.array([[-0.1, 10.0], [-1.0, -0.1]])), initial_state=(1.0, 0.5))
+    assert result.switched.status == "none" and result.dwell.proven and result.verdict == "not decided"
+    assert [c.status for c in result.claims][-2:] == ["proven", "proven"]
+
+
+def test_virtual_equilibria_lead_to_the_limit_cycle():
+    result = analyse_stability(thermostat().system, initial_state=(20.0,), horizon=60.0)
+    assert [e.kind for e in result.equilibria] == ["virtual", "virtual"]
+    assert result.orbit is not None and result.verdict == "stable"
+    assert result.as_dict()["orbit"]["period"] == pytest.approx(2 * np.log(11 / 9) / 0.1, abs=1e-9)
+
+
+def test_bad_input():
+    with pytest.raises(ParameterError, match=r"^section = 'nope': expected one of the transitions"):
+        analyse_stability(thermostat().system, initial_state=(20.0,), section="nope")
+    with pytest.raises(ParameterError, match=r"^horizon = 0"):
+        analyse_stability(thermostat().system, initial_state=(20.0,), horizon=0)
+    with pytest.raises(ParameterError, match=r"^guess = \(1\.0, 2\.0\)"):
+        analyse_stability(thermostat().system, initial_state=(1.0, 2.0))
