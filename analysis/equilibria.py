@@ -183,9 +183,9 @@ def mode_equilibrium(
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ParameterError("tol", tol, "a positive number", "give e.g. tol=1e-9")
     mem = dict(system.automaton.initial_memory() if memory is None else memory)
-    field = mode_vector_field(system, mode, memory=mem)
     n = system.dimension
     x0 = np.zeros(n) if guess is None else _point("guess", guess, n, system.state_names)
+    field = mode_vector_field(system, mode, memory=mem, probe=x0 + 0.5)  # near the guess, off its special values
     x, residual, converged = _newton(field, x0, tol, max_iterations)
     text = system.automaton.mode(mode).invariant_text
     if not converged:
