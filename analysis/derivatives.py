@@ -50,6 +50,8 @@ class VectorField:
         ``"casadi"`` (exact derivatives of the traced or symbolic flow) or ``"finite differences"``.
     reason : str
         Why tracing was not possible (empty for ``"casadi"``).
+    flow : DifferentiableMap
+        The map itself (:meth:`value`, :meth:`jacobian` delegate to it).
     """
 
     system: str
@@ -57,17 +59,15 @@ class VectorField:
     state_names: tuple[str, ...]
     method: str
     reason: str
-    _value: Any
-    _jacobian: Any
+    flow: DifferentiableMap
 
     def value(self, x: Sequence[float]) -> np.ndarray:
         """``f(x)``, shape ``(n,)``."""
-        return np.asarray(self._value(np.asarray(x, dtype=float)), dtype=float).reshape(-1)
+        return self.flow.value(x)
 
     def jacobian(self, x: Sequence[float]) -> np.ndarray:
         """``∂f/∂x (x)``, shape ``(n, n)``."""
-        n = len(self.state_names)
-        return np.asarray(self._jacobian(np.asarray(x, dtype=float)), dtype=float).reshape(n, n)
+        return self.flow.jacobian(x)
 
 
 def _trace(function: Callable[[list[Any]], Sequence[Any]], n: int, probe: np.ndarray,
@@ -197,7 +197,7 @@ def mode_vector_field(system: HybridSystem, mode: str, *, t: float = 0.0, memory
         f"flow of mode {mode!r}", lambda xs: _symbolic_flow(flow, system.state_names, xs, ts, mem),
         lambda x: system.flow(mode, ts, tuple(float(c) for c in x), mem), n, point)
     return VectorField(system=system.name, mode=mode, state_names=system.state_names, method=mapped.method,
-                       reason=mapped.reason, _value=mapped._value, _jacobian=mapped._jacobian)
+                       reason=mapped.reason, flow=mapped)
 
 
 def _symbolic_flow(flow: Any, names: Sequence[str], xs: list[Any], t: float, memory: Mapping[str, float]) -> Any:
