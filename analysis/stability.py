@@ -131,14 +131,21 @@ def _equilibrium_claims(equilibria: Sequence[ModeEquilibrium]) -> list[Stability
             for e in equilibria]
 
 
+def _solver_text(runs: Any) -> str:
+    """The solver runs of an LMI result in words (``CLARABEL: optimal; ...``)."""
+    if isinstance(runs, str):
+        return runs
+    return "; ".join(f"{r.solver}: {r.status}" for r in runs) or "no solve"
+
+
 def _switched_claims(switched: Any, dwell: Any) -> tuple[list[StabilityClaim], str]:
     claims = [StabilityClaim(text=switched.finding, status="proven" if switched.proven else "not decided",
-                             method=f"LMI ({switched.solver}), {switched.recheck.method}")]
+                             method=f"LMI ({_solver_text(switched.solver)}), {switched.recheck.method}")]
     if switched.status == "exists":
         return claims, "stable"
     if dwell is not None:
         claims.append(StabilityClaim(text=dwell.finding, status="proven" if dwell.proven else "not decided",
-                                     method=f"LMI with matrix exponentials ({dwell.solver}), {dwell.recheck.method}"))
+                                     method=f"LMI with matrix exponentials ({_solver_text(dwell.solver)}), {dwell.recheck.method}"))
     return claims, "not decided"
 
 
