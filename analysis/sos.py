@@ -29,7 +29,7 @@ vanishes at the origin, so the constant monomial is left out of the Gram
 bases there (see :meth:`SosProgram.add_nonnegative`): without it the SDP has
 no strictly feasible point and interior-point solvers stall.
 
-Invariant regions, two formulations:
+Invariant regions, three formulations:
 
 * :func:`invariant_region` (volume heuristic): minimise ``∫_box V`` subject to
   ``V ≥ b_i`` on ``K`` for *boundary functions* ``b_i`` that exceed 1 on the
@@ -40,6 +40,10 @@ Invariant regions, two formulations:
   ``(xᵀx)^d (V − ρ) + λ(x) V̇`` is SOS with ``λ`` free.  Wherever ``V̇ = 0`` and
   ``x ≠ 0`` this forces ``V ≥ ρ``, so ``V̇`` keeps its sign (negative near the
   origin) on ``{V < ρ} \\ {0}``.  Linear in ``(ρ, λ)``.
+* :func:`bounding_region` (an invariant set through given points, thinnest in
+  given targets): maximise ``γ`` with ``V <= 1`` at the points and
+  ``V >= γ t_j``, so that ``t_j <= 1/γ`` on ``{V <= 1}``; it bounds the
+  solutions from those points once ``{V <= 1}`` is proven invariant.
 
 The numbers an SDP solver returns are floating point and satisfy the
 constraints only up to its tolerances, so nothing here is a proof.  Every

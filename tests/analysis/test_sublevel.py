@@ -89,43 +89,54 @@ def test_nonstrict_zero_on_a_line_needs_the_split_and_strict_fails():
     assert not strict.certified  # dV/dt = 0 on alpha = 0, across the annulus
 
 
-def test_recheck_rejects_a_removed_box(certificate):
+ARITHMETIC = pytest.mark.parametrize("arithmetic", ["scalar", "batched"])
+
+
+@ARITHMETIC
+def test_recheck_passes_in_both_arithmetics(certificate, arithmetic):
+    assert recheck_sublevel(V, VDOT, certificate, arithmetic=arithmetic) == ()
+
+
+@ARITHMETIC
+def test_recheck_rejects_a_removed_box(certificate, arithmetic):
     data = certificate.as_dict()
     k = data["labels"].index("decreasing")
     for key in ("boxes", "labels", "rate_bounds"):
         del data[key][k]
-    assert any("do not cover" in p for p in recheck_sublevel(V, VDOT, data))
+    assert any("do not cover" in p for p in recheck_sublevel(V, VDOT, data, arithmetic=arithmetic))
 
 
-def test_recheck_rejects_a_changed_bound_or_level(certificate):
+@ARITHMETIC
+def test_recheck_rejects_a_changed_bound_or_level(certificate, arithmetic):
     data = certificate.as_dict()
     k = data["labels"].index("decreasing")
     data["rate_bounds"][k] = float.hex(-1e3)  # a rate bound the box does not have
-    assert any("does not hold" in p for p in recheck_sublevel(V, VDOT, data))
+    assert any("does not hold" in p for p in recheck_sublevel(V, VDOT, data, arithmetic=arithmetic))
     data = certificate.as_dict()
     data["rho_out"] = float.hex(3.9)  # the set would reach the faces
-    assert recheck_sublevel(V, VDOT, data) != ()
+    assert recheck_sublevel(V, VDOT, data, arithmetic=arithmetic) != ()
     data = certificate.as_dict()
     data["faces"][0][2] = data["faces"][0][2][1:]
-    assert any("face" in p for p in recheck_sublevel(V, VDOT, data))
-    assert recheck_sublevel(V, VDOT + 3 * X**2, certificate) != ()  # another V̇
+    assert any("face" in p for p in recheck_sublevel(V, VDOT, data, arithmetic=arithmetic))
+    assert recheck_sublevel(V, VDOT + 3 * X**2, certificate, arithmetic=arithmetic) != ()  # another V̇
 
 
-def test_bound_over_a_disc_and_its_recheck():
+@ARITHMETIC
+def test_bound_over_a_disc_and_its_recheck(arithmetic):
     b = bound_on_sublevel(X, BOX, sets=[(V, 1.0)], tolerance=1e-3)
     assert b.certified and 1.0 <= b.bound <= 1.0 + 2e-3 and b.status == "converged"
     assert b.attained is not None and b.attained <= 1.0 <= b.bound
-    assert recheck_bound(X, [(V, 1.0)], json.loads(json.dumps(b.as_dict()))) == ()
+    assert recheck_bound(X, [(V, 1.0)], json.loads(json.dumps(b.as_dict())), arithmetic=arithmetic) == ()
     assert BoundCertificate.from_dict(b.as_dict()).bound == b.bound
     lowered = b.as_dict()
     lowered["bound"] = float.hex(0.9)
-    assert recheck_bound(X, [(V, 1.0)], lowered) != ()
+    assert recheck_bound(X, [(V, 1.0)], lowered, arithmetic=arithmetic) != ()
     removed = b.as_dict()
     k = removed["labels"].index("bounded")
     for key in ("boxes", "labels", "uppers"):
         del removed[key][k]
-    assert any("do not cover" in p for p in recheck_bound(X, [(V, 1.0)], removed))
-    assert recheck_bound(X, [(V, 2.0)], b) != ()  # a different set
+    assert any("do not cover" in p for p in recheck_bound(X, [(V, 1.0)], removed, arithmetic=arithmetic))
+    assert recheck_bound(X, [(V, 2.0)], b, arithmetic=arithmetic) != ()  # a different set
 
 
 def test_decision_mode_and_absolute_bounds():
