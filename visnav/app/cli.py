@@ -63,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "certificates, periodic orbits")
     ana.add_argument("--clearance", type=float, default=None,
                      help="clearance [m] the admissible gains must guarantee (default: 0.1)")
+    ana.add_argument("--sos", choices=("scan", "scenario", "off"), default="scan",
+                     help="the sum-of-squares study of path following: with the scan of k (default, about 20 s), "
+                          "at the scenario's k only (about 10 s), or off")
     ana.add_argument("--json", action="store_true", help="print the analysis as one JSON object")
     ana.add_argument("--out", default=None, help="folder for analysis.json and the figures (Bode, Nyquist, "
                                                  "margins and eigenvalues against the gains)")
@@ -419,6 +422,24 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
     return "\n".join(lines)
 
 
+def _sos_human(sos: dict[str, Any] | None) -> list[str]:
+    """The SOS study's lines of ``visnav analyse`` (beside the hand-given V's)."""
+    if sos is None:
+        return ["  SOS study                   left out (--sos off)"]
+    region = sos["region"]
+    lines = [f"  SOS region (degree {region['degree']})       {region['status'].upper()}: {{V <= 1}} invariant, area "
+             f"{region['area_ratio']:.4g} x the hand-given sublevel set ({region['boxes']} boxes; {region['why']})"]
+    for b in sos["bypass"]:
+        hand, best = b["hand_closed_form"]["nominal"], b["combined"]
+        lines.append(f"  SOS bypass alpha0 = {b['alpha0_rad']:.4g}  {b['status'].upper()}: |delta| <= "
+                     f"{best['delta_max_m']:.4g} m (clearance >= {best['min_distance_m']:.4g} m), |omega| <= "
+                     f"{best['omega_max_radps']:.4g} rad/s (hand V: {hand['delta_max_m']:.4g} m, "
+                     f"{hand['omega_max_radps']:.4g} rad/s)")
+    lines.append(f"  SOS admissible k            {sos['admissible']['finding']}"
+                 + ("" if sos["scan"] else " (--sos scenario: only the scenario's k judged)"))
+    return lines
+
+
 def _analyse_human(d: dict[str, Any]) -> str:
     pf = d["path_following"]
     lyap = pf["lyapunov"]
@@ -440,6 +461,7 @@ def _analyse_human(d: dict[str, Any]) -> str:
             f"{bound['omega_max_radps']:.4g} rad/s"
         )
     lines.append(f"  admissible k                {pf['admissible']['finding']}")
+    lines += _sos_human(pf["sos"])
     sw = pf["switched"]
     lines.append(f"  switched family             {sw['finding']} [{sw['claim'].upper()}: {sw['recheck']['method']}] "
                  f"({sw['family']})")
@@ -532,7 +554,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     folder = prepare_output_dir(args.out) if args.out else None
     clearance = DEFAULT_CLEARANCE_M if args.clearance is None else args.clearance
     try:
-        result = analyse(scenario, clearance_m=clearance)
+        result = analyse(scenario, clearance_m=clearance, sos=args.sos)
     except ValueError as err:
         print(f"visnav: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

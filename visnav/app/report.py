@@ -224,11 +224,24 @@ def _simulation_section(scenario: Scenario, options: ReportOptions) -> tuple[dic
     return data, claims, paper_figures(result)
 
 
+def _sos_claims(sos: dict[str, Any] | None) -> list[Claim]:
+    """The SOS study's claims as report claims: ``proven`` and ``sampled`` kept, anything else ``measured``."""
+    if sos is None:
+        return []
+    out = []
+    for c in sos["claims"]:
+        status = c["status"] if c["status"] in ("proven", "sampled") else "measured"
+        prefix = "" if status == c["status"] else f"{c['status'].upper()}: "
+        out.append(Claim(section="analysis", status=status, text=f"SOS: {prefix}{c['claim']} ({c['why']})"))
+    return out
+
+
 def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
     from visnav.studies.loop_analysis import analyse
     from visnav.app.figures_analysis import analysis_figures
 
-    full = analyse(scenario).as_dict()
+    # the quick report judges the scenario's k only; the full one scans the gains as `visnav analyse` does
+    full = analyse(scenario, sos="scenario" if options.quick else "scan").as_dict()
     figures = analysis_figures(full)
     data = {k: v for k, v in full.items() if k not in ("frequency_responses", "scenario")}
     data["figures"] = sorted(figures)
@@ -246,6 +259,7 @@ def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
               text=f"path-following eigenvalues {eig} 1/s (AD; equal to the closed form to 1e-12)"),
         Claim(section="analysis", status="sampled",
               text=f"admissible k for the simulated entry angles: {pf['admissible']['finding']}"),
+        *_sos_claims(pf["sos"]),
         Claim(section="analysis", status="measured",
               text=("goal: visual-servoing task eigenvalues "
                     + ", ".join(f"{re:.4g}" for re, _ in goal["visual_servoing_task"]["eigenvalues"])

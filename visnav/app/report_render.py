@@ -324,6 +324,33 @@ def _simulation_blocks(data: dict[str, Any]) -> list[Block]:
     return blocks
 
 
+def _sos_blocks(sos: dict[str, Any] | None) -> list[Block]:
+    """The SOS study beside the hand-given V: region, bypass bounds by each set, admissible gains."""
+    if sos is None:
+        return []
+    region = sos["region"]
+    blocks = [Block("h3", "Sum-of-squares certificates of path following"),
+              Block("p", (f"Region: {{V <= 1}} of a degree-{region['degree']} SOS function, {region['status']} by "
+                          f"interval branch and bound ({region['boxes']} boxes): area {_fmt(region['area_m_rad'])} "
+                          f"m·rad against {_fmt(region['hand_area_m_rad'])} for the largest certified sublevel set "
+                          f"of the hand-given V, ratio {_fmt(region['area_ratio'])}."))]
+    rows = []
+    for b in sos["bypass"]:
+        hand = b["hand_closed_form"]["nominal"]
+        rows.append([_fmt(b["alpha0_rad"]), "hand V, closed form", _fmt(hand["delta_max_m"]),
+                     _fmt(hand["min_distance_m"]), _fmt(hand["omega_max_radps"])])
+        for label, key in (("hand V, branch and bound", "hand"), ("SOS sets", "sos"), ("all sets (claimed)", "combined")):
+            pair = b[key]
+            rows.append([_fmt(b["alpha0_rad"]), label, _fmt(pair["delta_max_m"]), _fmt(pair["min_distance_m"]),
+                         _fmt(pair["omega_max_radps"])])
+    blocks.append(Block("table", (["entry alpha0 [rad]", "bound from", "max |delta| [m]", "clearance [m]",
+                                   "max |omega| [rad/s]"], rows)))
+    scope = "" if sos["scan"] else " (quick report: only the scenario's k judged)"
+    blocks.append(Block("p", f"Admissible gains from the SOS certificates{scope}: {sos['admissible']['finding']}. "
+                             f"Entry angles {sos['entry_angles_source']}."))
+    return blocks
+
+
 def _analysis_blocks(data: dict[str, Any]) -> list[Block]:
     ana = data["analysis"]
     pf = ana["path_following"]
@@ -331,6 +358,8 @@ def _analysis_blocks(data: dict[str, Any]) -> list[Block]:
     blocks.append(Block("p", f"V̇ normal form: `{pf['lyapunov']['normal_form']}`. {pf['lyapunov']['lasalle']}"))
     blocks.append(Block("p", f"Region of attraction: {pf['lyapunov']['region_of_attraction']}"))
     blocks.append(Block("p", f"Admissible gains: {pf['admissible']['finding']}"))
+    blocks += _sos_blocks(pf["sos"])
+    blocks.append(Block("h3", "Stability margins of the loops"))
     rows = []
     for name, pair in ana["margins"].items():
         c, s = pair["continuous"], pair["sampled"]

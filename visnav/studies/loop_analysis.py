@@ -8,6 +8,12 @@ Assembles, for one scenario:
   machine-checked certificate ``V̇ ≤ 0`` (exact normal form + interval
   branch and bound), the region of attraction, the bounds along a bypass
   and the admissible range of ``k`` for the scenario's entry angles;
+* beside them, the sum-of-squares study of the same loop
+  (:func:`visnav.studies.path_following_sos.path_following_sos`): a certified
+  invariant region larger than the hand-given ``V``'s, the bounds on ``|δ|``
+  and ``|ω|`` along the bypass and the admissible ``k`` recomputed from its
+  certificates (``sos="scan"``; ``"scenario"`` judges only the scenario's
+  ``k``, ``"off"`` leaves the study out);
 * the loops of the linearised controllers, broken at the angular velocity
   ω (path following, per obstacle), at the pan-rate input (16) and at each
   visual-servoing output channel (7) at the goal, continuous and sampled at
@@ -47,10 +53,13 @@ from visnav.studies.path_following import (
     path_following_model,
 )
 
-__all__ = ["Analysis", "analyse", "entry_angles_from_simulation", "DEFAULT_CLEARANCE_M"]
+__all__ = ["Analysis", "analyse", "entry_angles_from_simulation", "DEFAULT_CLEARANCE_M", "SOS_CHOICES"]
 
 DEFAULT_CLEARANCE_M = PATH_CLEARANCE_M
 """Default clearance the admissible gains must guarantee [m] (the scenario validator keeps d0 above it)."""
+
+SOS_CHOICES = ("scan", "scenario", "off")
+"""What :func:`analyse` asks of the SOS study: the gain scan too, the scenario's ``k`` only, or nothing."""
 
 _K_CURVE = tuple(float(k) for k in np.geomspace(0.1, 100.0, 31))
 _V_CURVE = tuple(float(v) for v in np.linspace(0.05, 0.6, 12))
@@ -174,8 +183,34 @@ def _stable_range(gains: Sequence[float], stable: Sequence[bool]) -> list[float]
     return [min(ok), max(ok)] if ok else None
 
 
-def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> Analysis:
+def _sos_study(scenario: Scenario, entries: Sequence[tuple[str, float, float]], angles: Sequence[float],
+               clearance_m: float, sos: str) -> dict[str, Any] | None:
+    """The SOS study of the path-following loop as JSON (``None`` for ``sos="off"``).
+
+    The entry angles are the hand analysis's: the simulated ones, or ``α0 = 0`` when the run bypasses
+    no obstacle (``entry_angles_source`` says which).
+    """
+    if sos == "off":
+        return None
+    from visnav.studies.path_following_sos import path_following_sos
+
+    study = path_following_sos(scenario, entry_angles=angles, clearance_m=clearance_m, scan=sos == "scan")
+    source = ("sampled: one simulation of the scenario" if entries else
+              "assumed: the simulated run bypasses no obstacle, alpha0 = 0")
+    return {**study.as_dict(), "entry_angles_source": source, "scan": sos == "scan"}
+
+
+def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M, sos: str = "scan") -> Analysis:
     """The analysis of ``scenario`` (see the module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    clearance_m : float
+        Clearance [m] the admissible gains must guarantee.
+    sos : str
+        One of :data:`SOS_CHOICES`: the SOS study with its gain scan (about 20 s on the paper
+        scenario), at the scenario's ``k`` only (about 10 s), or left out.
 
     A scenario from :func:`visnav.scenario.load_scenario` is already valid; the gains
     of one built in Python (``dataclasses.replace``) are checked by the same rules,
@@ -185,7 +220,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     Raises
     ------
     ValueError
-        A clearance that is negative or not smaller than ``d0``.
+        A clearance that is negative or not smaller than ``d0``; ``sos`` not one of :data:`SOS_CHOICES`.
     visnav.scenario.ScenarioError
         (a ``ValueError``) gains or limits that break a scenario rule.
     """
@@ -195,6 +230,9 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
             f"analyse: clearance_m = {clearance_m!r}; expected 0 <= clearance < d0 = {env.d_zero_m} m "
             "(the path-following envelope itself)"
         )
+    if sos not in SOS_CHOICES:
+        raise ValueError(f"analyse: sos = {sos!r}; expected one of {list(SOS_CHOICES)} (the SOS study with its "
+                         "gain scan, at the scenario's k only, or none)")
     validate_gains(gains, limits, source=scenario.name)
     k, v = gains.k_path, gains.v_coll_mps
     period = scenario.sampling_period_s
@@ -227,6 +265,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
     family = [path_following_model(k=k, v=v * s, d_zero=env.d_zero_m, radius=radii[0]).linearisation().jacobian
               for s in (0.25, 0.5, 1.0)]
     switched = common_quadratic_lyapunov_lmi(family, ["v_coll/4", "v_coll/2", "v_coll"])
+    sos_study = _sos_study(scenario, entries, angles, clearance_m, sos)
 
     loops: dict[str, Any] = {}
     responses: dict[str, Any] = {}
@@ -297,6 +336,7 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M) -> 
             "admissible": admissible.as_dict(),
             "switched": {**switched.as_dict(), "claim": "proven" if switched.proven else "not proven",
                          "family": "path-following linearisation at v_coll/4, v_coll/2, v_coll (the blend ramps v)"},
+            "sos": sos_study,
         },
         "goal": goal.as_dict(),
         "eigenvalues_vs_lambda": lambda_curves,

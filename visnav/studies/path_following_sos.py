@@ -1161,9 +1161,11 @@ def _finding(problem: _Problem, interval: tuple[float, float] | None, interval_p
     if upper:
         edges.append(f"upper edge in [{upper[0]:.4g}, {upper[1]:.4g}): "
                      f"{next(e.verdict for e in evaluations if e.k == upper[1])} above")
-    return (f"SOS certificates re-proven by interval branch and bound guarantee {req} for k in "
-            f"[{interval[0]:.4g}, {interval[1]:.4g}] 1/m ({how}), while {hand_text}: the empty admissible range "
-            f"came from the conservative hand V and triangle-inequality bounds, not from the loop"
+    where = (f"for k = {interval[0]:.4g} 1/m (the only gain judged)" if interval[0] == interval[1] else
+             f"for k in [{interval[0]:.4g}, {interval[1]:.4g}] 1/m ({how})")
+    verdict = (f"while {hand_text}: the empty admissible range came from the conservative hand V and "
+               "triangle-inequality bounds, not from the loop" if hand.interval is None else f"and {hand_text}")
+    return (f"SOS certificates re-proven by interval branch and bound guarantee {req} {where}, {verdict}"
             + (f" ({'; '.join(edges)})" if edges else ""))
 
 
@@ -1246,7 +1248,9 @@ def _claims(result_region: CertifiedRegion, bypass: Sequence[SosEntryBounds], ad
                 "why": "taken from one simulation of the scenario, where the supervisor switches to path following"})
     if admissible.interval is not None:
         a, z = admissible.interval
-        out.append({"claim": (f"clearance >= {clearance:g} m and |omega| <= {omega_limit:g} rad/s for every k in "
+        out.append({"claim": (f"clearance >= {clearance:g} m and |omega| <= {omega_limit:g} rad/s for k = {a:.4g}"
+                              if a == z else
+                              f"clearance >= {clearance:g} m and |omega| <= {omega_limit:g} rad/s for every k in "
                               f"[{a:.4g}, {z:.4g}]" if admissible.interval_proven else
                               f"clearance >= {clearance:g} m and |omega| <= {omega_limit:g} rad/s for each of the "
                               f"{len(admissible.proven_gains)} gains proven in [{a:.4g}, {z:.4g}]"),

@@ -22,7 +22,9 @@ def paper():
 
 @pytest.fixture(scope="module")
 def result(paper):
-    return analyse(paper).as_dict()
+    # the SOS study at the scenario's k only (the scan is tested in test_path_following_sos and, byte for byte,
+    # by the committed report)
+    return analyse(paper, sos="scenario").as_dict()
 
 
 def test_json_contract(result, paper):
@@ -80,15 +82,47 @@ def test_omega_loop_margins_agree_with_a_frequency_sweep(paper):
 
 
 def test_cli_analyse_json_and_bad_clearance(capsys):
-    assert main(["analyse", "--json"]) == 0
+    assert main(["analyse", "--json", "--sos", "off"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["path_following"]["lyapunov"]["certified"] is True
+    assert out["path_following"]["sos"] is None
+    assert main(["analyse", "--sos", "off"]) == 0
+    assert "SOS study                   left out (--sos off)" in capsys.readouterr().out
     assert main(["analyse", "--clearance", "0.7"]) == 2
     assert "clearance_m = 0.7" in capsys.readouterr().err
 
 
 def test_analysis_is_deterministic(paper, result):
-    assert json.dumps(analyse(paper).as_dict(), sort_keys=True) == json.dumps(result, sort_keys=True)
+    assert json.dumps(analyse(paper, sos="scenario").as_dict(), sort_keys=True) == json.dumps(result, sort_keys=True)
+
+
+def test_the_sos_study_sits_beside_the_hand_analysis_and_beats_it(result, paper):
+    """Same entry, same hand-given V: the SOS bounds are certified and tighter, the region larger."""
+    pf = result["path_following"]
+    sos = pf["sos"]
+    assert sos["scan"] is False and sos["entry_angles_source"].startswith("sampled")
+    assert [e["alpha_rad"] for e in pf["entry_states"]] == pytest.approx(sos["entry_angles_rad"], abs=1e-12)
+    region = sos["region"]
+    assert region["status"] == "proven" and region["area_ratio"] > 1.0
+    assert region["area_ratio"] == pytest.approx(region["area_m_rad"] / region["hand_area_m_rad"], rel=1e-12)
+    for hand, bypass in zip(pf["entry_bounds"], sos["bypass"]):
+        # one hand-given bound, computed once: the SOS study quotes exactly what the hand analysis reports
+        assert bypass["hand_closed_form"]["nominal"]["delta_max_m"] == hand["delta_max_m"]
+        assert bypass["hand_closed_form"]["nominal"]["omega_max_radps"] == hand["omega_max_radps"]
+        best = bypass["combined"]
+        assert bypass["status"] == "proven" and best["rechecked"] is True
+        assert best["delta_max_m"] < hand["delta_max_m"] and best["omega_max_radps"] < hand["omega_max_radps"]
+        assert best["min_distance_m"] == pytest.approx(paper.envelopes.d_zero_m - best["delta_max_m"], abs=1e-12)
+    judged = sos["admissible"]["evaluations"]
+    assert [e["k"] for e in judged] == [paper.gains.k_path]
+    ok = judged[0]["delta_max_m"] <= paper.envelopes.d_zero_m - 0.1 and judged[0]["omega_max_radps"] <= 1.2
+    assert (judged[0]["verdict"] == "proven admissible") == ok
+    assert {c["status"] for c in sos["claims"]} <= {"proven", "sampled", "not proven", "computed"}
+
+
+def test_a_bad_sos_choice_is_refused(paper):
+    with pytest.raises(ValueError, match=r"^analyse: sos = 'all'; expected one of \['scan', 'scenario', 'off'\]"):
+        analyse(paper, sos="all")
 
 
 def test_speeds_and_gains_out_of_range_are_refused(paper):
