@@ -901,6 +901,56 @@ def _dwell_result(labels: tuple[str, ...], status: str, **fields: Any) -> DwellT
     return DwellTimeLMI(names=labels, status=status, **defaults)
 
 
+@dataclass(frozen=True, slots=True)
+class _DwellSearch:
+    """Outcome of :func:`_dwell_search`: the bracket ``(lo, hi]``, the certified ``(P_i, recheck)`` at ``hi``."""
+
+    lo: float
+    hi: float
+    best: tuple[tuple[np.ndarray, ...], Recheck] | None
+    runs: tuple[SolverRun, ...]
+    solves: int
+
+
+def _dwell_search(mats: Sequence[np.ndarray], solvers: tuple[str, ...], baseline: float, rel_tol: float,
+                  max_doublings: int) -> _DwellSearch:
+    """Double ``T`` from the baseline until certified, then bisect towards 0 (see :func:`dwell_time_lyapunov`)."""
+    from scipy.linalg import expm
+
+    scale = max(float(np.linalg.norm(a, 2)) for a in mats)
+    scaled = [a / scale for a in mats]
+    solves = 0
+
+    def attempt(t: float) -> tuple[tuple[tuple[np.ndarray, ...], Recheck] | None, tuple[SolverRun, ...]]:
+        nonlocal solves
+        solves += 1
+        ps, eps, runs = _dwell_lmi(scaled, [expm(a * t) for a in mats], solvers, f"dwell T={t:.6g}")
+        if ps is None or not eps > _DWELL_MIN_EPSILON:
+            return None, runs
+        ps = tuple(_frozen(_sym(p)) for p in ps)
+        check = recheck_dwell_time(mats, ps, t)
+        return ((ps, check) if check.passed else None), runs
+
+    lo, hi = 0.0, baseline * (1.0 + rel_tol) if 0.0 < baseline < math.inf else 1.0 / scale
+    found, runs = attempt(hi)
+    for _ in range(max_doublings):
+        if found is not None:
+            break
+        lo, hi = hi, 2.0 * hi
+        found, runs = attempt(hi)
+    if found is None:
+        return _DwellSearch(lo=lo, hi=hi, best=None, runs=runs, solves=solves)
+    best, best_runs = found, runs
+    while hi - lo > rel_tol * hi:
+        mid = 0.5 * (lo + hi)
+        found, runs = attempt(mid)
+        if found is None:
+            lo = mid
+        else:
+            hi, best, best_runs = mid, found, runs
+    return _DwellSearch(lo=lo, hi=hi, best=best, runs=best_runs, solves=solves)
+
+
 def dwell_time_lyapunov(family: Sequence[Any], names: Sequence[str] | None = None, *, rel_tol: float = 1e-3,
                         max_doublings: int = 20, solver: str | Sequence[str] | None = None) -> DwellTimeLMI:
     """The smallest dwell time certified by the Geromel–Colaneri LMIs, by bisection (module docstring).
@@ -930,8 +980,6 @@ def dwell_time_lyapunov(family: Sequence[Any], names: Sequence[str] | None = Non
     LmiError
         As :func:`common_quadratic_lyapunov_lmi`, or ``rel_tol`` / ``max_doublings`` out of range.
     """
-    from scipy.linalg import expm
-
     mats = _family(family)
     labels = _names(names, len(mats), "A")
     solvers = _solvers(solver)
@@ -951,40 +999,15 @@ def dwell_time_lyapunov(family: Sequence[Any], names: Sequence[str] | None = Non
                              baseline_dwell_time_s=baseline, P=(common.P,) * len(mats), recheck=common.recheck,
                              solver=common.solver, finding="dwell time 0: a common quadratic Lyapunov function "
                                                           "exists, stable under arbitrary switching")
-    scale = max(float(np.linalg.norm(a, 2)) for a in mats)
-    scaled = [a / scale for a in mats]
-    solves = 0
-
-    def attempt(t: float) -> tuple[tuple[tuple[np.ndarray, ...], Recheck] | None, tuple[SolverRun, ...]]:
-        nonlocal solves
-        solves += 1
-        ps, eps, runs = _dwell_lmi(scaled, [expm(a * t) for a in mats], solvers, f"dwell T={t:.6g}")
-        if ps is None or not eps > _DWELL_MIN_EPSILON:
-            return None, runs
-        ps = tuple(_frozen(_sym(p)) for p in ps)
-        check = recheck_dwell_time(mats, ps, t)
-        return ((ps, check) if check.passed else None), runs
-
-    lo, hi = 0.0, baseline * (1.0 + rel_tol) if 0.0 < baseline < math.inf else 1.0 / scale
-    found, runs = attempt(hi)
-    for _ in range(max_doublings):
-        if found is not None:
-            break
-        lo, hi = hi, 2.0 * hi
-        found, runs = attempt(hi)
-    if found is None:
-        return _dwell_result(labels, "undecided", lower_bound_s=hi, baseline_dwell_time_s=baseline, solver=runs,
-                             solves=solves, recheck=Recheck(method="float64 residual eigenvalues", passed=False,
-                                                            detail=f"no T <= {hi:.4g} s certified"),
+    search = _dwell_search(mats, solvers, baseline, rel_tol, max_doublings)
+    lo, hi, solves = search.lo, search.hi, search.solves
+    if search.best is None:
+        return _dwell_result(labels, "undecided", lower_bound_s=hi, baseline_dwell_time_s=baseline,
+                             solver=search.runs, solves=solves,
+                             recheck=Recheck(method="float64 residual eigenvalues", passed=False,
+                                             detail=f"no T <= {hi:.4g} s certified"),
                              finding=f"undecided: the dwell-time LMIs are not certified for any T <= {hi:.4g} s")
-    best, best_runs = found, runs
-    while hi - lo > rel_tol * hi:
-        mid = 0.5 * (lo + hi)
-        found, runs = attempt(mid)
-        if found is None:
-            lo = mid
-        else:
-            hi, best, best_runs = mid, found, runs
+    best, best_runs = search.best, search.runs
     ps, check = best
     return _dwell_result(
         labels, "certified", proven=True, dwell_time_s=float(hi), lower_bound_s=float(lo),

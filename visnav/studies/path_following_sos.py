@@ -1265,10 +1265,13 @@ def _claims(result_region: CertifiedRegion, bypass: Sequence[SosEntryBounds], ad
                               f"[{a:.4g}, {z:.4g}]"), "status": "proven",
                     "why": f"k-interval certificates (k a parameter of the branch and bound), re-checked in "
                            f"{RECHECK_SCAN} arithmetic"})
-    refuted = [e for e in admissible.evaluations if e.verdict == "refuted by simulation"]
-    if refuted:
-        out.append({"claim": f"gains up to {max(e.k for e in refuted):.4g} violate a requirement", "status": "sampled",
-                    "why": "numerical integration of the continuous loop from the entry"})
+    for verdict, status, why in (
+            ("refuted at the entry", "computed", "|omega| of law (11) evaluated at the entry states exceeds the limit"),
+            ("refuted by simulation", "sampled", "numerical integration of the continuous loop from the entry")):
+        refuted = sorted(e.k for e in admissible.evaluations if e.verdict == verdict)
+        if refuted:
+            out.append({"claim": (f"the gain(s) k = {', '.join(f'{k:.4g}' for k in refuted)} violate a requirement "
+                                  f"({verdict})"), "status": status, "why": why})
     return tuple(out)
 
 
