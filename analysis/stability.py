@@ -24,7 +24,11 @@
    whose invariant fails there: :func:`hybrid.check` looks for those).  The exact re-check covers the
    cones as the affinity test reads them off the model (to its relative ``1e-9``).  Otherwise
    :attr:`StabilityAnalysis.piecewise_note` says which mode, term or transition rules it out;
-4. **a limit cycle** when no mode has an equilibrium of its own (every one virtual, or none): the
+4. **a region of attraction** of each mode's own Hurwitz equilibrium when the modes do not share
+   one linear equilibrium (:func:`analysis.mode_region.mode_region_of_attraction`: polynomial flow,
+   invariant and guards; an SOS search re-proven by interval branch and bound that the set stays in
+   the mode, no transition is enabled in it, and every execution from it converges);
+5. **a limit cycle** when no mode has an equilibrium of its own (every one virtual, or none): the
    system is simulated from the given state, and the periodic orbit through the section of the
    transition it takes last is found by shooting (:mod:`analysis.periodic`): period, Floquet
    multipliers, orbitally stable or not.
@@ -113,6 +117,9 @@ class StabilityAnalysis:
         and the automaton is conewise linear about the common equilibrium (:func:`conewise_cells`).
     piecewise_note : str
         Why no piecewise quadratic function was searched for (empty when it was).
+    regions : tuple of analysis.mode_region.ModeRegion
+        The SOS region of attraction of each mode's own Hurwitz equilibrium (when the modes do not
+        share one linear equilibrium), proven or with why not.
     """
 
     system: str
@@ -126,6 +133,7 @@ class StabilityAnalysis:
     finding: str
     piecewise: Any = None
     piecewise_note: str = ""
+    regions: tuple[Any, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready view of every part."""
@@ -136,6 +144,7 @@ class StabilityAnalysis:
             "dwell": None if self.dwell is None else self.dwell.as_dict(),
             "piecewise": None if self.piecewise is None else self.piecewise.as_dict(),
             "piecewise_note": self.piecewise_note,
+            "regions": [r.as_dict() for r in self.regions],
             "orbit": None if self.orbit is None else self.orbit.as_dict(),
             "orbit_error": self.orbit_error,
             "claims": [c.as_dict() for c in self.claims],
@@ -413,6 +422,29 @@ def _local_claims(own: Sequence[ModeEquilibrium]) -> tuple[list[StabilityClaim],
         status="measured", method="eigenvalues of the Jacobian at the equilibrium")], verdict
 
 
+def _mode_regions(system: HybridSystem, own: Sequence[ModeEquilibrium],
+                  memory: Mapping[str, float]) -> tuple[tuple[Any, ...], list[StabilityClaim]]:
+    """The SOS region of attraction of each Hurwitz equilibrium of ``own`` (:mod:`analysis.mode_region`)."""
+    from analysis.mode_region import mode_region_of_attraction
+
+    regions, claims = [], []
+    for e in own:
+        if not e.hurwitz:
+            continue
+        region = mode_region_of_attraction(system, e.mode, equilibrium=e.point, memory=memory)
+        regions.append(region)
+        if region.status == "proven":
+            claims.append(StabilityClaim(
+                text=f"mode {e.mode!r}: {region.claim}", status="proven",
+                method=(f"SOS search (V of degree {region.degree}), interval branch and bound on the exact "
+                        "polynomials of the flow, invariant and guards, every certificate re-checked")))
+        else:
+            claims.append(StabilityClaim(
+                text=f"mode {e.mode!r}: no region of attraction proven ({region.status}): {region.why}",
+                status="not decided", method="SOS region of attraction (analysis.mode_region)"))
+    return tuple(regions), claims
+
+
 def _find_orbit(system: HybridSystem, x0: Sequence[float], initial_mode: str | None, horizon: float,
                 section: str | None) -> tuple[Any, str]:
     """Simulate, take the section (the last transition taken, or ``section``) and shoot from its last crossing."""
@@ -445,6 +477,7 @@ def analyse_stability(
     horizon: float = 100.0,
     section: str | None = None,
     memory: Mapping[str, float] | None = None,
+    regions: bool = True,
 ) -> StabilityAnalysis:
     """The stability analysis of ``system`` (module docstring).
 
@@ -461,6 +494,9 @@ def analyse_stability(
         The transition whose guard is the Poincaré section (default: the last one taken).
     memory : Mapping or None
         Memory values for the flows (default: the initial memory).
+    regions : bool
+        Look for an SOS region of attraction of each mode's own Hurwitz equilibrium (when the modes
+        do not share one linear equilibrium): a few seconds per mode in the plane, more above.
 
     Raises
     ------
@@ -471,6 +507,8 @@ def analyse_stability(
         raise ParameterError("system", system, "a hybrid.HybridSystem", "build the system with hybrid.HybridSystem")
     if not (isinstance(horizon, (int, float)) and math.isfinite(horizon) and horizon > 0):
         raise ParameterError("horizon", horizon, "a positive duration [s]", "give e.g. horizon=100.0")
+    if not isinstance(regions, bool):
+        raise ParameterError("regions", regions, "True or False", "write regions=False to skip the SOS regions")
     names = [t.name for t in system.automaton.transitions]
     if section is not None and section not in names:
         raise ParameterError("section", section, f"one of the transitions {names}", "name the transition whose "
@@ -495,11 +533,16 @@ def analyse_stability(
                 "not decided"
     else:
         more, verdict = _local_claims(own)
+    found, region_claims = _mode_regions(system, own, mem) if regions and family is None else ((), [])
     claims += more
     finding = f"{system.name}: {verdict}: " + more[-1].text
+    proven = [r.mode for r in found if r.status == "proven"]
+    if proven:
+        finding += f"; a region of attraction is proven for mode(s) {', '.join(map(repr, proven))}"
+    claims += region_claims
     return StabilityAnalysis(system=system.name, verdict=verdict, equilibria=equilibria, switched=switched,
                              dwell=dwell, orbit=orbit, orbit_error=orbit_error, claims=tuple(claims),
-                             finding=finding, piecewise=piecewise, piecewise_note=note)
+                             finding=finding, piecewise=piecewise, piecewise_note=note, regions=found)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -511,7 +554,8 @@ class StabilityChecks:
     initial_mode: str | None = None
     horizon: float = 100.0
     section: str | None = None
+    regions: bool = True
 
     def __call__(self) -> StabilityAnalysis:
         return analyse_stability(self.model, initial_state=self.initial_state, initial_mode=self.initial_mode,
-                                 horizon=self.horizon, section=self.section)
+                                 horizon=self.horizon, section=self.section, regions=self.regions)

@@ -54,3 +54,30 @@ def test_bad_input():
         analyse_stability(thermostat().system, initial_state=(20.0,), horizon=0)
     with pytest.raises(ParameterError, match=r"^guess = \(1\.0, 2\.0\)"):
         analyse_stability(thermostat().system, initial_state=(1.0, 2.0))
+
+
+def reverse_van_der_pol(*, with_guard: bool) -> HybridSystem:
+    """Van der Pol in reverse time (ROA of the origin bounded by the unstable cycle), optionally left at y >= 0.8."""
+    transitions = (Transition(name="leave", source="q", target="out", guard=lambda v, m: v[1] - 0.8),) if with_guard else ()
+    automaton = HybridAutomaton(name="vdp", variables=("x", "y"), initial_mode="q",
+                                modes=(Mode(name="q"), Mode(name="out")), transitions=transitions)
+    vdp = lambda t, x, m: (-x[1], x[0] + (x[0] ** 2 - 1.0) * x[1])  # noqa: E731
+    return HybridSystem(automaton=automaton, state_names=("x", "y"),
+                        flows={"q": vdp, "out": lambda t, x, m: (1.0, 0.0)})
+
+
+def test_a_polynomial_mode_gets_a_proven_region_of_attraction_limited_by_its_guard():
+    free = analyse_stability(reverse_van_der_pol(with_guard=False), initial_state=(0.1, 0.0))
+    left = analyse_stability(reverse_van_der_pol(with_guard=True), initial_state=(0.1, 0.0))
+    for result in (free, left):
+        assert result.verdict == "stable" and [r.mode for r in result.regions] == ["q"]
+        region = result.regions[0]
+        assert region.status == "proven" and region.rechecked
+        assert result.claims[-1].status == "proven" and "region of attraction is proven for mode(s) 'q'" in result.finding
+    # the guard y >= 0.8 must not be enabled in the set: a smaller level than without it
+    assert left.regions[0].level < free.regions[0].level
+    assert left.regions[0].box["y"][1] <= free.regions[0].box["y"][1]
+    skipped = analyse_stability(reverse_van_der_pol(with_guard=False), initial_state=(0.1, 0.0), regions=False)
+    assert skipped.regions == () and skipped.verdict == "stable" and skipped.claims[-1].status == "measured"
+    with pytest.raises(ParameterError, match=r"^regions = 'yes': expected True or False"):
+        analyse_stability(reverse_van_der_pol(with_guard=False), initial_state=(0.1, 0.0), regions="yes")
