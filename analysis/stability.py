@@ -422,6 +422,20 @@ def _local_claims(own: Sequence[ModeEquilibrium]) -> tuple[list[StabilityClaim],
         status="measured", method="eigenvalues of the Jacobian at the equilibrium")], verdict
 
 
+def _snapped(system: HybridSystem, e: ModeEquilibrium, memory: Mapping[str, float]) -> tuple[float, ...]:
+    """Newton's ``x*`` with components below ``1e-12·(1 + ‖x*‖∞)`` set to 0 when the flow still vanishes there.
+
+    Newton leaves ``1e-18`` where the equilibrium is ``0``; the region's claim is about the point it is
+    given (exactly an equilibrium, or one nearby with a proven distance), so the clean point is kept
+    only when the flow there is no larger than at Newton's.
+    """
+    point = np.asarray(e.point, dtype=float)
+    clean = np.where(np.abs(point) <= 1e-12 * (1.0 + float(np.abs(point).max())), 0.0, point)
+    size = [float(np.abs(np.asarray(system.flow(e.mode, 0.0, tuple(p), dict(memory)), dtype=float)).max())
+            for p in (point, clean)]
+    return tuple(float(c) for c in (clean if size[1] <= size[0] else point))
+
+
 def _mode_regions(system: HybridSystem, own: Sequence[ModeEquilibrium],
                   memory: Mapping[str, float]) -> tuple[tuple[Any, ...], list[StabilityClaim]]:
     """The SOS region of attraction of each Hurwitz equilibrium of ``own`` (:mod:`analysis.mode_region`)."""
@@ -431,7 +445,7 @@ def _mode_regions(system: HybridSystem, own: Sequence[ModeEquilibrium],
     for e in own:
         if not e.hurwitz:
             continue
-        region = mode_region_of_attraction(system, e.mode, equilibrium=e.point, memory=memory)
+        region = mode_region_of_attraction(system, e.mode, equilibrium=_snapped(system, e, memory), memory=memory)
         regions.append(region)
         if region.status == "proven":
             claims.append(StabilityClaim(
