@@ -175,36 +175,64 @@ class Linearisation:
 
 
 def linearise(
-    function: ca.Function,
+    function: Any,
     point: Sequence[float],
     *,
-    state_names: Sequence[str],
+    state_names: Sequence[str] | None = None,
     name: str = "",
     tol: float = 1e-9,
-) -> Linearisation:
+    mode: str | None = None,
+    memory: Any = None,
+) -> Any:
     """Check the equilibrium and linearise ``F`` there by automatic differentiation.
 
     Parameters
     ----------
-    function : casadi.Function
-        ``F(x) -> ẋ`` with one input and one output of size ``n``.
+    function : casadi.Function or hybrid.HybridSystem
+        ``F(x) -> ẋ`` with one input and one output of size ``n``; or a hybrid system, whose ``mode``
+        is linearised (see Returns).
     point : sequence of float, shape (n,)
         Candidate equilibrium.
     state_names : sequence of str, length n
+        Required for a CasADi function (a system has its own).
     name : str
         Label for reports.
     tol : float
         Largest acceptable ``‖F(x*)‖∞``.
+    mode : str or None
+        The mode of a hybrid system (required for one, refused otherwise).
+    memory : Mapping or None
+        Memory values of a hybrid system's flow (default: its initial memory).
+
+    Returns
+    -------
+    Linearisation
+        For a CasADi function.
+    analysis.equilibria.ModeEquilibrium
+        For a mode of a hybrid system: the equilibrium checked against the mode's invariant and
+        outgoing guards (``kind`` ``"virtual"`` — "virtual equilibrium, outside the mode", whose
+        eigenvalues say nothing about the hybrid system — or ``"switching"`` or ``"equilibrium"``),
+        derivatives by CasADi through the user's own flow function.
 
     Raises
     ------
     LinearisationError
-        Wrong shapes or a non-finite point.
+        Wrong shapes or a non-finite point; a system without ``mode``, a function with one.
     NotAnEquilibriumError
         ``‖F(x*)‖∞ > tol``; the message and the exception carry the residual.
     """
+    from hybrid import HybridSystem
+
+    if isinstance(function, HybridSystem):
+        return _linearise_mode(function, point, mode=mode, memory=memory, tol=tol)
+    if mode is not None or memory is not None:
+        raise LinearisationError(f"linearise {name!r}: mode = {mode!r}, memory = {memory!r} apply to a hybrid "
+                                 "system; a casadi.Function has no modes: drop them")
     if not isinstance(function, ca.Function) or function.n_in() != 1 or function.n_out() != 1:
-        raise LinearisationError(f"linearise: function = {function!r}; expected a casadi.Function F(x) -> xdot")
+        raise LinearisationError(f"linearise: function = {function!r}; expected a casadi.Function F(x) -> xdot "
+                                 "or a hybrid.HybridSystem with mode=...")
+    if state_names is None:
+        raise LinearisationError(f"linearise {name!r}: state_names = None; give one name per state of F")
     n = function.size1_in(0)
     x = np.asarray(point, dtype=float).reshape(-1)
     if x.size != n or len(state_names) != n:
@@ -236,6 +264,32 @@ def linearise(
         residual=tuple(float(r) for r in residual), jacobian=a, modes=modes,
         hurwitz=bool(abscissa < -tol), spectral_abscissa=float(abscissa),
     )
+
+
+def _linearise_mode(system: Any, point: Sequence[float], *, mode: str | None, memory: Any, tol: float) -> Any:
+    """:func:`linearise` of a hybrid system's mode: the residual at ``point``, then the classified equilibrium."""
+    from analysis.equilibria import mode_equilibrium
+
+    modes = list(system.automaton.mode_names)
+    if mode not in modes:
+        raise LinearisationError(f"linearise {system.name!r}: mode = {mode!r}; expected one of {modes}: a hybrid "
+                                 "system is linearised mode by mode, name the mode")
+    x = np.asarray(point, dtype=float).reshape(-1)
+    n = len(system.state_names)
+    if x.size != n or not np.all(np.isfinite(x)):
+        raise LinearisationError(f"linearise {system.name!r}: point = {x.tolist()}; expected {n} finite values, one "
+                                 f"per state {list(system.state_names)}")
+    mem = dict(system.automaton.initial_memory() if memory is None else memory)
+    residual = np.asarray(system.flow(mode, 0.0, tuple(float(c) for c in x), mem), dtype=float).reshape(-1)
+    if not np.all(np.abs(residual) <= tol):
+        worst = int(np.argmax(np.abs(residual)))
+        names = system.state_names
+        raise NotAnEquilibriumError(
+            f"linearise {system.name!r} mode {mode!r}: the point {dict(zip(names, x.tolist()))} is not an "
+            f"equilibrium: f = {residual.tolist()} (largest |d{names[worst]}/dt| = {abs(residual[worst]):.3g} > "
+            f"tol = {tol:g}); give the equilibrium, or find it with analysis.equilibria.mode_equilibrium",
+            tuple(float(r) for r in residual))
+    return mode_equilibrium(system, mode, guess=tuple(float(c) for c in x), memory=mem, tol=tol)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

@@ -7,6 +7,7 @@ import pytest
 
 from analysis.linearise import (
     LinearisationError,
+    NotAnEquilibriumError,
     common_quadratic_lyapunov,
     eigen_modes,
     linearise,
@@ -111,3 +112,20 @@ def test_lyapunov_as_dicts_list_every_field_and_null_the_nonfinite():
     assert none == {"names": ["a", "b"], "found": False, "P": None, "worst_margin": None, "dwell_time_s": None}
     for data in (good, bad, none):
         json.dumps(data, allow_nan=False)
+
+
+def test_a_hybrid_mode_is_linearised_against_its_invariant():
+    """The thermostat's modes: 10 °C and 30 °C are equilibria of the flows but outside their modes."""
+    from analysis.equilibria import ModeEquilibrium
+    from hybrid.examples import thermostat
+
+    system = thermostat().system
+    off = linearise(system, (10.0,), mode="off")
+    assert isinstance(off, ModeEquilibrium) and off.kind == "virtual" and "virtual equilibrium" in off.finding
+    assert off.point == pytest.approx((10.0,), abs=1e-12) and off.jacobian[0][0] == pytest.approx(-0.1, rel=1e-12)
+    with pytest.raises(NotAnEquilibriumError, match=r"mode 'off': the point \{'T': 20\.0\} is not an equilibrium"):
+        linearise(system, (20.0,), mode="off")
+    with pytest.raises(LinearisationError, match=r"mode = None; expected one of \['off', 'on'\]"):
+        linearise(system, (10.0,))
+    with pytest.raises(LinearisationError, match=r"point = \[10\.0, 1\.0\]; expected 1 finite values"):
+        linearise(system, (10.0, 1.0), mode="off")
