@@ -225,13 +225,14 @@ def _simulation_section(scenario: Scenario, options: ReportOptions) -> tuple[dic
 
 
 def _sos_claims(sos: dict[str, Any] | None) -> list[Claim]:
-    """The SOS study's claims as report claims: ``proven`` and ``sampled`` kept, anything else ``measured``."""
+    """The SOS study's claims as report claims: ``proven`` and ``sampled`` kept, ``computed`` is ``measured``
+    (deterministic numerics), and anything else (``not proven``) ``measured`` with its status in words."""
     if sos is None:
         return []
     out = []
     for c in sos["claims"]:
         status = c["status"] if c["status"] in ("proven", "sampled") else "measured"
-        prefix = "" if status == c["status"] else f"{c['status'].upper()}: "
+        prefix = "" if c["status"] in ("proven", "sampled", "computed") else f"{c['status'].upper()}: "
         out.append(Claim(section="analysis", status=status, text=f"SOS: {prefix}{c['claim']} ({c['why']})"))
     return out
 
