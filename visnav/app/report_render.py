@@ -279,6 +279,23 @@ def _complex(re: float, im: float) -> str:
     return f"{re:.4g}" if im == 0 else f"{re:.4g}{im:+.4g}i"
 
 
+def _certificate_blocks(st: dict[str, Any]) -> list[Block]:
+    """The LMI results and the modes' regions of attraction of a stability analysis, one table each."""
+    blocks = []
+    rows = [[name, r["status"], r["finding"]] for name, r in
+            (("common quadratic", st["switched"]), ("dwell time", st["dwell"]),
+             ("piecewise quadratic", st.get("piecewise"))) if r is not None]
+    if rows:
+        blocks.append(Block("table", (["Lyapunov LMI", "status", "finding"], rows)))
+    regions = st.get("regions") or []
+    if regions:
+        blocks.append(Block("table", (["mode", "region of attraction", "V", "level c", "entry time bound [s]",
+                                       "why not"], [
+            [r["mode"], r["status"], f"`{r['lyapunov']}`" if r["lyapunov"] else "—", _fmt(r["level"]),
+             _fmt(r["time_bound_s"]), r["why"] or "—"] for r in regions])))
+    return blocks
+
+
 def _stability_blocks(data: dict[str, Any]) -> list[Block]:
     st = data["stability"]
     blocks = [Block("h2", f"Stability of `{st['system']}`"), Block("p", f"Verdict: **{st['verdict']}**. {st['finding']}")]
@@ -295,6 +312,7 @@ def _stability_blocks(data: dict[str, Any]) -> list[Block]:
             ["verdict", o["verdict"]], ["shooting", f"{o['iterations']} iterations, residual {_fmt(o['residual'])}"]])))
         for stem in st["figures"]:
             blocks.append(Block("figure", (stem, "One revolution of the periodic orbit and its Floquet multipliers")))
+    blocks += _certificate_blocks(st)
     undecided = [c for c in st["claims"] if c["status"] == "not decided"]
     if undecided:
         blocks.append(Block("p", "Not decided: " + "; ".join(f"{c['text']} ({c['method']})" for c in undecided)))

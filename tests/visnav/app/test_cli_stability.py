@@ -65,3 +65,13 @@ def test_the_swapped_assignment_is_not_called_stable(tmp_path, capsys):
     data = json.loads(capsys.readouterr().out)
     assert data["verdict"] == "not decided" and data["piecewise"]["status"] == "undecided"
     assert data["claims"][-1]["status"] == "not decided"
+
+
+def test_the_report_of_the_problem_tabulates_the_lmi_results(tmp_path):
+    spec = _write(tmp_path, ("two", "one", "two", "one"))
+    assert main(["report", "--problem", spec, "--out", str(tmp_path / "r"), "--quick"]) == 0
+    text = (tmp_path / "r" / "report.md").read_text()
+    assert "| common quadratic | none | no common quadratic Lyapunov function exists" in text
+    assert "| piecewise quadratic | exists | a piecewise quadratic Lyapunov function exists (proven exactly)" in text
+    data = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert data["stability"]["verdict"] == "stable"
