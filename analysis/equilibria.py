@@ -44,7 +44,7 @@ from hybrid.errors import ParameterError
 from hybrid.jsonable import to_jsonable
 
 from analysis.derivatives import mode_vector_field
-from analysis.linearise import EigenMode, eigen_modes
+from analysis.eigen import EigenMode, eigen_modes
 
 __all__ = ["ModeEquilibrium", "mode_equilibrium", "mode_equilibria", "EQUILIBRIUM_KINDS"]
 

@@ -32,6 +32,8 @@ import numpy as np
 
 from hybrid.jsonable import to_jsonable
 
+from analysis.eigen import EigenMode, eigen_modes
+
 __all__ = [
     "LinearisationError",
     "NotAnEquilibriumError",
@@ -65,49 +67,6 @@ def to_numpy(value: Any) -> np.ndarray:
     if array.ndim == 2 and 1 in array.shape:
         return array.reshape(-1)
     return array
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class EigenMode:
-    """One eigenvalue of a linearisation and what it means in time.
-
-    Attributes
-    ----------
-    real, imag : float
-        The eigenvalue ``λ`` [1/s].
-    damping_ratio : float
-        ``−Re λ / |λ|`` (1 for a real stable pole, ``nan`` for ``λ = 0``).
-    natural_frequency_radps : float
-        ``|λ|`` [rad/s].
-    time_constant_s : float
-        ``−1 / Re λ`` [s] (``inf`` when ``Re λ = 0``; negative means growth).
-    """
-
-    real: float
-    imag: float
-    damping_ratio: float
-    natural_frequency_radps: float
-    time_constant_s: float
-
-    def as_dict(self) -> dict[str, float | None]:
-        """JSON-ready view: every field, ``None`` for non-finite numbers."""
-        return to_jsonable(self)
-
-
-def eigen_modes(matrix: np.ndarray) -> tuple[EigenMode, ...]:
-    """Eigenvalues of a square matrix with damping, natural frequency and time constant.
-
-    Sorted by real part, then imaginary part (deterministic order).
-    """
-    values = np.linalg.eigvals(np.asarray(matrix, dtype=float))
-    out = []
-    for lam in sorted(values, key=lambda z: (round(z.real, 12), round(z.imag, 12))):
-        magnitude = abs(lam)
-        damping = -lam.real / magnitude if magnitude > 0 else math.nan
-        tau = -1.0 / lam.real if lam.real != 0 else math.inf
-        out.append(EigenMode(real=float(lam.real), imag=float(lam.imag), damping_ratio=float(damping),
-                             natural_frequency_radps=float(magnitude), time_constant_s=float(tau)))
-    return tuple(out)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
