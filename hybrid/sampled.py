@@ -41,6 +41,7 @@ from scipy.integrate import solve_ivp
 from .errors import DivergenceError, ExecutionError, NumericalFailure, ParameterError, ZenoError
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
 from .model import HybridAutomaton
+from .system import call_user
 
 __all__ = [
     "Plant",
@@ -511,8 +512,14 @@ def simulate_sampled(
     previous: Sequence[float] | None = None
     termination = "end_time"
     t = t0
+
+    def user(what: str, at: float, state: Sequence[float], fn: Callable[..., Any], *args: Any) -> Any:
+        """A user's plant, controller or stop function, its exceptions named with the mode, time and state."""
+        return call_user(fn, args, function=what, mode=mode, time=at, state=state,
+                         state_names=plant.state_names, system=automaton.name)
+
     try:
-        c = controller.initial_state(t0, x)
+        c = user("initial_state of the controller", t0, x, controller.initial_state, t0, x)
     except NumericalFailure as err:
         raise DivergenceError(t0, mode, err.cause) from err
 
@@ -522,7 +529,7 @@ def simulate_sampled(
         if bad is not None:
             raise DivergenceError(t, mode, f"plant state {bad!r} is NaN")
         try:
-            v, c = controller.measure(t, x, c)
+            v, c = user("measure of the controller", t, x, controller.measure, t, x, c)
             if len(v) != n_vars:
                 automaton.check_signals(v)
             bad = _first_nan(v, automaton.variables)
@@ -536,7 +543,7 @@ def simulate_sampled(
                 j = fired[-1].jump
             mode, memory = instant.mode, instant.memory
             # --- control --------------------------------------------------------------
-            u, c, row = controller.control(t, x, c, v, mode, memory)
+            u, c, row = user("control of the controller", t, x, controller.control, t, x, c, v, mode, memory)
             bad = _first_nan(u, plant.input_names)
             if bad is not None:
                 raise NumericalFailure(f"input {bad!r} is NaN")
@@ -551,13 +558,13 @@ def simulate_sampled(
         records.append(row)
         previous = v
         if stop is not None:
-            reason = stop(t, x, c, v, mode, memory)
+            reason = user("stop condition", t, x, stop, t, x, c, v, mode, memory)
             if reason:
                 termination = reason
                 break
         if k + 1 < n_samples:
             try:
-                x = plant.flow(x, u, period)
+                x = user("flow of the plant", t, x, plant.flow, x, u, period)
             except NumericalFailure as err:
                 raise DivergenceError(t, mode, err.cause) from err
 

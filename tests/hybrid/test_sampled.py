@@ -170,3 +170,30 @@ def test_nan_guard_is_an_error_not_a_disabled_transition():
     )
     with pytest.raises(ExecutionError, match=r"at t = 0 s in mode 'up': guard of transition 'top'.*is NaN at signals \(0.0,\)"):
         simulate_sampled(broken, integrator_plant(), Follow(), (0.0,), period=PERIOD, duration=1.0)
+
+
+@pytest.mark.parametrize("where, what", [("measure", "measure of the controller"),
+                                         ("control", "control of the controller"),
+                                         ("flow", "flow of the plant"), ("stop", "stop condition")])
+def test_an_exception_in_the_users_loop_names_the_function_mode_time_and_state(where, what):
+    from hybrid.errors import UserFunctionError
+
+    def boom(*args):
+        raise ZeroDivisionError("float division by zero")
+
+    class Broken(Follow):
+        def measure(self, t, x, c):
+            return boom() if where == "measure" and t >= 0.5 else super().measure(t, x, c)
+
+        def control(self, t, x, c, v, mode, memory):
+            return boom() if where == "control" and t >= 0.5 else super().control(t, x, c, v, mode, memory)
+
+    plant = integrator_plant()
+    if where == "flow":
+        plant = Plant(state_names=("x",), input_names=("u",), derivative=lambda x, u: (u[0],),
+                      exact_flow=lambda x, u, dt: boom() if x[0] >= 0.5 else (x[0] + u[0] * dt,))
+    stop = (lambda t, x, c, v, mode, m: boom() if t >= 0.5 else None) if where == "stop" else None
+    with pytest.raises(UserFunctionError, match=rf"^system 'sawtooth': {what} raised ZeroDivisionError: float "
+                                                r"division by zero in mode 'up' at t = 0\.5 s, x = \(x=0\.5\)") as info:
+        simulate_sampled(sawtooth_automaton(), plant, Broken(), (0.0,), period=PERIOD, duration=2.0, stop=stop)
+    assert isinstance(info.value.__cause__, ZeroDivisionError)
