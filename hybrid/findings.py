@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from .errors import ExecutionError, ModelDefinitionError
+from .errors import ExecutionError, ModelDefinitionError, UserFunctionError
 from .model import HybridAutomaton, Transition, refuse_bool
 from .region import Box
 from .system import HybridSystem
@@ -178,6 +178,9 @@ class _Oracle:
         return text
 
     def _raised(self, what: str, x: Sequence[float], m: Mapping[str, float], err: Exception) -> ExecutionError:
+        # the system's methods already wrap the user's exception (UserFunctionError): name the original once
+        if isinstance(err, UserFunctionError) and isinstance(err.__cause__, Exception):
+            err = err.__cause__
         return ExecutionError(
             f"check of {self.what}: {what} raised {type(err).__name__}: {err} at {self.where(x, m)}; "
             "the structural checks evaluate it all over the declared Box: make it total there or shrink the Box"

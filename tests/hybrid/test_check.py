@@ -598,3 +598,13 @@ def test_capped_cycle_enumeration_is_the_same_in_every_process():
     assert len(outputs) == 1
     (message,) = json.loads(outputs.pop())
     assert message.startswith("15+ cycles of the mode graph")
+
+
+def test_a_flow_that_raises_is_named_once_with_the_original_exception():
+    model = thermostat()
+    broken = HybridSystem(automaton=model.automaton, state_names=("T",),
+                          flows={"off": lambda t, x, m: (1.0 / 0.0,), "on": model.flows["on"]})
+    with pytest.raises(ExecutionError, match=r"flow of mode 'off' raised ZeroDivisionError: float division by zero "
+                                             r"at x = \(T=") as info:
+        check(broken, THERMO_BOX, samples=SAMPLES)
+    assert "UserFunctionError" not in str(info.value) and str(info.value).count(" raised ") == 1
