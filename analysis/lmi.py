@@ -372,6 +372,10 @@ class PiecewiseQuadraticLMI:
 
 def _matrix(value: Any, parameter: str, *, columns: int | None = None) -> np.ndarray:
     """A finite float matrix: square when ``columns`` is ``None``, else ``(r, columns)``."""
+    raw = np.asarray(value) if not isinstance(value, (str, bytes)) else None
+    if raw is not None and np.iscomplexobj(raw):
+        raise LmiError(parameter, "complex", "a matrix of real numbers",
+                       "give the real matrix of the mode (complex entries would be cut to their real parts)")
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -423,13 +427,17 @@ def _names(names: Any, count: int, prefix: str, parameter: str = "names") -> tup
     return labels
 
 
+_SDP_SOLVERS = frozenset({"CLARABEL", "SCS", "MOSEK", "CVXOPT", "SDPA", "COPT"})
+"""cvxpy solvers that take semidefinite constraints (an LP/QP solver such as HiGHS or OSQP cannot)."""
+
+
 def _solvers(solver: Any) -> tuple[str, ...]:
     if solver is None:
         return SOLVERS
     chosen = (solver,) if isinstance(solver, str) else tuple(solver)
     import cvxpy as cp
 
-    installed = set(cp.installed_solvers())
+    installed = set(cp.installed_solvers()) & _SDP_SOLVERS
     if not chosen or not all(isinstance(s, str) and s.upper() in installed for s in chosen):
         raise LmiError("solver", solver, f"None or names of installed SDP solvers {sorted(installed)}",
                        "leave solver=None (Clarabel, then SCS)")

@@ -374,6 +374,11 @@ BAD = [
     (lambda: common_quadratic_lyapunov_lmi([-np.eye(2)] * 2, ["a"]), "names", r"\('a',\)", "2 strings"),
     (lambda: common_quadratic_lyapunov_lmi([-np.eye(2)] * 2, ["a", "a"]), "names", r"\('a', 'a'\)", "distinct"),
     (lambda: common_quadratic_lyapunov_lmi([-np.eye(2)], solver="NOPE"), "solver", "'NOPE'", "installed SDP"),
+    # an LP/QP solver cvxpy has installed cannot take the semidefinite constraints: refused, not tried
+    (lambda: common_quadratic_lyapunov_lmi([-np.eye(2)], solver="OSQP"), "solver", "'OSQP'", "installed SDP"),
+    # complex entries would silently lose their imaginary parts in a float conversion
+    (lambda: common_quadratic_lyapunov_lmi([np.array([[1j, 0.0], [0.0, -1.0]])]), "family[0]", "'complex'",
+     "a matrix of real numbers"),
     (lambda: dwell_time_lyapunov([-np.eye(2)], rel_tol=2.0), "rel_tol", "2.0", r"a number in \(0, 1\)"),
     (lambda: piecewise_quadratic_lyapunov([]), "cells", "'empty'", "a non-empty sequence"),
     (lambda: piecewise_quadratic_lyapunov([(-np.eye(2), np.ones((1, 3)))]), "cells[0].E", r"\(1, 3\)",
