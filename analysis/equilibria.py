@@ -42,6 +42,7 @@ import numpy as np
 from hybrid import HybridSystem
 from hybrid.errors import ParameterError
 from hybrid.jsonable import to_jsonable
+from hybrid.system import state_vector
 
 from analysis.derivatives import mode_vector_field
 from analysis.eigen import EigenMode, eigen_modes
@@ -115,11 +116,7 @@ def _newton(field: Any, x0: np.ndarray, tol: float, max_iterations: int) -> tupl
 
 
 def _point(name: str, value: Sequence[float], n: int, states: Sequence[str]) -> np.ndarray:
-    x = np.asarray(value, dtype=float).reshape(-1)
-    if x.size != n or not np.all(np.isfinite(x)):
-        raise ParameterError(name, tuple(np.asarray(value).reshape(-1).tolist()),
-                             f"{n} finite values ({', '.join(states)})", "give one value per state")
-    return x
+    return state_vector(name, value, states)
 
 
 def _classify(system: HybridSystem, mode: str, x: np.ndarray, memory: Mapping[str, float],

@@ -114,6 +114,7 @@ from analysis.sublevel import (
 )
 from hybrid import Conjunction, HybridSystem
 from hybrid.errors import ParameterError
+from hybrid.system import state_vector
 
 __all__ = [
     "MODE_REGION_FORMAT",
@@ -437,16 +438,7 @@ def _check_system_mode(system: Any, mode: Any) -> None:
 
 
 def _point(name: str, value: Any, system: HybridSystem) -> np.ndarray:
-    n = system.dimension
-    try:
-        x = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, f"{n} finite values ({', '.join(system.state_names)})",
-                             "give one number per state") from None
-    if x.size != n or not np.all(np.isfinite(x)):
-        raise ParameterError(name, tuple(x.tolist()), f"{n} finite values ({', '.join(system.state_names)})",
-                             "give one finite number per state")
-    return x
+    return state_vector(name, value, system.state_names)
 
 
 def _memory(system: HybridSystem, memory: Mapping[str, float] | None) -> dict[str, float]:

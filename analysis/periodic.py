@@ -86,6 +86,7 @@ from hybrid.diagnostics import estimate_zeno
 from hybrid.errors import DivergenceError, ExecutionError, ParameterError, ZenoError, format_named_state, format_time
 from hybrid.jsonable import to_jsonable
 from hybrid.model import Conjunction, Transition
+from hybrid.system import state_vector
 
 from analysis.derivatives import DifferentiableMap, VectorField, differentiable_map, mode_vector_field
 
@@ -678,15 +679,7 @@ def _section(system: Any, section: Any) -> Transition:
 
 
 def _state(system: HybridSystem, name: str, value: Any) -> np.ndarray:
-    try:
-        x = np.asarray(value, dtype=float).reshape(-1)
-        shown: Any = tuple(x.tolist())
-    except (TypeError, ValueError):
-        x, shown = np.array([math.nan]), value
-    if x.size != system.dimension or not np.all(np.isfinite(x)):
-        raise PeriodicOrbitError(name, shown, f"{system.dimension} finite values ({', '.join(system.state_names)})",
-                                 "give one finite value per state, in the order of system.state_names")
-    return x
+    return state_vector(name, value, system.state_names, error=PeriodicOrbitError)
 
 
 def _memory(system: HybridSystem, memory: Mapping[str, float] | None) -> dict[str, float]:

@@ -52,6 +52,7 @@ from hybrid import Box, HybridSystem
 from hybrid.affine import NotAffine, SystemAffinity, system_affinity
 from hybrid.errors import ExecutionError, ModelDefinitionError, ParameterError
 from hybrid.jsonable import to_jsonable
+from hybrid.system import state_vector
 
 from analysis.derivatives import mode_vector_field
 from analysis.equilibria import ModeEquilibrium, mode_equilibria
@@ -527,6 +528,7 @@ def analyse_stability(
     if section is not None and section not in names:
         raise ParameterError("section", section, f"one of the transitions {names}", "name the transition whose "
                              "guard is the Poincaré section")
+    initial_state = tuple(state_vector("initial_state", initial_state, system.state_names).tolist())
     mem = dict(system.automaton.initial_memory() if memory is None else memory)
     equilibria = mode_equilibria(system, guess=initial_state, memory=mem)
     claims = _equilibrium_claims(equilibria)

@@ -52,17 +52,20 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
+import numpy as np
+
 from .errors import (
     DivergenceError,
     ExecutionError,
     ModelDefinitionError,
     NumericalFailure,
+    ParameterError,
     UserFunctionError,
     format_time,
 )
 from .model import _BOOL_TYPES, HybridAutomaton, Transition, refuse_bool
 
-__all__ = ["FlowMap", "JumpMap", "OutputMap", "HybridSystem", "call_user", "real_value", "format_state"]
+__all__ = ["FlowMap", "JumpMap", "OutputMap", "HybridSystem", "call_user", "real_value", "format_state", "state_vector"]
 
 PASSED_THROUGH: tuple[type[BaseException], ...] = (NumericalFailure, UserFunctionError, DivergenceError)
 """Exceptions that :func:`call_user` lets through unchanged (see the module docstring)."""
@@ -398,6 +401,51 @@ def call_user(fn: Callable[..., Any], args: Sequence[Any], *, function: str, mod
     except Exception as err:
         raise UserFunctionError(function, err, mode=mode, time=time, state=_state_or_none(state),
                                 state_names=state_names, system=system) from err
+
+
+def state_vector(name: str, value: Any, state_names: Sequence[str], *,
+                 error: type[ParameterError] = ParameterError) -> np.ndarray:
+    """A state given by a caller as a float array of shape ``(n,)``: one finite real number per state.
+
+    The one validation of a state-valued parameter (an initial state, a guess, an equilibrium).
+    Strings, bools, complex numbers, ``None``, a wrong length and NaN/inf are refused.
+
+    Parameters
+    ----------
+    name : str
+        The parameter's name, for the message.
+    value : sequence of float, shape (n,)
+    state_names : sequence of str, length n
+    error : type
+        The :class:`~hybrid.errors.ParameterError` subclass to raise.
+
+    Raises
+    ------
+    ParameterError
+        (or ``error``) naming the parameter, the value, the states expected and the fix.
+
+    Examples
+    --------
+    >>> state_vector("guess", (1, 2.5), ("x", "y")).tolist()
+    [1.0, 2.5]
+    >>> state_vector("guess", "12", ("x", "y"))
+    Traceback (most recent call last):
+    ...
+    hybrid.errors.ParameterError: guess = '12': expected 2 finite values (x, y); fix: give one number per state, in the order of the state names
+    """
+    expected = f"{len(state_names)} finite values ({', '.join(state_names)})"
+    fix = "give one number per state, in the order of the state names"
+    items = None if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") else list(value)
+    if items is None or any(isinstance(c, _BOOL_TYPES) or isinstance(c, complex) or np.iscomplexobj(c)
+                            for c in items):
+        raise error(name, value, expected, fix)
+    try:
+        x = np.asarray(items, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise error(name, value, expected, fix) from None
+    if x.size != len(state_names) or len(items) != len(state_names) or not np.all(np.isfinite(x)):
+        raise error(name, tuple(x.tolist()), expected, fix)
+    return x
 
 
 def real_value(value: Any, what: str, mode: str | None, t: float, x: Sequence[float]) -> float:

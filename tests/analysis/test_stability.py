@@ -52,7 +52,7 @@ def test_bad_input():
         analyse_stability(thermostat().system, initial_state=(20.0,), section="nope")
     with pytest.raises(ParameterError, match=r"^horizon = 0"):
         analyse_stability(thermostat().system, initial_state=(20.0,), horizon=0)
-    with pytest.raises(ParameterError, match=r"^guess = \(1\.0, 2\.0\)"):
+    with pytest.raises(ParameterError, match=r"^initial_state = \(1\.0, 2\.0\): expected 1 finite values \(T\)"):
         analyse_stability(thermostat().system, initial_state=(1.0, 2.0))
 
 
