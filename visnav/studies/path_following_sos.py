@@ -122,6 +122,7 @@ from analysis.sublevel import (
     recheck_bound,
     recheck_sublevel,
 )
+from hybrid.errors import ParameterError
 from hybrid.jsonable import to_jsonable
 
 from visnav import model
@@ -1275,6 +1276,20 @@ def _claims(result_region: CertifiedRegion, bypass: Sequence[SosEntryBounds], ad
     return tuple(out)
 
 
+def _entry_angles(value: Any) -> tuple[float, ...]:
+    """The distinct entry angles [rad], sorted: finite, inside the strip ``|α| < ALPHA_BOX_FRACTION·π``."""
+    limit = ALPHA_BOX_FRACTION * math.pi
+    expected = f"a non-empty sequence of finite angles [rad] with |alpha| < {limit:.6g}"
+    fix = "give the entry angle(s), e.g. from loop_analysis.entry_angles_from_simulation"
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise ParameterError("entry_angles", value, expected, fix)
+    items = list(value)
+    if not items or any(isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a)
+                        or abs(a) >= limit for a in items):
+        raise ParameterError("entry_angles", value if not items else tuple(items), expected, fix)
+    return tuple(sorted({round(float(a), 12) for a in items}))
+
+
 def path_following_sos(scenario: Any, *, entry_angles: Sequence[float], clearance_m: float | None = None,
                        degree: int = DEFAULT_DEGREE, scan: bool = True,
                        prove_intervals: bool = False) -> PathFollowingSos:
@@ -1297,16 +1312,19 @@ def path_following_sos(scenario: Any, *, entry_angles: Sequence[float], clearanc
 
     Raises
     ------
+    ParameterError
+        (a ``ValueError``) no entry angle, an angle that is not finite or outside the strip, a degree
+        that is not an even integer >= 2.
     ValueError
-        No entry angle; a clearance not in ``[0, d0)``.
+        A clearance not in ``[0, d0)``.
     """
     from visnav.parameters import PATH_CLEARANCE_M
 
     clearance = PATH_CLEARANCE_M if clearance_m is None else float(clearance_m)
     env, gains, limits = scenario.envelopes, scenario.gains, scenario.limits
-    angles = tuple(sorted({round(float(a), 12) for a in entry_angles}))
-    if not angles:
-        raise ValueError("path_following_sos: entry_angles is empty; give the entry angle(s) [rad]")
+    angles = _entry_angles(entry_angles)
+    if isinstance(degree, bool) or not isinstance(degree, int) or degree < 2 or degree % 2:
+        raise ParameterError("degree", degree, "an even integer >= 2", "use 4 (the default) or 2")
     if not 0.0 <= clearance < env.d_zero_m:
         raise ValueError(f"path_following_sos: clearance_m = {clearance!r}; expected 0 <= clearance < d0 = "
                          f"{env.d_zero_m} m")

@@ -159,3 +159,20 @@ def test_k_interval_certificates_prove_every_gain_between_two(scenario):
     assert piece["proven"], piece["why"]
     assert result.interval_proven and result.continuous_interval == (3.5, 4.0)
     assert "every k in it" in result.finding
+
+
+@pytest.mark.parametrize("kwargs, pattern", [
+    ({"entry_angles": []}, r"^entry_angles = \[\]: expected a non-empty sequence of finite angles"),
+    ({"entry_angles": None}, r"^entry_angles = None: expected a non-empty sequence"),
+    ({"entry_angles": "ab"}, r"^entry_angles = 'ab': expected"),
+    ({"entry_angles": [math.nan]}, r"^entry_angles = \(nan,\): expected .*finite angles"),
+    ({"entry_angles": [3.1]}, r"^entry_angles = \(3\.1,\): expected .*\|alpha\| < 2\.98451"),
+    ({"entry_angles": [True]}, r"^entry_angles = \(True,\): expected"),
+    ({"entry_angles": [-0.5], "degree": "4"}, r"^degree = '4': expected an even integer >= 2"),
+    ({"entry_angles": [-0.5], "degree": 3}, r"^degree = 3: expected an even integer >= 2"),
+])
+def test_bad_arguments_are_refused_before_any_work(scenario, kwargs, pattern):
+    from hybrid.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=pattern):
+        path_following_sos(scenario, scan=False, **kwargs)
