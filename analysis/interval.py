@@ -54,8 +54,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from collections.abc import Collection, Mapping
 from fractions import Fraction
 from numbers import Rational
+from typing import Any
 
 __all__ = [
     "TRIG_WIDENING_ULPS",
@@ -67,6 +69,7 @@ __all__ = [
     "mul_bounds",
     "div_bounds",
     "sqrt_bounds",
+    "box_bounds",
 ]
 
 TRIG_WIDENING_ULPS = 2
@@ -533,3 +536,48 @@ def _trig(iv: Interval, func, *, phase: float) -> Interval:
     elif -_HALF_PI <= lo and hi <= _HALF_PI:  # cosine
         out_lo = max(out_lo, 0.0)
     return Interval(out_lo, out_hi)
+
+
+def box_bounds(parameter: str, box: Any, *, error: type[ValueError], allow_flat: bool = False,
+               variables: Collection[str] | None = None,
+               fix: str = "bound every variable") -> dict[str, tuple[float, float]]:
+    """A box ``{variable: (lo, hi)}`` given by a caller, checked: the one validation of such a parameter.
+
+    Parameters
+    ----------
+    parameter : str
+        Its name in messages (``box``, ``region``).
+    box : Mapping[str, (float, float)]
+    error : type
+        A :class:`hybrid.errors.ParameterError` subclass, called as ``error(name, value, expected, fix)``.
+    allow_flat : bool
+        Accept ``lo == hi`` (a fixed value) instead of asking for an interior.
+    variables : collection of str or None
+        The names allowed (``None``: any).
+    fix : str
+        The fix of an empty or non-mapping box.
+
+    Returns
+    -------
+    dict of str -> (float, float)
+        Finite bounds ``lo <= hi`` (``lo < hi`` unless ``allow_flat``), in the box's order.
+    """
+    if not isinstance(box, Mapping) or not box:
+        raise error(parameter, box, "a non-empty mapping {variable: (lo, hi)}", fix)
+    out = {}
+    for name, pair in box.items():
+        if variables is not None and name not in variables:
+            raise error(parameter, name, f"a variable among {list(variables)}", "bound only declared variables")
+        where = f"{parameter}[{name!r}]"
+        try:
+            lo, hi = (float(x) for x in pair)
+        except (TypeError, ValueError):
+            raise error(where, pair, "a pair (lo, hi) of numbers", "give two numbers") from None
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise error(where, pair, "finite bounds", "bound the variable")
+        if lo > hi:
+            raise error(where, pair, "lo <= hi", f"swap the bounds: ({hi}, {lo})")
+        if lo == hi and not allow_flat:
+            raise error(where, pair, "lo < hi (a box with interior)", "widen the range")
+        out[str(name)] = (lo + 0.0, hi + 0.0)
+    return out

@@ -83,6 +83,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.sparse as sparse
 
+from analysis.interval import box_bounds
 from analysis.polynomial import Atom, Polynomial
 from hybrid.errors import ParameterError
 
@@ -992,24 +993,7 @@ def box_moments(box: Mapping[str, tuple[float, float]], monomials: Sequence[Expo
 
 
 def _check_box(box: Mapping[str, tuple[float, float]], variables: Sequence[str]) -> dict[str, tuple[float, float]]:
-    if not isinstance(box, Mapping) or not box:
-        raise SosError("box", box, "a non-empty mapping {variable: (lo, hi)}", "bound each variable of the region")
-    out = {}
-    for name, pair in box.items():
-        if name not in variables:
-            raise SosError("box", name, f"a variable among {list(variables)}", "bound only declared variables")
-        try:
-            lo, hi = (float(x) for x in pair)
-        except (TypeError, ValueError):
-            raise SosError(f"box[{name!r}]", pair, "a pair (lo, hi)", "give two numbers") from None
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            raise SosError(f"box[{name!r}]", pair, "finite bounds", "bound the variable")
-        if lo > hi:
-            raise SosError(f"box[{name!r}]", pair, "lo <= hi", f"swap the bounds: ({hi}, {lo})")
-        if lo == hi:
-            raise SosError(f"box[{name!r}]", pair, "lo < hi (a box with interior)", "widen the range")
-        out[str(name)] = (lo, hi)
-    return out
+    return box_bounds("box", box, error=SosError, variables=variables, fix="bound each variable of the region")
 
 
 def _box_set(box: Mapping[str, tuple[float, float]], variables: tuple[str, ...]) -> SemialgebraicSet:

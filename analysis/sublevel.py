@@ -113,7 +113,7 @@ from typing import Any
 import numpy as np
 
 from analysis.certificate import _compile, _enclose, covers
-from analysis.interval import Interval, IntervalDomainError
+from analysis.interval import Interval, IntervalDomainError, box_bounds
 from analysis.polynomial import Atom, Polynomial
 from hybrid.errors import ParameterError
 
@@ -649,23 +649,8 @@ def enclose_batch(poly: Polynomial, region: Mapping[str, tuple[float, float]], l
 
 def _check_region(region: Mapping[str, tuple[float, float]], *, flat_ok: bool = False,
                   ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-    if not isinstance(region, Mapping) or not region:
-        raise SublevelError("region", region, "a non-empty mapping {variable: (lo, hi)}", "bound every variable")
-    names, lo, hi = [], [], []
-    for name, pair in region.items():
-        try:
-            a, b = (float(x) for x in pair)
-        except (TypeError, ValueError):
-            raise SublevelError(f"region[{name!r}]", pair, "a pair (lo, hi) of numbers", "give two numbers") from None
-        if not (math.isfinite(a) and math.isfinite(b)):
-            raise SublevelError(f"region[{name!r}]", pair, "finite bounds", "bound the variable")
-        if a > b or (a == b and not flat_ok):
-            raise SublevelError(f"region[{name!r}]", pair, "lo <= hi" if flat_ok else "lo < hi",
-                                "swap or widen the bounds")
-        names.append(str(name))
-        lo.append(a + 0.0)
-        hi.append(b + 0.0)
-    return tuple(names), np.array(lo), np.array(hi)
+    bounds = box_bounds("region", region, error=SublevelError, allow_flat=flat_ok)
+    return (tuple(bounds), np.array([lo for lo, _ in bounds.values()]), np.array([hi for _, hi in bounds.values()]))
 
 
 def _check_budget(max_boxes: int, min_width: float) -> None:
