@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 
 from hybrid.jsonable import float_from_json, to_jsonable
-from hybrid.errors import DivergenceError, ExecutionError, NumericalFailure, ParameterError, ZenoError
+from hybrid.errors import (DivergenceError, ExecutionError, NumericalFailure, ParameterError, UserFunctionError,
+                           ZenoError)
 
 from analysis.stl import SignalTrace, TraceError
 from analysis.verification import InvalidPoint, VerificationProblem
@@ -58,6 +59,8 @@ __all__ = [
     "Outcome",
     "Evaluation",
     "evaluate",
+    "run_end",
+    "COMPLETE_ENDS",
     "monte_carlo_unit",
     "Search",
     "falsify",
@@ -66,10 +69,20 @@ __all__ = [
 METHODS = ("guided", "monte-carlo", "dual-annealing")
 GUIDED_SHARES = (0.5, 0.4)
 """Shares of the budget for the hypothesis search and the polish; the rest shrinks."""
-STATUSES = ("ok", "invalid", "diverged", "zeno")
-"""``ok``: simulated and evaluated; ``invalid``: outside the problem's hypotheses (skipped);
-``diverged``: the numerics broke down (time, mode, cause in ``detail``); ``zeno``: too many
-jumps at one instant."""
+STATUSES = ("ok", "incomplete", "invalid", "diverged", "zeno", "error")
+"""How a simulation ended.  ``ok``: it covered the horizon (or ended on a stop the problem declares
+final) and every requirement was evaluated; ``incomplete``: it ended early without a fault (Zeno,
+a deadlock, a jump limit, chatter, a stop condition not declared final, a trace shorter than the
+horizon: ``end`` and ``end_time`` say how and when); ``invalid``: outside the problem's hypotheses
+(skipped); ``diverged``: the numerics broke down (time, mode, cause in ``detail``); ``zeno``: the
+executor raised on too many jumps at one instant; ``error``: the model's own code raised or returned
+garbage (``detail`` and ``traceback``).  On an ``incomplete`` run each requirement is judged on the
+trace cut short (:meth:`analysis.stl.Formula.prefix_satisfied`): decided when every continuation
+agrees, undecided (``None``) otherwise; never passed on a window that reaches past the end."""
+
+COMPLETE_ENDS = ("end_time",)
+"""Terminations that mean the run covered its horizon; ``final:<reason>`` (a stop the problem declares
+final) counts too, and ``None`` (the simulator did not say) when the trace reaches the horizon."""
 
 _FINITE = 1e300
 
@@ -102,12 +115,42 @@ def _failed(point: Mapping[str, float], message: str, text: str) -> SimulationFa
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class Outcome:
-    """What one simulation gave: a status and, when ``ok``, every requirement's robustness and truth value."""
+    """What one simulation gave: a status (:data:`STATUSES`) and every requirement's robustness and truth value.
+
+    Attributes
+    ----------
+    status : str
+    robustness : tuple of float
+        Per requirement, on the trace as simulated (empty when no trace came back); on a run that
+        ended early, the robustness of the prefix (a search heuristic, not a verdict).
+    satisfied : tuple of bool or None
+        Per requirement: its truth value, ``None`` when the run ended before deciding it.
+    detail : str
+        Why the run is not ``ok`` (the cause, the time, the mode).
+    end : str
+        How the run ended (``"end_time"``, ``"final:success"``, ``"zeno"``, ...); empty when unknown.
+    end_time : float or None
+        When it ended [s] (the trace's last sample).
+    traceback : str
+        The model's own traceback, for ``error``.
+    """
 
     status: str
     robustness: tuple[float, ...] = ()
-    satisfied: tuple[bool, ...] = ()
+    satisfied: tuple[bool | None, ...] = ()
     detail: str = ""
+    end: str = ""
+    end_time: float | None = None
+    traceback: str = ""
+
+    @property
+    def evaluated(self) -> bool:
+        """Whether the requirements were evaluated on a trace (complete or cut short)."""
+        return bool(self.robustness)
+
+    def decided(self, r: int) -> bool:
+        """Whether requirement ``r`` was decided by this run."""
+        return self.evaluated and self.satisfied[r] is not None
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -131,22 +174,28 @@ class Evaluation:
     outcome: Outcome
 
     def violates(self, r: int) -> bool:
-        """Whether requirement ``r`` is violated here (boolean semantics)."""
-        return self.outcome.status == "ok" and not self.outcome.satisfied[r]
+        """Whether requirement ``r`` is violated here, decided (boolean semantics; every continuation of a
+        run that ended early violates it too)."""
+        return self.outcome.evaluated and self.outcome.satisfied[r] is False
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready (infinite robustness as ``"inf"``/``"-inf"``, read back by :meth:`from_dict`)."""
         o = self.outcome
         return to_jsonable({"index": self.index, "phase": self.phase, "unit": list(self.unit), "status": o.status,
-                            "robustness": list(o.robustness), "satisfied": list(o.satisfied), "detail": o.detail},
+                            "robustness": list(o.robustness), "satisfied": list(o.satisfied), "detail": o.detail,
+                            "end": o.end, "end_time": o.end_time, "traceback": o.traceback},
                            nonfinite="string")
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Evaluation:
         """Inverse of :meth:`as_dict` (values as :func:`hybrid.jsonable.float_from_json` reads them)."""
+        end_time = data.get("end_time")
         outcome = Outcome(status=str(data["status"]),
                           robustness=tuple(float_from_json(v, where="robustness") for v in data["robustness"]),
-                          satisfied=tuple(bool(v) for v in data["satisfied"]), detail=str(data["detail"]))
+                          satisfied=tuple(None if v is None else bool(v) for v in data["satisfied"]),
+                          detail=str(data["detail"]), end=str(data.get("end", "")),
+                          end_time=None if end_time is None else float_from_json(end_time, where="end_time"),
+                          traceback=str(data.get("traceback", "")))
         return cls(index=int(data["index"]), phase=str(data["phase"]),
                    unit=tuple(float(v) for v in data["unit"]), outcome=outcome)
 
@@ -154,10 +203,14 @@ class Evaluation:
 def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
     """Simulate ``problem`` at unit coordinates ``unit`` and evaluate every requirement.
 
+    The status says how the run ended (:data:`STATUSES`); a run that ended before its horizon is
+    judged on its prefix, each requirement decided only when every continuation would agree.
+
     Raises
     ------
     SimulationFailed
-        The simulator raised something else than :class:`InvalidPoint`, a divergence or a Zeno error.
+        The simulator returned something else than a :class:`~analysis.stl.SignalTrace`, or a formula
+        could not be evaluated on it (a signal missing, a non-finite value).
     """
     point = problem.point(unit)
     try:
@@ -165,23 +218,69 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
     except InvalidPoint as error:
         return Outcome(status="invalid", detail=str(error))
     except ZenoError as error:
-        return Outcome(status="zeno", detail=str(error))
+        return Outcome(status="zeno", detail=str(error), end="zeno")
     except (DivergenceError, NumericalFailure) as error:
-        return Outcome(status="diverged", detail=str(error))
-    except ExecutionError as error:
-        return Outcome(status="diverged", detail=f"{type(error).__name__}: {error}")
-    except Exception as error:  # the user's own code: their traceback is reported
-        raise SimulationFailed(point, error) from error
+        return Outcome(status="diverged", detail=str(error), end="diverged")
+    except UserFunctionError as error:
+        return _model_error(error, error.__cause__ or error)
+    except ExecutionError as error:  # a model function returned NaN, a bool, the wrong shape
+        return _model_error(error, error)
+    except Exception as error:  # the user's simulator itself raised: their traceback is kept
+        return _model_error(error, error)
     if not isinstance(trace, SignalTrace):
         error = TypeError(f"simulate(point) returned a {type(trace).__name__}: expected an analysis.stl.SignalTrace "
                           "(build it with SignalTrace(times=..., signals={...}, labels={...}))")
         raise SimulationFailed(point, error)
     try:
-        rho = tuple(float(r.formula.robustness(trace)) for r in problem.parsed)
-        sat = tuple(bool(r.formula.satisfied(trace)) for r in problem.parsed)
+        return _judge(problem, trace)
     except TraceError as error:
         raise SimulationFailed(point, error) from error
-    return Outcome(status="ok", robustness=rho, satisfied=sat)
+
+
+_TRACEBACK_LIMIT = 8000
+"""Characters of a model's traceback kept in an outcome (its last lines: where it raised)."""
+
+
+def _model_error(error: BaseException, original: BaseException) -> Outcome:
+    text = "".join(traceback.format_exception(type(original), original, original.__traceback__))
+    try:
+        message = f"{type(error).__name__}: {error}"
+    except Exception:  # an exception whose __str__ raises
+        message = f"{type(error).__name__} (its message could not be rendered)"
+    return Outcome(status="error", detail=message, end="error", traceback=text[-_TRACEBACK_LIMIT:])
+
+
+def run_end(problem: VerificationProblem, trace: SignalTrace) -> tuple[bool, str, str]:
+    """``(complete, end, why)``: whether ``trace`` covers the problem's horizon, how it ended, and why not.
+
+    Complete: the simulator says ``end_time`` or a final stop (``final:<reason>``) and the trace is not
+    shorter than the horizon, or it says nothing and the trace reaches the horizon.
+    """
+    end_time = float(trace.times[-1])
+    start = float(trace.times[0])
+    reached = end_time - start >= problem.horizon * (1.0 - 1e-9) - 1e-12
+    said = trace.termination
+    if said is not None and said.startswith("final:"):
+        return True, said, ""
+    if reached and (said is None or said in COMPLETE_ENDS):
+        return True, said or "end_time", ""
+    if said is None or said in COMPLETE_ENDS:
+        return False, "short", (f"the trace ends at t = {end_time:.6g} s, before the horizon "
+                                f"{start + problem.horizon:.6g} s")
+    why = trace.termination_detail or f"the run ended ({said or 'short trace'}) at t = {end_time:.6g} s"
+    return False, said or "short", why
+
+
+def _judge(problem: VerificationProblem, trace: SignalTrace) -> Outcome:
+    complete, end, why = run_end(problem, trace)
+    rho = tuple(float(r.formula.robustness(trace)) for r in problem.parsed)
+    end_time = float(trace.times[-1])
+    if complete:
+        sat = tuple(bool(r.formula.satisfied(trace)) for r in problem.parsed)
+        return Outcome(status="ok", robustness=rho, satisfied=sat, end=end, end_time=end_time)
+    sat = tuple(r.formula.prefix_satisfied(trace) for r in problem.parsed)
+    status = {"diverged": "diverged", "error": "error"}.get(end, "incomplete")
+    return Outcome(status=status, robustness=rho, satisfied=sat, detail=why, end=end, end_time=end_time)
 
 
 def monte_carlo_unit(problem: VerificationProblem, seed: int, index: int) -> tuple[float, ...]:
@@ -273,7 +372,7 @@ def _hypothesis_round(search: Search, open_: Sequence[int], seed: int, limit: in
             e = search.run(unit, "search", limit)
         except _Exhausted:
             return
-        if e.outcome.status != "ok":
+        if not e.outcome.evaluated:
             return
         for r, name in enumerate(names):
             target(-_finite(e.outcome.robustness[r]), label=name)
@@ -315,7 +414,7 @@ def _guided_search(search: Search, seed: int, falsified: dict[int, tuple[tuple[f
 def _gradient(search: Search, r: int, x: np.ndarray, limit: int, step: float) -> tuple[np.ndarray, float]:
     """Forward differences of requirement ``r``'s robustness at ``x`` (steps towards the interior)."""
     base = search.run(x, "polish", limit)
-    rho = _finite(base.outcome.robustness[r]) if base.outcome.status == "ok" else _FINITE
+    rho = _finite(base.outcome.robustness[r]) if base.outcome.evaluated else _FINITE
     g = np.zeros(x.size)
     for i in range(x.size):
         h = step if x[i] + step <= 1.0 else -step
@@ -324,7 +423,7 @@ def _gradient(search: Search, r: int, x: np.ndarray, limit: int, step: float) ->
         e = search.run(trial, "polish", limit)
         if e.violates(r):
             raise _Violated(e.unit)
-        if e.outcome.status == "ok":
+        if e.outcome.evaluated:
             g[i] = (_finite(e.outcome.robustness[r]) - rho) / h
     return g, rho
 
@@ -344,7 +443,7 @@ def _descend(search: Search, r: int, start: tuple[float, ...], limit: int) -> No
             e = search.run(trial, "polish", limit)
             if e.violates(r):
                 raise _Violated(e.unit)
-            if e.outcome.status == "ok" and e.outcome.robustness[r] < rho:
+            if e.outcome.evaluated and e.outcome.robustness[r] < rho:
                 x = np.array(e.unit)
                 break
         else:
@@ -428,7 +527,7 @@ def _dual_annealing(search: Search, seed: int, falsified: Mapping[int, Any]) -> 
 
     def objective(u: np.ndarray) -> float:
         e = search.run(np.clip(u, -1.0, 1.0), "dual-annealing")
-        if e.outcome.status != "ok":
+        if not e.outcome.evaluated:
             return _FINITE
         return min(_finite(e.outcome.robustness[r]) for r in open_)
 

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Collection, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -201,6 +201,19 @@ def trace_from_sampled(trace: SampledTrace) -> SignalTrace:
                        jumps=np.asarray(jumps, dtype=int))
 
 
+def _ended(trace: SignalTrace, termination: str, detail: str, final_stops: Sequence[str]) -> SignalTrace:
+    """``trace`` saying how its run ended: ``end_time``, ``final:<stop>`` for a declared final stop, or the cause."""
+    stop = termination[len("stop:"):] if termination.startswith("stop:") else termination
+    said = f"final:{stop}" if stop in final_stops else termination
+    end = float(trace.times[-1])
+    why = detail or f"the run ended on {termination!r} at t = {end:.6g} s"
+    if termination == "zeno":
+        why = f"Zeno: the jumps accumulate at t = {end:.9g} s ({detail or 'the jump limit at one instant'})"
+    elif termination == "invariant_violated":
+        why = f"deadlock at t = {end:.6g} s: the flow leaves the invariant with no transition enabled ({detail})"
+    return replace(trace, termination=said, termination_detail=why)
+
+
 def _point_values(point: Mapping[str, float], spec: Mapping[str, Parameter | float]) -> dict[str, float]:
     return {name: (point[v.name] if isinstance(v, Parameter) else float(v)) for name, v in spec.items()}
 
@@ -216,6 +229,7 @@ class HybridSimulation:
     initial_mode: str | Callable[[Mapping[str, float]], str] | None = None
     sample_period: float | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
+    final_stops: tuple[str, ...] = ()
 
     def __call__(self, point: Mapping[str, float]) -> SignalTrace:
         system = self.build(point)
@@ -225,7 +239,8 @@ class HybridSimulation:
             system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode,
             **dict(self.options),
         )
-        return trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period)
+        trace = trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period)
+        return _ended(trace, trajectory.termination, getattr(trajectory, "detail", ""), self.final_stops)
 
 
 @dataclass(frozen=True, slots=True)
@@ -277,6 +292,13 @@ def _box(initial: Mapping[str, Parameter | float], parameters: Sequence[Paramete
     return (*(v for v in initial.values() if isinstance(v, Parameter)), *parameters)
 
 
+def _names(values: Sequence[str], what: str, name: str) -> tuple[str, ...]:
+    if isinstance(values, str) or not all(isinstance(v, str) and v for v in values):
+        raise ProblemError(f"problem {name!r}: {what}", values, "a sequence of non-empty names",
+                           f"write {what}=(\"success\",)")
+    return tuple(values)
+
+
 def _builder(system: Any, kind: type, where: str) -> Callable[[Mapping[str, float]], Any]:
     if isinstance(system, kind):
         return _Fixed(system)
@@ -304,6 +326,7 @@ def hybrid_problem(
     stability: bool | Callable[[], Any] = False,
     stability_section: str | None = None,
     source: str = "",
+    final_stops: Sequence[str] = (),
 ) -> VerificationProblem:
     """A verification problem for a continuous-time hybrid system.
 
@@ -331,6 +354,11 @@ def hybrid_problem(
         modes, LMI certificates for a common linear equilibrium, or the limit cycle through the
         guard of ``stability_section``, by default the last transition of a run over the
         horizon); a callable is used as it is; ``False``: none.
+    final_stops : sequence of str
+        Names of stop functions (``options={"stops": ...}``) that end a run for good: the system
+        does nothing more after them, so the requirements are judged on the run up to there.
+        Any other early end (a stop not named here, Zeno, a deadlock, the jump limit) leaves
+        the requirements it does not decide *incomplete* (:data:`analysis.falsification.STATUSES`).
     """
     build = _builder(system, HybridSystem, f"problem {name!r}")
     probe = build({p.name: p.at(0.0) for p in _box(initial, parameters, list(initial), name)})
@@ -343,7 +371,7 @@ def hybrid_problem(
     variables = tuple(v for v in a.variables if v not in probe.state_names) if probe.output is not None else ()
     simulate = HybridSimulation(build=build, initial=dict(initial), state_names=probe.state_names,
                                 horizon=float(horizon), initial_mode=initial_mode, sample_period=sample_period,
-                                options=dict(options or {}))
+                                options=dict(options or {}), final_stops=_names(final_stops, "final_stops", name))
     return VerificationProblem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=(*probe.state_names, *memory, *variables), labels={"mode": a.mode_names},
@@ -385,13 +413,14 @@ class SampledSimulation:
     period: float
     horizon: float
     initial_mode: str | None = None
+    final_stops: tuple[str, ...] = ()
 
     def __call__(self, point: Mapping[str, float]) -> SignalTrace:
         automaton, plant, controller = self.build(point)
         x0 = _point_values(point, self.initial)
         trace = simulate_sampled(automaton, plant, controller, tuple(x0[s] for s in self.state_names),
                                  period=self.period, duration=self.horizon, initial_mode=self.initial_mode)
-        return trace_from_sampled(trace)
+        return _ended(trace_from_sampled(trace), trace.termination, "", self.final_stops)
 
 
 def sampled_problem(
@@ -408,6 +437,7 @@ def sampled_problem(
     proofs: Mapping[str, Callable[[], Proof]] | None = None,
     structural: Callable[[], Any] | None = None,
     source: str = "",
+    final_stops: Sequence[str] = (),
 ) -> VerificationProblem:
     """A verification problem for a sampled-data closed loop (automaton + plant + controller).
 
@@ -419,13 +449,17 @@ def sampled_problem(
         Every plant state name -> a range or a fixed value.
     period : float
         Sampling period [s].
+    final_stops : sequence of str
+        Reasons returned by the controller's stop condition that end a run for good (as
+        :func:`hybrid_problem`'s).
     """
     box0 = _box(initial, parameters, list(initial), f"problem {name!r}")
     automaton, plant, controller = build({p.name: p.at(0.0) for p in box0})
     box = _box(initial, parameters, plant.state_names, f"problem {name!r}")
     names = (*plant.state_names, *automaton.variables, *plant.input_names, *controller.record_names)
     simulate = SampledSimulation(build=build, initial=dict(initial), state_names=tuple(plant.state_names),
-                                 period=float(period), horizon=float(horizon), initial_mode=initial_mode)
+                                 period=float(period), horizon=float(horizon), initial_mode=initial_mode,
+                                 final_stops=_names(final_stops, "final_stops", name))
     return VerificationProblem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=tuple(dict.fromkeys(names)), labels={"mode": automaton.mode_names}, description=description,

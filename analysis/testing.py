@@ -25,7 +25,8 @@ __all__ = ["VerificationFailed", "assert_verified", "profile_budget"]
 
 
 class VerificationFailed(AssertionError):
-    """A requirement was falsified or a simulation diverged; ``result`` is the :class:`VerificationResult`."""
+    """The verdict is not a pass (falsified, diverged, incomplete, a model error); ``result`` is the
+    :class:`VerificationResult`."""
 
     def __init__(self, message: str, result: VerificationResult) -> None:
         super().__init__(message)
@@ -56,8 +57,14 @@ def _message(problem: VerificationProblem, result: VerificationResult, budget: i
             f"--method {result.method} --out out/verify/{problem.name}   (then: visnav replay "
             f"out/verify/{problem.name}/counterexamples/{r.name}.json)",
         ]
-    for d in result.diverged[:3]:
+    for d in (*result.errors[:1], *result.diverged[:3], *result.ended_early[:3]):
         lines.append(f"  {d['status']} at {dict(d['point'])}: {d['detail']}")
+    for r in result.requirements:
+        if r.verdict == "incomplete":
+            lines.append(f"  requirement {r.name} INCOMPLETE: {r.undecided} runs ended before deciding it "
+                         f"({r.undecided_reasons[0] if r.undecided_reasons else 'ended early'})")
+    if result.errors and result.errors[0].get("traceback"):
+        lines.append("  the model's code raised; its traceback:\n" + str(result.errors[0]["traceback"]).rstrip())
     return "\n".join(lines)
 
 
@@ -82,10 +89,11 @@ def assert_verified(
     Returns
     -------
     VerificationResult
-        When no requirement is falsified and no simulation diverged.
+        When the verdict is a pass (:data:`analysis.verdicts.PASSES`): every requirement proven or not
+        falsified, every simulation complete.
     """
     budget = profile_budget() if budget is None else budget
     result = verify(problem, budget=budget, seed=seed, method=method)
-    if result.verdict in ("falsified", "diverged"):
+    if not result.passed:
         raise VerificationFailed(_message(problem, result, budget, seed), result)
     return result

@@ -13,12 +13,20 @@ outside the tool that produced it gives ``proven``), then searches the box
     that a simulated point fell in);
 ``proven``
     a proof holds over the whole box (the search still runs as a cross-check
-    and a violation found would be reported as a contradiction, never hidden).
+    and a violation found would be reported as a contradiction, never hidden);
+``incomplete``
+    no violation found, but at least one simulation ended before it could
+    decide the requirement (Zeno, a deadlock, a jump limit, a stop not
+    declared final, a divergence, an error of the model's code): the search
+    is not judged as if it were complete (``undecided`` says how many runs
+    and why).
 
 The overall verdict (:data:`OVERALL`) is ``falsified`` when one requirement
-is, else ``diverged`` when a simulation diverged or cycled at one instant,
-else ``proven`` when every requirement is proven, else ``not_falsified``;
-:attr:`VerificationResult.exit_code` maps them to 1, 3, 0, 0.
+is; else ``error`` when the model's own code raised during a simulation (a
+defect of the model, not a numerical blow-up); else ``diverged`` when a
+simulation diverged numerically; else ``incomplete`` when a requirement is;
+else ``proven`` when every requirement is proven; else ``not_falsified``.
+Only ``proven`` and ``not_falsified`` are passes (:data:`PASSES`).
 """
 
 from __future__ import annotations
@@ -34,12 +42,14 @@ from hybrid.jsonable import to_jsonable
 from analysis.falsification import Evaluation, Outcome, Runner, Search, falsify
 from analysis.verification import Proof, VerificationProblem
 
-__all__ = ["VERDICTS", "OVERALL", "EXIT_CODES", "Counterexample", "Coverage", "RequirementVerdict",
+__all__ = ["VERDICTS", "OVERALL", "PASSES", "EXIT_CODES", "Counterexample", "Coverage", "RequirementVerdict",
            "VerificationResult", "verify", "coverage_of"]
 
-VERDICTS = ("proven", "falsified", "not_falsified")
-OVERALL = ("proven", "not_falsified", "falsified", "diverged")
-EXIT_CODES = {"proven": 0, "not_falsified": 0, "falsified": 1, "diverged": 3}
+VERDICTS = ("proven", "falsified", "not_falsified", "incomplete")
+OVERALL = ("proven", "not_falsified", "falsified", "diverged", "incomplete", "error")
+PASSES = ("proven", "not_falsified")
+"""The overall verdicts that pass; every other one fails a test (:func:`analysis.testing.assert_verified`)."""
+EXIT_CODES = {"proven": 0, "not_falsified": 0, "falsified": 1, "diverged": 3, "incomplete": 5, "error": 6}
 COVERAGE_BINS = 10
 
 
@@ -107,6 +117,8 @@ class RequirementVerdict:
     counterexample: Counterexample | None
     proof: Proof | None
     history: tuple[float, ...]
+    undecided: int = 0
+    undecided_reasons: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return to_jsonable({
@@ -114,7 +126,7 @@ class RequirementVerdict:
             "robustness": self.robustness, "nominal_robustness": self.nominal_robustness,
             "simulations": self.simulations, "lowest_at": self.lowest_at,
             "counterexample": None if self.counterexample is None else self.counterexample,
-            "proof": self.proof,
+            "proof": self.proof, "undecided": self.undecided, "undecided_reasons": list(self.undecided_reasons),
         }, nonfinite="string")
 
 
@@ -139,6 +151,13 @@ class VerificationResult:
     diverged: tuple[Mapping[str, Any], ...]
     coverage: Coverage
     evaluations: tuple[Evaluation, ...]
+    ended_early: tuple[Mapping[str, Any], ...] = ()
+    errors: tuple[Mapping[str, Any], ...] = ()
+
+    @property
+    def passed(self) -> bool:
+        """Whether the overall verdict is a pass (:data:`PASSES`)."""
+        return self.verdict in PASSES
 
     @property
     def exit_code(self) -> int:
@@ -156,6 +175,7 @@ class VerificationResult:
             "seed": self.seed, "budget": self.budget, "simulations": self.simulations,
             "invalid": self.invalid, "invalid_reasons": list(self.invalid_reasons),
             "diverged": [dict(d) for d in self.diverged], "coverage": self.coverage.as_dict(),
+            "ended_early": [dict(d) for d in self.ended_early], "errors": [dict(d) for d in self.errors],
             "requirements": [r.as_dict() for r in self.requirements],
         }
         if evaluations:
@@ -211,10 +231,14 @@ def _verdict(problem: VerificationProblem, search: Search, r: int, falsified: Ma
     lowest = search.lowest(r)
     nominal = search.evaluations[0] if search.evaluations and search.evaluations[0].phase == "nominal" else None
     counterexample = _counterexample(problem, search, r, *falsified[r]) if r in falsified else None
+    undecided = [e for e in search.evaluations if e.outcome.status not in ("ok", "invalid") and not e.violates(r)
+                 and not e.outcome.decided(r)]
     if counterexample is not None:
         verdict = "falsified"
     elif proof is not None and proof.proven:
         verdict = "proven"
+    elif undecided:
+        verdict = "incomplete"
     else:
         verdict = "not_falsified"
     return RequirementVerdict(
@@ -224,17 +248,38 @@ def _verdict(problem: VerificationProblem, search: Search, r: int, falsified: Ma
         else nominal.outcome.robustness[r],
         simulations=len(ok), lowest_at=None if lowest is None else problem.point(lowest.unit),
         counterexample=counterexample, proof=proof, history=_running_min(search.evaluations, r),
+        undecided=len(undecided),
+        undecided_reasons=tuple(dict.fromkeys(f"{e.outcome.status}: {e.outcome.detail}" for e in undecided))[:5],
     )
 
 
-def _overall(verdicts: Sequence[RequirementVerdict], diverged: Sequence[Any]) -> str:
+def _overall(verdicts: Sequence[RequirementVerdict], evaluations: Sequence[Evaluation]) -> str:
+    statuses = {e.outcome.status for e in evaluations}
     if any(v.verdict == "falsified" for v in verdicts):
         return "falsified"
-    if diverged:
+    if "error" in statuses:
+        return "error"
+    if "diverged" in statuses:
         return "diverged"
+    if any(v.verdict == "incomplete" for v in verdicts):
+        return "incomplete"
     if all(v.verdict == "proven" for v in verdicts):
         return "proven"
     return "not_falsified"
+
+
+def _ends(problem: VerificationProblem, evaluations: Sequence[Evaluation], statuses: Sequence[str],
+          limit: int = 20) -> tuple[dict[str, Any], ...]:
+    """The first ``limit`` evaluations with one of ``statuses``: where, how and when they ended."""
+    out = []
+    for e in evaluations:
+        if e.outcome.status in statuses:
+            out.append({"point": problem.point(e.unit), "status": e.outcome.status, "end": e.outcome.end,
+                        "end_time": e.outcome.end_time, "detail": e.outcome.detail, "evaluation": e.index,
+                        **({"traceback": e.outcome.traceback} if e.outcome.traceback else {})})
+        if len(out) >= limit:
+            break
+    return tuple(out)
 
 
 def verify(
@@ -259,10 +304,12 @@ def verify(
     invalid = [e for e in search.evaluations if e.outcome.status == "invalid"]
     diverged = tuple({"point": problem.point(e.unit), "status": e.outcome.status, "detail": e.outcome.detail,
                       "evaluation": e.index}
-                     for e in search.evaluations if e.outcome.status in ("diverged", "zeno"))
+                     for e in search.evaluations if e.outcome.status == "diverged")
     return VerificationResult(
         problem=problem.name, source=problem.source, method=method, seed=seed, budget=budget,
-        verdict=_overall(verdicts, diverged), requirements=verdicts,
+        verdict=_overall(verdicts, search.evaluations), requirements=verdicts,
+        ended_early=_ends(problem, search.evaluations, ("incomplete", "zeno")),
+        errors=_ends(problem, search.evaluations, ("error",), limit=5),
         simulations=search.used, invalid=len(invalid),
         invalid_reasons=tuple(dict.fromkeys(e.outcome.detail for e in invalid))[:5],
         diverged=diverged, coverage=coverage_of(problem, search.evaluations),

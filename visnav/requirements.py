@@ -412,7 +412,19 @@ def run_trace(
     jumps[rows.pre] = [e.jump - 1 for e in trace.events]
     signals = {name: _bounded(values) for name, values in signals.items()}
     return SignalTrace(times=trace.times[rows.sample], signals=signals, labels={MODE_LABEL: tuple(modes)},
-                       jumps=jumps)
+                       jumps=jumps, termination=run_termination(trace.termination),
+                       termination_detail=f"the run stopped on {trace.termination!r} at t = {trace.times[-1]:.6g} s")
+
+
+FINAL_STOPS = ("success",)
+"""Stops of the closed loop that end the run for good: on ``success`` the visual task is achieved and the
+robot is stopped at the goal (section V), so the requirements are judged on the run up to there.  Any other
+stop (``collision``) ends the run early: a requirement its prefix does not decide is not passed on it."""
+
+
+def run_termination(termination: str) -> str:
+    """The run's end as :class:`analysis.stl.SignalTrace` states it: ``final:success``, ``end_time`` or the stop."""
+    return f"final:{termination}" if termination in FINAL_STOPS else termination
 
 
 def _discrete_rows(

@@ -353,6 +353,106 @@ class _Boolean(_Evaluator):
         return ~x
 
 
+# --------------------------------------------------------------------------- traces cut short
+
+
+class _Prefix:
+    """Bounds ``(lo, hi)`` of every subformula at every sample when the trace was cut short at its last sample.
+
+    The run ended early (Zeno, a deadlock, a user-code error, ...): what would have come after the
+    last sample is unknown.  A future window that reaches past the last sample takes any value on
+    its unknown part, so ``always`` can only go down (``lo`` is ``bottom``) and ``eventually`` only
+    up (``hi`` is ``top``); ``until`` can still be reached after the end while its left side held up
+    to it.  Past operators, ``prev``, ``rise`` and ``fall`` read known samples only.  The bounds hold
+    for *every* continuation of the trace: a formula is decided on the prefix when ``lo`` and ``hi``
+    agree on its truth.  ``exact`` gives the atoms' meaning (robustness or booleans).
+    """
+
+    def __init__(self, exact: _Evaluator) -> None:
+        self.exact = exact
+        self.trace = exact.trace
+        self.values: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.nodes: list[object] = []
+
+    def value(self, node: object) -> tuple[np.ndarray, np.ndarray]:
+        found = self.values.get(id(node))
+        if found is None:
+            found = self.compute(node)
+            self.values[id(node)] = found
+            self.nodes.append(node)
+        return found
+
+    def open(self, interval: tuple[float, float] | None) -> np.ndarray:
+        """Samples whose future window reaches past the last sample, shape (n,) bool."""
+        times = self.trace.times
+        b = math.inf if interval is None else interval[1]
+        end = float(times[-1])
+        eps = TIME_RESOLUTION * max(1.0, abs(float(times[0])), abs(end))
+        return times + b > end + eps
+
+    def compute(self, node: object) -> tuple[np.ndarray, np.ndarray]:
+        ex = self.exact
+        match node:
+            case Const() | Compare() | LabelIs():
+                v = ex.value(node)
+                return v, v
+            case Not(arg):
+                lo, hi = self.value(arg)
+                return ex.negate(hi), ex.negate(lo)
+            case And(left, right):
+                (a, b), (c, d) = self.value(left), self.value(right)
+                return np.minimum(a, c), np.minimum(b, d)
+            case Or(left, right):
+                (a, b), (c, d) = self.value(left), self.value(right)
+                return np.maximum(a, c), np.maximum(b, d)
+            case Implies(left, right):
+                (a, b), (c, d) = self.value(left), self.value(right)
+                return np.maximum(ex.negate(b), c), np.maximum(ex.negate(a), d)
+            case Temporal(op, interval, arg):
+                return self.temporal(op, interval, *self.value(arg))
+            case Until(op, interval, left, right):
+                return self.until(op, interval, self.value(left), self.value(right))
+            case Edge(op, arg):
+                lo, hi = self.value(arg)
+                first = ex.bottom if op == "rise" else ex.top
+                b_lo = np.concatenate(([first], lo[:-1])).astype(lo.dtype)
+                b_hi = np.concatenate(([first], hi[:-1])).astype(hi.dtype)
+                if op == "rise":
+                    return np.minimum(lo, ex.negate(b_hi)), np.minimum(hi, ex.negate(b_lo))
+                return np.minimum(ex.negate(hi), b_lo), np.minimum(ex.negate(lo), b_hi)
+        raise TypeError(f"not a formula node: {node!r}")
+
+    def temporal(self, op: str, interval: tuple[float, float] | None, lo: np.ndarray,
+                 hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ex = self.exact
+        past = op in _PAST_OPS
+        w_lo, w_hi = ex.window(interval, past)
+        if op in _MIN_OPS:
+            out_lo = window_reduce(lo, w_lo, w_hi, np.minimum, ex.top)
+            out_hi = window_reduce(hi, w_lo, w_hi, np.minimum, ex.top)
+            if not past:
+                out_lo = np.where(self.open(interval), ex.bottom, out_lo).astype(lo.dtype)
+            return out_lo, out_hi
+        out_lo = window_reduce(lo, w_lo, w_hi, np.maximum, ex.bottom)
+        out_hi = window_reduce(hi, w_lo, w_hi, np.maximum, ex.bottom)
+        if not past:
+            out_hi = np.where(self.open(interval), ex.top, out_hi).astype(hi.dtype)
+        return out_lo, out_hi
+
+    def until(self, op: str, interval: tuple[float, float] | None, left: tuple[np.ndarray, np.ndarray],
+              right: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        ex = self.exact
+        w_lo, w_hi = ex.window(interval, op in _PAST_OPS)
+        run = _since_values if op == "since" else until_values
+        lo = run(left[0], right[0], w_lo, w_hi, ex.top, ex.bottom)
+        hi = run(left[1], right[1], w_lo, w_hi, ex.top, ex.bottom)
+        if op != "since":
+            index = np.arange(self.trace.n)
+            held = window_reduce(left[1], index, np.full(self.trace.n, self.trace.n - 1), np.minimum, ex.top)
+            hi = np.where(self.open(interval), np.maximum(hi, held), hi).astype(hi.dtype)
+        return lo, hi
+
+
 # --------------------------------------------------------------------------- explanations
 
 
@@ -520,6 +620,28 @@ class Formula:
     def satisfied(self, trace: SignalTrace) -> bool:
         """Boolean semantics at the first sample (a separate evaluation, not ``robustness > 0``)."""
         return bool(self.satisfied_signal(trace)[0])
+
+    def prefix_satisfied(self, trace: SignalTrace) -> bool | None:
+        """Boolean semantics at the first sample of a trace *cut short* at its last sample (a run that ended early).
+
+        Returns ``True`` when every continuation of the trace satisfies the formula, ``False``
+        when every continuation violates it, ``None`` when the prefix does not decide it (a window
+        reaches past the end and the known samples do not settle it).  On a trace that covers the
+        formula's whole horizon this is :meth:`satisfied`.
+        """
+        self.check_trace(trace)
+        lo, hi = _Prefix(_Boolean(trace)).value(self.tree)
+        if bool(lo[0]):
+            return True
+        if not bool(hi[0]):
+            return False
+        return None
+
+    def prefix_robustness(self, trace: SignalTrace) -> tuple[float, float]:
+        """Bounds ``(lo, hi)`` of the robustness at the first sample over every continuation of a cut-short trace."""
+        self.check_trace(trace)
+        lo, hi = _Prefix(_Robustness(trace)).value(self.tree)
+        return float(lo[0]), float(hi[0])
 
     def explain(self, trace: SignalTrace, index: int = 0) -> Explanation:
         """Follow the arg-min/arg-max from the root at sample ``index`` down to the deciding atom."""

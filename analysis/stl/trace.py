@@ -151,6 +151,15 @@ class SignalTrace:
         Jump counter ``j``; non-decreasing and strictly increasing at each
         repeated time.  Default: 0 at the first sample, incremented at every
         repeated time.
+    termination : str or None, optional
+        How the run that produced the trace ended, as the simulator says it:
+        ``"end_time"`` (it reached its horizon), ``"final:<reason>"`` (a stop the
+        problem declares final: nothing changes after it), or an early end
+        (``"zeno"``, ``"invariant_violated"`` (a deadlock), ``"jump_limit"``,
+        ``"stop:<name>"``, ``"diverged"``, ``"error"``, ...).  ``None``: not said
+        (the trace is then judged by where it ends, :mod:`analysis.falsification`).
+    termination_detail : str, optional
+        Why, in words (the time, the mode, the cause).
 
     Raises
     ------
@@ -162,6 +171,8 @@ class SignalTrace:
     signals: Mapping[str, np.ndarray] = field(default_factory=dict)
     labels: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     jumps: np.ndarray | None = None
+    termination: str | None = None
+    termination_detail: str = ""
 
     def __post_init__(self) -> None:
         t = _times(self.times)
@@ -178,9 +189,15 @@ class SignalTrace:
         object.__setattr__(self, "signals", MappingProxyType(sig))
         object.__setattr__(self, "labels", MappingProxyType(lab))
         object.__setattr__(self, "jumps", _jumps(self.jumps, t))
+        if self.termination is not None and not isinstance(self.termination, str):
+            raise TraceError("termination", self.termination, "a string such as 'end_time' or None",
+                             "say how the run ended, or leave it None")
+        if not isinstance(self.termination_detail, str):
+            raise TraceError("termination_detail", self.termination_detail, "a string", "describe the end in words")
 
     def __reduce__(self):  # mapping proxies do not pickle; rebuild from plain dicts
-        return (_rebuild, (self.times, dict(self.signals), dict(self.labels), self.jumps))
+        return (_rebuild, (self.times, dict(self.signals), dict(self.labels), self.jumps, self.termination,
+                           self.termination_detail))
 
     @property
     def n(self) -> int:
@@ -219,5 +236,7 @@ class SignalTrace:
                              "use a label of the trace") from None
 
 
-def _rebuild(times: np.ndarray, signals: dict, labels: dict, jumps: np.ndarray) -> SignalTrace:
-    return SignalTrace(times=times, signals=signals, labels=labels, jumps=jumps)
+def _rebuild(times: np.ndarray, signals: dict, labels: dict, jumps: np.ndarray, termination: str | None = None,
+             detail: str = "") -> SignalTrace:
+    return SignalTrace(times=times, signals=signals, labels=labels, jumps=jumps, termination=termination,
+                       termination_detail=detail)

@@ -4,7 +4,9 @@ The exit codes are shared by every subcommand (``docs/failure_modes.md``): 0 the
 failed (collision, timeout, a falsified requirement, a finding), 2 bad input (nothing was run, or
 what was given cannot be used; the message says what to change), 3 the run could not complete (a
 simulation diverged or an executor failed), 4 internal error (a defect of visnav: the one-line
-message names the file holding the traceback), 130 interrupted (SIGINT).
+message names the file holding the traceback), 5 incomplete (a check or a simulation did not decide:
+skipped, undecided, ended before its horizon), 6 a model error (the model's own code raised during a
+run), 130 interrupted (SIGINT).
 
 Each raises :class:`argparse.ArgumentTypeError` naming the value and what to give instead, which
 argparse turns into a usage error (exit code 2).
@@ -16,15 +18,20 @@ import argparse
 import math
 
 __all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
-           "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
+           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
+EXIT_INCOMPLETE, EXIT_MODEL_ERROR = 5, 6
+"""5: a check or a run did not decide (skipped, undecided, a run that ended before its horizon: Zeno, a
+deadlock, a jump limit), so nothing is claimed to pass; 6: the model's own code raised (or returned
+garbage) during a run: a defect of the model, not a numerical divergence."""
 EXIT_INTERRUPTED = 130
 """Interrupted by SIGINT (128 + 2, the shells' convention)."""
 EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
               EXIT_BAD_INPUT: "bad input", EXIT_DIVERGED: "the run could not complete",
-              EXIT_INTERNAL: "internal error", EXIT_INTERRUPTED: "interrupted"}
+              EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "incomplete: not everything was decided",
+              EXIT_MODEL_ERROR: "the model's code raised", EXIT_INTERRUPTED: "interrupted"}
 """What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
 
 

@@ -8,8 +8,9 @@ the same command again resumes it.  At the end ``OUT/verification.json`` and,
 per falsified requirement, ``OUT/counterexamples/NAME.json`` (re-run by
 ``visnav replay``) are written.
 
-Exit codes: 0 every requirement proven or not falsified, 1 one is falsified,
-2 bad input (problem, formula, options), 3 a simulation diverged.
+Exit codes: 0 every requirement proven or not falsified with every simulation complete, 1 one is
+falsified, 2 bad input (problem, formula, options), 3 a simulation diverged numerically, 5 incomplete
+(a simulation ended before its horizon and left a requirement undecided), 6 the model's code raised.
 """
 
 from __future__ import annotations
@@ -29,6 +30,10 @@ __all__ = ["add_parser", "load_verification_problem", "counterexample_text", "JO
 
 JOURNAL_FORMAT = "visnav-verification-journal"
 COUNTEREXAMPLE_FORMAT = "visnav-verification-counterexample"
+JOURNAL_VERSION = 2
+"""2: every evaluation says how its run ended (``end``, ``end_time``) and decides each requirement or not
+(``satisfied`` may be ``null``); a journal of version 1 judged runs that ended early as complete, so it
+is not read back."""
 DEFAULT_BUDGET = 120
 """Default simulations per run (the paper's problem: about 40 s on one core)."""
 
@@ -95,7 +100,7 @@ def _spec_hash(spec: str, options: Mapping[str, Any], problem: Any, args: argpar
                 "budget": args.budget, "requirements": [[r.name, r.formula] for r in problem.requirements],
                 "parameters": [[p.name, p.low, p.high, p.nominal] for p in problem.parameters]}
     digest = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
-    return {"format": JOURNAL_FORMAT, "version": 1, "spec_hash": digest, "spec": identity}
+    return {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION, "spec_hash": digest, "spec": identity}
 
 
 def _default_out(name: str, args: argparse.Namespace) -> str:
@@ -181,6 +186,9 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     except FalsificationError as error:
         return _bad_input(error.render())
     written = _write_results(folder, result, problem, args.problem, options)
+    if result.errors and result.errors[0].get("traceback"):
+        print(str(result.errors[0]["traceback"]).rstrip() + "\nvisnav: the model's code raised during a simulation "
+              f"({result.errors[0]['detail']}); its traceback is above", file=sys.stderr)
     out = _json_summary(result, written)
     if args.json:
         print(json.dumps(out, sort_keys=True))
@@ -238,6 +246,13 @@ def _human(result: Any, written: Mapping[str, str], resumed: int) -> str:
         lines.append(f"  {result.invalid} points outside the problem's hypotheses skipped: {result.invalid_reasons[0]}")
     for d in result.diverged[:3]:
         lines.append(f"  {d['status']} at {d['point']}: {d['detail']}")
+    for d in result.ended_early[:3]:
+        lines.append(f"  ended early ({d['end']}) at {d['point']}: {d['detail']}")
+    for d in result.errors[:1]:
+        lines.append(f"  MODEL ERROR at {d['point']}: {d['detail']} (the model's traceback is on stderr)")
+    for r in result.requirements:
+        if r.verdict == "incomplete":
+            lines.append(f"  {r.name}: {r.undecided} run(s) ended before deciding it; first: {r.undecided_reasons[0]}")
     cov = result.coverage
     if cov.parameters:
         share = min(cov.bins_hit)

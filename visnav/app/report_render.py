@@ -202,6 +202,10 @@ def _verdict_sentence(ver: dict[str, Any]) -> str:
     if ver["diverged"]:
         first = ver["diverged"][0]
         text += f" {len(ver['diverged'])} simulation(s) diverged; first: {first['status']}: {first['detail']}."
+    for key, what in (("errors", "raised in the model's code"), ("ended_early", "ended before the horizon")):
+        if ver.get(key):
+            first = ver[key][0]
+            text += f" {len(ver[key])} simulation(s) {what}; first: {first['status']}: {first['detail']}."
     return text
 
 

@@ -74,7 +74,7 @@ DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx",
 """Packages whose versions the report records."""
 
 VERDICT_LABELS = {"proven": "PROVEN", "falsified": "FALSIFIED", "not_falsified": "NOT FALSIFIED",
-                  "diverged": "DIVERGED"}
+                  "diverged": "DIVERGED", "incomplete": "INCOMPLETE", "error": "MODEL ERROR"}
 """How the documents write a verdict (:data:`analysis.verdicts.OVERALL`)."""
 
 COUNTEREXAMPLE_DIR = "counterexamples"
