@@ -245,8 +245,9 @@ def _nominal_run(problem: Any, result: Any) -> tuple[dict[str, Any], Any]:
     first = result.evaluations[0] if result.evaluations and result.evaluations[0].phase == "nominal" else None
     data: dict[str, Any] = {"point": problem.nominal(), "status": None if first is None else first.outcome.status,
                             "detail": "" if first is None else first.outcome.detail, "decided": {}}
-    if first is None or first.outcome.status != "ok":
+    if first is None or not first.outcome.evaluated:  # a run cut short is still shown, with how it ended
         return data, None
+    data["end"], data["end_time"] = first.outcome.end, first.outcome.end_time
     trace = problem.simulate(problem.nominal())
     data["decided"] = {p.name: _explained(p.formula, trace) for p in problem.parsed}
     return data, trace

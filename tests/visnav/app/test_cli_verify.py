@@ -98,13 +98,13 @@ def test_a_non_positive_budget_is_refused_by_the_option_parser(tmp_path, capsys)
     assert "budget" in capsys.readouterr().err
 
 
-def test_a_crash_in_the_users_simulator_exits_2_with_their_traceback(tmp_path, capsys):
+def test_a_crash_in_the_users_simulator_exits_6_model_error_with_their_traceback(tmp_path, capsys):
     path = _module(tmp_path)
     text = path.read_text().replace('if p["x0"] > 1e9:', 'if p["x0"] > 0:')
     path.write_text(text)
-    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
-    assert code == 2
-    assert "user bug" in err and "user_sys.py" in err
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    assert code == 6  # a defect of the model: its own exit code, neither bad input (2) nor divergence (3)
+    assert "user bug" in err and "user_sys.py" in err and "MODEL ERROR" in out
 
 
 def test_check_model_and_mode_graph_take_a_users_problem(capsys):
@@ -128,13 +128,16 @@ def test_mode_graph_of_a_problem_without_automaton_is_a_clear_error(tmp_path, ca
     assert code == 2 and "declares no automaton" in err
 
 
-@pytest.mark.parametrize("returned, needle", [("{'x': 1.0}", "returned a dict"),
-                                              ("SignalTrace(times=t, signals={'x': t * float('nan')})", "nan")])
-def test_a_simulator_returning_a_wrong_object_or_nan_exits_2_with_a_message(tmp_path, capsys, returned, needle):
+@pytest.mark.parametrize("returned, needle, exit_code", [
+    ("{'x': 1.0}", "returned a dict", 2),  # a definition error: the simulator's contract
+    # a NaN the model computed: SignalTrace refuses it inside the user's code, a defect of the model (6)
+    ("SignalTrace(times=t, signals={'x': t * float('nan')})", "nan", 6)])
+def test_a_simulator_returning_a_wrong_object_or_nan_is_refused_with_a_message(tmp_path, capsys, returned, needle,
+                                                                               exit_code):
     path = _module(tmp_path)
     text = path.read_text().replace('return SignalTrace(times=t, signals={"x": p["x0"] * np.exp(-t)}, '
                                     'labels={"mode": ("run",) * 41})', f"return {returned}")
     assert text != path.read_text()
     path.write_text(text)
     code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
-    assert code == 2 and needle in err.lower()
+    assert code == exit_code and needle in err.lower()
