@@ -47,6 +47,7 @@ from hybrid.errors import (DivergenceError, ExecutionError, NumericalFailure, Pa
                            ZenoError)
 
 from analysis.stl import SignalTrace, TraceError
+from analysis.timelimit import TimeLimitExceeded, time_limit
 from analysis.verification import InvalidPoint, VerificationProblem
 
 __all__ = [
@@ -60,6 +61,7 @@ __all__ = [
     "Evaluation",
     "evaluate",
     "run_end",
+    "DEFAULT_TIMEOUT_S",
     "COMPLETE_ENDS",
     "monte_carlo_unit",
     "Search",
@@ -69,16 +71,20 @@ __all__ = [
 METHODS = ("guided", "monte-carlo", "dual-annealing")
 GUIDED_SHARES = (0.5, 0.4)
 """Shares of the budget for the hypothesis search and the polish; the rest shrinks."""
-STATUSES = ("ok", "incomplete", "invalid", "diverged", "zeno", "error")
+STATUSES = ("ok", "incomplete", "invalid", "diverged", "zeno", "error", "timeout")
 """How a simulation ended.  ``ok``: it covered the horizon (or ended on a stop the problem declares
 final) and every requirement was evaluated; ``incomplete``: it ended early without a fault (Zeno,
 a deadlock, a jump limit, chatter, a stop condition not declared final, a trace shorter than the
 horizon: ``end`` and ``end_time`` say how and when); ``invalid``: outside the problem's hypotheses
 (skipped); ``diverged``: the numerics broke down (time, mode, cause in ``detail``); ``zeno``: the
 executor raised on too many jumps at one instant; ``error``: the model's own code raised or returned
-garbage (``detail`` and ``traceback``).  On an ``incomplete`` run each requirement is judged on the
+garbage (``detail`` and ``traceback``); ``timeout``: the simulation ran past its wall-clock limit
+(:data:`DEFAULT_TIMEOUT_S`, :mod:`analysis.timelimit`).  On an ``incomplete`` run each requirement is judged on the
 trace cut short (:meth:`analysis.stl.Formula.prefix_satisfied`): decided when every continuation
 agrees, undecided (``None``) otherwise; never passed on a window that reaches past the end."""
+
+DEFAULT_TIMEOUT_S = 300.0
+"""Wall-clock limit of one simulation [s] unless the caller gives another (``None``: none)."""
 
 COMPLETE_ENDS = ("end_time",)
 """Terminations that mean the run covered its horizon; ``final:<reason>`` (a stop the problem declares
@@ -200,11 +206,12 @@ class Evaluation:
                    unit=tuple(float(v) for v in data["unit"]), outcome=outcome)
 
 
-def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
+def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: float | None = None) -> Outcome:
     """Simulate ``problem`` at unit coordinates ``unit`` and evaluate every requirement.
 
     The status says how the run ended (:data:`STATUSES`); a run that ended before its horizon is
     judged on its prefix, each requirement decided only when every continuation would agree.
+    ``timeout_s`` bounds the simulation's wall-clock time (status ``timeout`` past it).
 
     Raises
     ------
@@ -214,7 +221,12 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
     """
     point = problem.point(unit)
     try:
-        trace = problem.simulate(point)
+        with time_limit(timeout_s):
+            trace = problem.simulate(point)
+    except TimeLimitExceeded as error:
+        return Outcome(status="timeout", end="timeout",
+                       detail=f"the simulation was stopped: {error} (its wall-clock limit; a loop or a sleep in the "
+                              "model, or give a longer limit)")
     except InvalidPoint as error:
         return Outcome(status="invalid", detail=str(error))
     except ZenoError as error:
@@ -225,8 +237,8 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float]) -> Outcome:
         return _model_error(error, error.__cause__ or error)
     except ExecutionError as error:  # a model function returned NaN, a bool, the wrong shape
         return _model_error(error, error)
-    except Exception as error:  # the user's simulator itself raised: their traceback is kept
-        return _model_error(error, error)
+    except (Exception, SystemExit, GeneratorExit) as error:  # the user's simulator itself raised (or called
+        return _model_error(error, error)                    # sys.exit): their traceback is kept
     if not isinstance(trace, SignalTrace):
         error = TypeError(f"simulate(point) returned a {type(trace).__name__}: expected an analysis.stl.SignalTrace "
                           "(build it with SignalTrace(times=..., signals={...}, labels={...}))")
@@ -313,6 +325,7 @@ class Search:
     budget: int
     cache: dict[tuple[float, ...], Outcome] = field(default_factory=dict)
     on_evaluation: Callable[[Evaluation], None] | None = None
+    timeout_s: float | None = None
     evaluations: list[Evaluation] = field(default_factory=list)
     seen: dict[tuple[float, ...], int] = field(default_factory=dict)
 
@@ -329,7 +342,7 @@ class Search:
             raise _Exhausted
         outcome = self.cache.get(key)
         if outcome is None:
-            outcome = evaluate(self.problem, key)
+            outcome = evaluate(self.problem, key, self.timeout_s)
         evaluation = Evaluation(index=self.used, phase=phase, unit=key, outcome=outcome)
         self.seen[key] = evaluation.index
         self.evaluations.append(evaluation)
@@ -556,6 +569,7 @@ def falsify(
     cache: Mapping[tuple[float, ...], Outcome] | None = None,
     on_evaluation: Callable[[Evaluation], None] | None = None,
     runner: Runner | None = None,
+    timeout_s: float | None = DEFAULT_TIMEOUT_S,
 ) -> tuple[Search, dict[int, tuple[tuple[float, ...], str]]]:
     """Search ``problem``'s box with ``budget`` simulations.
 
@@ -574,6 +588,8 @@ def falsify(
     runner : callable or None
         Evaluates Monte-Carlo draws in parallel (:data:`Runner`), e.g. on a campaign executor;
         draw ``i`` becomes evaluation ``i``.
+    timeout_s : float or None
+        Wall-clock limit of each simulation [s] (status ``timeout`` past it); ``None``: none.
 
     Returns
     -------
@@ -583,7 +599,11 @@ def falsify(
         Requirement index -> (unit point of its counterexample, how it was found and shrunk).
     """
     _check_options(budget, method, seed)
-    search = Search(problem=problem, budget=budget, cache=dict(cache or {}), on_evaluation=on_evaluation)
+    if timeout_s is not None and (isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float))
+                                  or not math.isfinite(timeout_s) or timeout_s <= 0):
+        raise FalsificationError("timeout_s", timeout_s, "a time > 0 [s] or None", "give e.g. timeout_s=60")
+    search = Search(problem=problem, budget=budget, cache=dict(cache or {}), on_evaluation=on_evaluation,
+                    timeout_s=timeout_s)
     falsified: dict[int, tuple[tuple[float, ...], str]] = {}
     if method == "monte-carlo":
         _monte_carlo(search, seed, runner)

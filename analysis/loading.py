@@ -30,7 +30,7 @@ from hybrid.errors import ParameterError
 
 from analysis.verification import VerificationProblem
 
-__all__ = ["ProblemLoadError", "split_spec", "load_problem"]
+__all__ = ["ProblemLoadError", "split_spec", "load_problem", "source_digests"]
 
 
 class ProblemLoadError(ParameterError):
@@ -153,7 +153,9 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
             raise
         except ParameterError:
             raise
-        except Exception as error:
+        except BaseException as error:  # sys.exit(), GeneratorExit too: the user's code never sets our exit code
+            if isinstance(error, KeyboardInterrupt):
+                raise
             raise ProblemLoadError("problem object", f"{where}:{name}", "a function returning a VerificationProblem",
                                    "fix the error in your code", _user_traceback(error)) from None
     elif options:
@@ -166,3 +168,56 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
     if not obj.source:
         object.__setattr__(obj, "source", spec)
     return obj
+
+
+TOOLKIT_PACKAGES = ("hybrid", "analysis", "visnav")
+"""The toolkit's packages: their sources simulate and judge every model, so they are part of its identity."""
+
+
+def _tree_digest(folder: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(folder.rglob("*")):
+        if path.suffix in (".py", ".toml") and "__pycache__" not in path.parts:
+            digest.update(str(path.relative_to(folder)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
+
+
+def _file_digest(path: Path) -> str:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+    except OSError:
+        return "unreadable"
+
+
+def source_digests(spec: str) -> dict[str, str]:
+    """What the results of problem ``spec`` depend on: SHA-256 (16 hex digits) of its code.
+
+    The toolkit's packages (one digest each, over every ``.py`` and ``.toml`` file), and for a user's
+    problem its module's file with every module loaded from the same folder (``FILE.py:OBJ``) or the
+    same top-level package (``pkg.mod:OBJ``), keyed by path.  Deterministic for a given tree: it does
+    not depend on what was imported before.  A journal records these and refuses to resume when one
+    changed (``visnav verify``).  Installed third-party packages are left out (the pinned set).
+    """
+    root = Path(__file__).resolve().parent.parent
+    out = {f"toolkit:{name}": _tree_digest(root / name) for name in TOOLKIT_PACKAGES if (root / name).is_dir()}
+    if spec == "paper":
+        return out
+    where, _ = split_spec(spec)
+    is_file = where.endswith(".py") or os.sep in where or "/" in where
+    if is_file:
+        path = Path(where).expanduser().resolve()
+        out[str(path)] = _file_digest(path)
+        folder = path.parent
+        for module in list(sys.modules.values()):
+            file = getattr(module, "__file__", None)
+            if isinstance(file, str) and file.endswith(".py") and Path(file).resolve().parent == folder:
+                out[str(Path(file).resolve())] = _file_digest(Path(file).resolve())
+        return dict(sorted(out.items()))
+    top = where.split(".")[0]
+    if top in TOOLKIT_PACKAGES:
+        return out
+    for name, module in list(sys.modules.items()):
+        file = getattr(module, "__file__", None)
+        if (name == top or name.startswith(top + ".")) and isinstance(file, str) and file.endswith(".py"):
+            out[str(Path(file).resolve())] = _file_digest(Path(file).resolve())
+    return dict(sorted(out.items()))

@@ -18,6 +18,7 @@ writes the counterexample file for ``visnav replay``.
 
 from __future__ import annotations
 
+from analysis.falsification import DEFAULT_TIMEOUT_S
 from analysis.verdicts import VerificationResult, verify
 from analysis.verification import VerificationProblem
 
@@ -74,6 +75,7 @@ def assert_verified(
     budget: int | None = None,
     seed: int = 0,
     method: str = "guided",
+    timeout_s: float | None = DEFAULT_TIMEOUT_S,
 ) -> VerificationResult:
     """Verify ``problem``; raise :class:`VerificationFailed` unless every requirement holds.
 
@@ -85,6 +87,8 @@ def assert_verified(
         The search's seed (the same seed, the same counterexample).
     method : str
         :data:`analysis.falsification.METHODS`.
+    timeout_s : float or None
+        Wall-clock limit of each simulation [s]; a simulation past it makes the verdict incomplete.
 
     Returns
     -------
@@ -93,7 +97,7 @@ def assert_verified(
         falsified, every simulation complete.
     """
     budget = profile_budget() if budget is None else budget
-    result = verify(problem, budget=budget, seed=seed, method=method)
+    result = verify(problem, budget=budget, seed=seed, method=method, timeout_s=timeout_s)
     if not result.passed:
         raise VerificationFailed(_message(problem, result, budget, seed), result)
     return result

@@ -39,7 +39,7 @@ import numpy as np
 
 from hybrid.jsonable import to_jsonable
 
-from analysis.falsification import Evaluation, Outcome, Runner, Search, falsify
+from analysis.falsification import DEFAULT_TIMEOUT_S, Evaluation, Outcome, Runner, Search, falsify
 from analysis.verification import Proof, VerificationProblem
 
 __all__ = ["VERDICTS", "OVERALL", "PASSES", "EXIT_CODES", "Counterexample", "Coverage", "RequirementVerdict",
@@ -291,6 +291,7 @@ def verify(
     cache: Mapping[tuple[float, ...], Outcome] | None = None,
     on_evaluation: Callable[[Evaluation], None] | None = None,
     runner: Runner | None = None,
+    timeout_s: float | None = DEFAULT_TIMEOUT_S,
 ) -> VerificationResult:
     """Prove what can be proven, falsify what can be falsified, within ``budget`` simulations.
 
@@ -298,7 +299,7 @@ def verify(
     """
     proofs = _proofs(problem)
     search, falsified = falsify(problem, budget=budget, seed=seed, method=method, cache=cache,
-                                on_evaluation=on_evaluation, runner=runner)
+                                on_evaluation=on_evaluation, runner=runner, timeout_s=timeout_s)
     verdicts = tuple(_verdict(problem, search, r, falsified, proofs.get(req.name))
                      for r, req in enumerate(problem.requirements))
     invalid = [e for e in search.evaluations if e.outcome.status == "invalid"]
@@ -308,7 +309,7 @@ def verify(
     return VerificationResult(
         problem=problem.name, source=problem.source, method=method, seed=seed, budget=budget,
         verdict=_overall(verdicts, search.evaluations), requirements=verdicts,
-        ended_early=_ends(problem, search.evaluations, ("incomplete", "zeno")),
+        ended_early=_ends(problem, search.evaluations, ("incomplete", "zeno", "timeout")),
         errors=_ends(problem, search.evaluations, ("error",), limit=5),
         simulations=search.used, invalid=len(invalid),
         invalid_reasons=tuple(dict.fromkeys(e.outcome.detail for e in invalid))[:5],

@@ -370,8 +370,20 @@ def _spec_differences(found: Any, wanted: Any, quiet: tuple[str, ...]) -> str:
     if not isinstance(found, dict) or not isinstance(wanted, Mapping):
         return ""
     keys = [k for k in wanted if k not in quiet and found.get(k) != wanted[k]]
-    shown = [f"{k} {json.dumps(found.get(k))} in the file, {json.dumps(wanted[k])} now" for k in keys[:4]]
+    shown = [_difference(k, found.get(k), wanted[k]) for k in keys[:4]]
     return f" ({'; '.join(shown)})" if shown else ""
+
+
+def _difference(key: str, found: Any, wanted: Any) -> str:
+    """One key's difference; for two mappings, the entries that changed, appeared or disappeared."""
+    if isinstance(found, dict) and isinstance(wanted, Mapping):
+        changed = [k for k in wanted if k in found and found[k] != wanted[k]]
+        new = [k for k in wanted if k not in found]
+        gone = [k for k in found if k not in wanted]
+        parts = [f"{', '.join(changed[:4])} changed" if changed else "",
+                 f"{', '.join(new[:4])} new" if new else "", f"{', '.join(gone[:4])} gone" if gone else ""]
+        return f"{key}: " + "; ".join(p for p in parts if p)
+    return f"{key} {json.dumps(found)} in the file, {json.dumps(wanted)} now"
 
 
 def _write_all(fd: int, data: bytes) -> None:

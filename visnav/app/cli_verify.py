@@ -16,6 +16,7 @@ falsified, 2 bad input (problem, formula, options), 3 a simulation diverged nume
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import sys
@@ -23,7 +24,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from visnav.app.cli_types import EXIT_BAD_INPUT, non_negative_int, positive_int
+from analysis.falsification import DEFAULT_TIMEOUT_S
+
+from visnav.app.cli_types import EXIT_BAD_INPUT, non_negative_int, positive_int, positive_seconds
 
 __all__ = ["add_parser", "load_verification_problem", "counterexample_text", "JOURNAL_FORMAT",
            "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET"]
@@ -58,6 +61,9 @@ def add_parser(sub: Any) -> None:
                                                  "(default: out/verify/<problem>/<method>-seed<S>-budget<N>)")
     ver.add_argument("--workers", type=positive_int, default=None,
                      help="monte-carlo only: local worker processes (default: in this process)")
+    ver.add_argument("--sim-timeout", type=positive_seconds, default=DEFAULT_TIMEOUT_S, metavar="S",
+                     help=f"wall-clock limit of one simulation in seconds (default: {DEFAULT_TIMEOUT_S:g}); a "
+                          "simulation past it is recorded as timed out and the verdict is incomplete")
     ver.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ver.set_defaults(func=_cmd_verify)
 
@@ -96,9 +102,14 @@ def load_verification_problem(spec: str, options: Mapping[str, Any], requirement
 
 
 def _spec_hash(spec: str, options: Mapping[str, Any], problem: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """The journal's header: the search's options, the requirements, the box and the model's code
+    (:func:`analysis.loading.source_digests`): a journal of an edited model is another campaign."""
+    from analysis.loading import source_digests
+
     identity = {"problem": spec, "options": dict(options), "method": args.method, "seed": args.seed,
                 "budget": args.budget, "requirements": [[r.name, r.formula] for r in problem.requirements],
-                "parameters": [[p.name, p.low, p.high, p.nominal] for p in problem.parameters]}
+                "parameters": [[p.name, p.low, p.high, p.nominal] for p in problem.parameters],
+                "timeout_s": getattr(args, "sim_timeout", None), "model": source_digests(spec)}
     digest = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     return {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION, "spec_hash": digest, "spec": identity}
 
@@ -155,8 +166,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from visnav.app.files import prepare_output_dir, write_text_atomic
 
     options = _options(args)
-    try:
-        problem = load_verification_problem(args.problem, options, args.requirement)
+    quiet = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
+    try:  # with --json, stdout carries the JSON alone: the model's own prints go to stderr
+        with quiet:
+            problem = load_verification_problem(args.problem, options, args.requirement)
     except ProblemLoadError as error:
         return _bad_input(error.render(), error.user_traceback)
     except ParameterError as error:
@@ -177,9 +190,9 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
     runner = _runner(args, problem, options, record) if args.method == "monte-carlo" and args.workers else None
     try:
-        with store:
+        with store, (contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()):
             result = verify(problem, budget=args.budget, seed=args.seed, method=args.method, cache=cache,
-                            on_evaluation=record, runner=runner)
+                            on_evaluation=record, runner=runner, timeout_s=args.sim_timeout)
             store.compact()
     except SimulationFailed as error:
         return _bad_input(f"{error}\nyour simulator raised (your code's traceback follows)", error.traceback)
@@ -270,16 +283,16 @@ def _bad_input(message: str, user_traceback: str = "") -> int:
 _WORKER_PROBLEMS: dict[str, Any] = {}
 
 
-def _evaluate_task(spec: tuple[str, tuple[tuple[str, Any], ...], tuple[str, ...] | None, Mapping[int, tuple]],
-                   index: int):
+def _evaluate_task(spec: tuple[str, tuple[tuple[str, Any], ...], tuple[str, ...] | None, Mapping[int, tuple],
+                               float | None], index: int):
     """Campaign task: evaluate Monte-Carlo draw ``index`` of the problem the spec names (loaded once per process)."""
     from analysis.falsification import evaluate
 
-    source, options, requirements, units = spec
+    source, options, requirements, units, timeout_s = spec
     key = repr((source, options, requirements))
     if key not in _WORKER_PROBLEMS:
         _WORKER_PROBLEMS[key] = load_verification_problem(source, dict(options), requirements)
-    return evaluate(_WORKER_PROBLEMS[key], units[index])
+    return evaluate(_WORKER_PROBLEMS[key], units[index], timeout_s)
 
 
 def _runner(args: argparse.Namespace, problem: Any, options: Mapping[str, Any], record: Any):
@@ -289,7 +302,7 @@ def _runner(args: argparse.Namespace, problem: Any, options: Mapping[str, Any], 
     def run(pending: list[tuple[int, tuple[float, ...]]]) -> dict[int, Any]:
         units = dict(pending)  # one chunk of draws (analysis.falsification), by index
         spec = (args.problem, tuple(sorted(options.items())), tuple(args.requirement) if args.requirement else None,
-                units)
+                units, args.sim_timeout)
         outcomes: dict[int, Any] = {}
 
         def sink(i: int, outcome: Any) -> None:

@@ -1,0 +1,107 @@
+"""``visnav verify`` against a hostile or careless user's module (issue 25): no hang, the user's code never
+sets visnav's exit code, a journal is bound to the model it was computed from, stdout keeps the JSON alone."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from visnav.app.cli import main
+
+MODULE = '''
+import numpy as np
+from analysis.requirements import Requirement
+from analysis.stl import SignalTrace
+from analysis.verification import Parameter, VerificationProblem
+
+def simulate(p):
+    t = np.linspace(0.0, 2.0, 41)
+    BODY
+    return SignalTrace(times=t, signals={"x": p["x0"] * np.exp(-t)})
+
+def factory():
+    FACTORY
+    return problem
+
+problem = VerificationProblem(name="decay", simulate=simulate,
+    parameters=(Parameter(name="x0", low=0.5, high=2.0),), horizon=2.0, signals=("x",),
+    requirements=(Requirement(name="positive", formula="always[0, 2] (x > 0)"),))
+'''
+
+
+def _module(tmp_path, body="pass", factory="pass", name="user_mod.py"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(MODULE).replace("BODY", body).replace("FACTORY", factory))
+    return path
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+@pytest.mark.parametrize("body", ["import sys; sys.exit(0)", "import sys; sys.exit('msg')", "import sys; sys.exit(3)",
+                                  "raise GeneratorExit()"])
+def test_sys_exit_in_the_simulator_is_a_model_error_never_our_exit_code(tmp_path, capsys, body):
+    path = _module(tmp_path, body=body)
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    assert code == 6, (out, err)
+    assert "MODEL ERROR" in out and ("SystemExit" in err or "GeneratorExit" in err)
+
+
+@pytest.mark.parametrize("factory", ["import sys; sys.exit(0)", "import sys; sys.exit(3)", "raise GeneratorExit()"])
+def test_sys_exit_in_a_problem_factory_is_bad_input(tmp_path, capsys, factory):
+    path = _module(tmp_path, factory=factory)
+    code, _, err = _run(capsys, "verify", f"{path}:factory", "--budget", "2", "--out", str(tmp_path / "o"))
+    assert code == 2 and "fix the error in your code" in err
+
+
+def test_a_simulator_that_hangs_is_stopped_and_the_verdict_is_incomplete(tmp_path, capsys):
+    path = _module(tmp_path, body="import time; time.sleep(60)")
+    start = time.monotonic()
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--sim-timeout", "0.3",
+                          "--out", str(tmp_path / "o"), "--json")
+    assert time.monotonic() - start < 20
+    assert code == 5, err
+    data = json.loads(out)
+    assert data["verdict"] == "incomplete" and data["requirements"][0]["verdict"] == "incomplete"
+    assert data["ended_early"][0]["status"] == "timeout"
+
+
+def test_a_looping_simulator_is_stopped_in_the_process_pool_too(tmp_path):
+    path = _module(tmp_path, body="while True: pass")
+    start = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "visnav.app.cli", "verify", f"{path}:problem", "--budget", "2",
+                           "--method", "monte-carlo", "--workers", "2", "--sim-timeout", "0.5",
+                           "--out", str(tmp_path / "o"), "--json"], capture_output=True, text=True, timeout=120)
+    assert time.monotonic() - start < 90
+    assert done.returncode == 5, done.stderr
+    assert {d["status"] for d in json.loads(done.stdout)["ended_early"]} == {"timeout"}
+
+
+def test_a_journal_of_an_edited_model_is_refused_naming_the_file(tmp_path, capsys):
+    path = _module(tmp_path)
+    out = str(tmp_path / "o")
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", out)
+    assert code == 0, err
+    path.write_text(path.read_text().replace("p[\"x0\"] * np.exp(-t)", "p[\"x0\"] * np.exp(-t) - 1.0"))
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", out)
+    assert code == 2 and "another campaign" in err and "user_mod.py changed" in err
+    # the same command on a fresh folder (a new process: this one keeps the module it imported) sees the edit
+    done = subprocess.run([sys.executable, "-m", "visnav.app.cli", "verify", f"{path}:problem", "--budget", "4",
+                           "--out", str(tmp_path / "fresh")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+
+
+def test_json_stdout_holds_the_json_alone_when_the_model_prints(tmp_path, capsys):
+    path = _module(tmp_path, body="print('chatty model')")
+    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"),
+                          "--json")
+    assert code == 0 and json.loads(out)["verdict"] == "not_falsified"
+    assert "chatty model" in err
