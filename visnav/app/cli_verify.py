@@ -123,12 +123,40 @@ def _default_out(name: str, args: argparse.Namespace) -> str:
     return f"out/verify/{name}/{tail}"
 
 
-def _journal(folder: Path, header: dict[str, Any], budget: int):
-    from analysis.falsification import Evaluation
+_PHASES = ("nominal", "search", "polish", "shrink", "monte-carlo", "dual-annealing")
 
+
+def _checked_evaluation(problem: Any, data: Any) -> Any:
+    """A journal line's evaluation, refused (``ValueError``) unless it could have been written for ``problem``:
+    a unit point of its dimension in [-1, 1], a status of the vocabulary, one robustness (not NaN) and one
+    truth value (true, false or null) per requirement when evaluated, none otherwise."""
+    import math
+
+    from analysis.falsification import STATUSES, Evaluation
+
+    e = Evaluation.from_dict(data)
+    o = e.outcome
+    n = len(problem.requirements)
+    if len(e.unit) != problem.dimension or not all(math.isfinite(u) and -1.0 <= u <= 1.0 for u in e.unit):
+        raise ValueError(f"unit point {list(e.unit)[:8]}: expected {problem.dimension} coordinates in [-1, 1]")
+    if o.status not in STATUSES or e.phase not in _PHASES:
+        raise ValueError(f"status {o.status!r} / phase {e.phase!r}: expected one of {STATUSES} / {_PHASES}")
+    if len(o.robustness) not in ((n,) if o.status == "ok" else (0, n)) or len(o.satisfied) != len(o.robustness):
+        raise ValueError(f"{len(o.robustness)} robustness values and {len(o.satisfied)} truth values for {n} "
+                         f"requirement(s) with status {o.status!r}")
+    if any(math.isnan(r) for r in o.robustness) or not all(isinstance(v, bool) or v is None
+                                                           for v in data.get("satisfied", ())):
+        raise ValueError("a robustness that is NaN, or a truth value that is not true, false or null")
+    if o.status == "ok" and None in o.satisfied:
+        raise ValueError("an undecided requirement on a complete run")
+    return e
+
+
+def _journal(folder: Path, header: dict[str, Any], budget: int, problem: Any):
     from visnav.app.campaign_store import ResultCodec, StoreHints, open_store
 
-    codec = ResultCodec(to_dict=lambda e: e.as_dict(), from_dict=Evaluation.from_dict, index=lambda e: e.index)
+    codec = ResultCodec(to_dict=lambda e: e.as_dict(), from_dict=lambda d: _checked_evaluation(problem, d),
+                        index=lambda e: e.index)
     hints = StoreHints(writer="visnav verify", same_campaign="the same problem, --method, --seed, --budget and "
                        "requirements")
     return open_store(folder / "evaluations.jsonl", header, codec, samples=budget, hints=hints)
@@ -177,9 +205,14 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     folder = prepare_output_dir(args.out or _default_out(problem.name, args))
     header = _spec_hash(args.problem, options, problem, args)
     try:
-        store, found = _journal(folder, header, args.budget)
+        store, found = _journal(folder, header, args.budget, problem)
     except CampaignStoreError as error:
         return _bad_input(str(error))
+    for bad in found.bad_lines:
+        print(f"visnav: warning: {found.path}: {bad}", file=sys.stderr)
+    if found.bad_lines:
+        print(f"visnav: warning: {found.path}: kept {found.results} valid evaluation(s) and dropped "
+              f"{len(found.bad_lines)} bad line(s); their points will be simulated again", file=sys.stderr)
     cache = {e.unit: e.outcome for e in store.results()}
     done = set(store.done)
 

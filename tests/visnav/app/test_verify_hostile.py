@@ -105,3 +105,31 @@ def test_json_stdout_holds_the_json_alone_when_the_model_prints(tmp_path, capsys
                           "--json")
     assert code == 0 and json.loads(out)["verdict"] == "not_falsified"
     assert "chatty model" in err
+
+
+@pytest.mark.parametrize("forge", [
+    lambda r: r.update(unit=[0.1, 0.2]),  # a point of the wrong length
+    lambda r: r.update(unit=[7.0]),  # outside the unit box
+    lambda r: r.update(status="bogus"),  # a status outside the vocabulary
+    lambda r: r.update(robustness=["nan"]),  # NaN robustness
+    lambda r: r.update(satisfied=[]),  # no truth value: IndexError before
+    lambda r: r.update(satisfied=["yes"]),  # not a boolean
+])
+def test_forged_journal_lines_with_a_valid_checksum_are_dropped_with_a_warning(tmp_path, capsys, forge):
+    from visnav.app.campaign_store import canonical_json, line_checksum
+
+    path = _module(tmp_path)
+    out = tmp_path / "o"
+    code, first, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", str(out), "--json")
+    assert code == 0, err
+    journal = out / "evaluations.jsonl"
+    lines = journal.read_text().splitlines()
+    line = json.loads(lines[2])
+    forge(line["result"])
+    line["sha256"] = line_checksum(line["result"])
+    lines[2] = canonical_json(line)
+    journal.write_text("\n".join(lines) + "\n")
+    code, again, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", str(out), "--json")
+    assert code == 0, err
+    assert "dropped 1 bad line" in err
+    assert json.loads(again)["requirements"] == json.loads(first)["requirements"]  # re-simulated: the same answer
