@@ -35,6 +35,7 @@ deterministic search, each point already simulated read from the cache).
 from __future__ import annotations
 
 import math
+import os
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -220,9 +221,11 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: flo
         could not be evaluated on it (a signal missing, a non-finite value).
     """
     point = problem.point(unit)
+    pid = os.getpid()
     try:
         with time_limit(timeout_s):
             trace = problem.simulate(point)
+            _forked(pid)
     except TimeLimitExceeded as error:
         return Outcome(status="timeout", end="timeout",
                        detail=f"the simulation was stopped: {error} (its wall-clock limit; a loop or a sleep in the "
@@ -247,6 +250,12 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: flo
         return _judge(problem, trace)
     except TraceError as error:
         raise SimulationFailed(point, error) from error
+
+
+def _forked(pid: int) -> None:
+    """A simulator that forked: its child must not carry on with the search (and write to the journal)."""
+    if os.getpid() != pid:
+        os._exit(0)
 
 
 _TRACEBACK_LIMIT = 8000

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from concurrent.futures import BrokenExecutor
 import hashlib
 import json
 import sys
@@ -26,7 +27,7 @@ from typing import Any
 
 from analysis.falsification import DEFAULT_TIMEOUT_S
 
-from visnav.app.cli_types import EXIT_BAD_INPUT, non_negative_int, positive_int, positive_seconds
+from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_DIVERGED, non_negative_int, positive_int, positive_seconds
 
 __all__ = ["add_parser", "load_verification_problem", "counterexample_text", "JOURNAL_FORMAT",
            "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET"]
@@ -231,6 +232,13 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         return _bad_input(f"{error}\nyour simulator raised (your code's traceback follows)", error.traceback)
     except FalsificationError as error:
         return _bad_input(error.render())
+    except BrokenExecutor as error:  # a worker process died (os._exit, a crash, the OOM killer)
+        reason = " ".join(str(error).split())
+        print(f"visnav: error: the search stopped: a worker process died ({type(error).__name__}"
+              f"{': ' + reason if reason else ''}); {len(done)} evaluation(s) are kept in {folder / 'evaluations.jsonl'}"
+              "; rerun the same command to resume (a model that kills its process: run without --workers to see "
+              "its error)", file=sys.stderr)
+        return EXIT_DIVERGED
     written = _write_results(folder, result, problem, args.problem, options)
     if result.errors and result.errors[0].get("traceback"):
         print(str(result.errors[0]["traceback"]).rstrip() + "\nvisnav: the model's code raised during a simulation "

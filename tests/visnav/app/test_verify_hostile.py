@@ -133,3 +133,23 @@ def test_forged_journal_lines_with_a_valid_checksum_are_dropped_with_a_warning(t
     assert code == 0, err
     assert "dropped 1 bad line" in err
     assert json.loads(again)["requirements"] == json.loads(first)["requirements"]  # re-simulated: the same answer
+
+
+def test_a_worker_that_dies_exits_3_with_the_resume_hint(tmp_path):
+    path = _module(tmp_path, body="import os; os._exit(7)")
+    done = subprocess.run([sys.executable, "-m", "visnav.app.cli", "verify", f"{path}:problem", "--budget", "3",
+                           "--method", "monte-carlo", "--workers", "2", "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 3, done.stderr
+    assert "worker process died" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_forking_simulator_does_not_multiply_the_search(tmp_path, capsys):
+    path = _module(tmp_path, body="import os; os.fork()")
+    out = tmp_path / "o"
+    done = subprocess.run([sys.executable, "-m", "visnav.app.cli", "verify", f"{path}:problem", "--budget", "6",
+                           "--out", str(out), "--json"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    time.sleep(0.5)
+    lines = (out / "evaluations.jsonl").read_text().splitlines()
+    assert len(lines) == 1 + 6  # the header and one line per simulation of the budget
