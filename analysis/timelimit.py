@@ -7,6 +7,8 @@ another thread (or where ``setitimer`` does not exist) the block runs without a 
 context manager yields ``False`` so the caller can say so.  The process pool's workers run tasks in
 their main thread, so the limit holds there too.  Python checks for signals between bytecodes: a
 single C call that never returns (a BLAS routine on a huge matrix) is not interrupted until it does.
+An enclosing ``SIGALRM`` timer (a caller's own limit) is kept: whichever comes first fires, and the
+enclosing one is re-armed with what is left of it when the block ends.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import math
 import signal
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -48,13 +51,26 @@ def time_limit(seconds: float | None) -> Iterator[bool]:
         yield False
         return
 
-    def fire(_signum: int, _frame: object) -> None:
+    begun = time.monotonic()
+    outer_delay, outer_interval = signal.getitimer(signal.ITIMER_REAL)
+    outer_first = 0.0 < outer_delay <= float(seconds)  # an enclosing limit (a caller's own timer) comes first
+    state = {"outer_fired": False}
+
+    def fire(signum: int, frame: object) -> None:
+        if outer_first:
+            state["outer_fired"] = True
+            if callable(previous):
+                previous(signum, frame)
+            return
         raise TimeLimitExceeded(float(seconds))
 
     previous = signal.signal(signal.SIGALRM, fire)
-    signal.setitimer(signal.ITIMER_REAL, float(seconds))
+    signal.setitimer(signal.ITIMER_REAL, outer_delay if outer_first else float(seconds))
     try:
         yield True
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         signal.signal(signal.SIGALRM, previous)
+        if outer_delay > 0.0 and not state["outer_fired"]:  # give the enclosing timer back what is left of it
+            left = outer_delay - (time.monotonic() - begun)
+            signal.setitimer(signal.ITIMER_REAL, max(left, 1e-6), outer_interval)
