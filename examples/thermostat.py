@@ -33,6 +33,7 @@ from analysis.problems import hybrid_problem
 from analysis.requirements import Requirement
 from analysis.verification import Parameter, VerificationProblem
 from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition
+from hybrid.symbolic import coordinates, flow_map
 
 OUTSIDE_C = 10.0
 HEATER_C = 30.0
@@ -63,24 +64,17 @@ def thermostat_system(band: float, rate: float) -> HybridSystem:
         Inverse time constant of the room [1/s].
     """
     low, high = SETPOINT_C - band / 2, SETPOINT_C + band / 2
+    v = coordinates("T")  # written once: each guard, invariant and flow gives its text, z3 form and bounds
     automaton = HybridAutomaton(
         name="thermostat",
-        modes=(Mode(name="off", invariant=lambda v, m: v[0] - low, invariant_text=f"T >= {low:g}"),
-               Mode(name="on", invariant=lambda v, m: high - v[0], invariant_text=f"T <= {high:g}")),
-        transitions=(
-            Transition(name="heat_on", source="off", target="on", guard=lambda v, m: low - v[0],
-                       guard_text=f"T <= {low:g}"),
-            Transition(name="heat_off", source="on", target="off", guard=lambda v, m: v[0] - high,
-                       guard_text=f"T >= {high:g}"),
-        ),
+        modes=(Mode(name="off", invariant=v.T >= low), Mode(name="on", invariant=v.T <= high)),
+        transitions=(Transition(name="heat_on", source="off", target="on", guard=v.T <= low),
+                     Transition(name="heat_off", source="on", target="off", guard=v.T >= high)),
         variables=("T",),
         initial_mode="off",
     )
-    return HybridSystem(
-        automaton=automaton, state_names=("T",),
-        flows={"off": lambda t, x, m: (-rate * (x[0] - OUTSIDE_C),),
-               "on": lambda t, x, m: (-rate * (x[0] - HEATER_C),)},
-    )
+    return HybridSystem(automaton=automaton, state_names=("T",),
+                        flows={"off": flow_map(-rate * (v.T - OUTSIDE_C)), "on": flow_map(-rate * (v.T - HEATER_C))})
 
 
 def _builder(band: float):

@@ -38,13 +38,16 @@ from .symbolic import (
     Condition,
     Expr,
     SymbolicReset,
+    SymbolicVector,
     free_symbols,
     level_form,
     misplaced_coordinates,
+    render,
     unsupported_terms,
 )
 
 __all__ = [
+    "symbolic_text",
     "Guard",
     "Reset",
     "Mode",
@@ -109,6 +112,18 @@ def _as_level(function: Any) -> Any:
     """A symbolic condition as its level form; anything else unchanged."""
     return level_form(function) if isinstance(function, Condition) else function
 
+
+def symbolic_text(function: Any) -> str:
+    """The text of a symbolic guard, invariant or reset as written (``T <= 19.5``, ``dL := d``); ``""`` for a
+    plain callable, whose text only its author can give (``guard_text=``)."""
+    if isinstance(function, Condition):
+        return render(function)
+    if isinstance(function, Expr):
+        return f"{render(function)} >= 0"
+    if isinstance(function, SymbolicReset):
+        return ", ".join(f"{name} := {render(e)}" for name, e in function.assignments.items())
+    return ""
+
 Guard = Callable[[Sequence[float], Mapping[str, float]], float]
 """Guard value ``g(v, m)``; the transition is enabled when ``g >= 0``."""
 
@@ -150,6 +165,8 @@ class Mode:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Mode.name = {self.name!r}: expected a non-empty string")
+        if not self.invariant_text:  # one definition: a symbolic invariant gives its own text
+            object.__setattr__(self, "invariant_text", symbolic_text(self.invariant))
         object.__setattr__(self, "invariant", _as_level(self.invariant))
         refuse_unsupported(self.invariant, f"mode {self.name!r}: invariant", timed=False)
         if self.invariant is not None and not callable(self.invariant):
@@ -202,6 +219,16 @@ class Transition:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ModelDefinitionError(f"Transition.name = {self.name!r}: expected a non-empty string")
+        if isinstance(self.reset, SymbolicVector):
+            raise ModelDefinitionError(
+                f"transition {self.name!r}: reset = a {self.reset.kind} map of the state; a reset assigns memory "
+                "variables (reset(name=expression), or r(v, m) -> dict); a jump of the state belongs to the system: "
+                f"HybridSystem(..., jumps={{{self.name!r}: jump_map(...)}})"
+            )
+        if not self.guard_text:  # one definition: a symbolic guard and reset give their own text
+            object.__setattr__(self, "guard_text", symbolic_text(self.guard))
+        if not self.reset_text:
+            object.__setattr__(self, "reset_text", symbolic_text(self.reset))
         object.__setattr__(self, "guard", _as_level(self.guard))
         refuse_unsupported(self.guard, f"transition {self.name!r}: guard", timed=False)
         refuse_unsupported(self.reset, f"transition {self.name!r}: reset", timed=False)

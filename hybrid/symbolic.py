@@ -265,7 +265,15 @@ class MemoryRef(Expr):
 
 @dataclass(frozen=True, eq=False, slots=True, repr=False)
 class Time(Expr):
-    """Time ``t`` [s] (flows and outputs only)."""
+    """Time ``t`` [s] (flows and outputs only); the module's :data:`time` is one, used as it is (``time >= tb``).
+
+    Calling it with no argument gives itself, so ``time()`` (the older spelling) still works.
+    """
+
+    def __call__(self, *args: Any) -> Any:
+        if not args:
+            return self
+        return Expr.__call__(self, *args)
 
 
 @dataclass(frozen=True, eq=False, slots=True, repr=False)
@@ -521,9 +529,8 @@ def param(name: str, value: float) -> Param:
     return Param(name, value)
 
 
-def time() -> Time:
-    """The time symbol of flows and outputs."""
-    return Time()
+time = Time()
+"""The time symbol of flows and outputs: ``flow_map(-k * (v.T - 20 - sin(time)))``, ``time >= tb``."""
 
 
 def minimum(*args: Any) -> Expr:

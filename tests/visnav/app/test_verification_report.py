@@ -89,12 +89,12 @@ def test_not_falsified_problem_has_its_verdict_table_first():
     assert body[1].startswith("Verification of `thermostat-band-1`")  # the first section, before the claims
     assert "Overall verdict: NOT FALSIFIED (exit code 0)" in md
     assert "| comfort | NOT FALSIFIED |" in md
-    # the example's guards are plain lambdas: the state-space checks are sampled, the graph checks exact
+    # the example is written symbolically: the state-space checks are decided by z3, the graph checks exact
     from visnav.app.structural import REPORT_STATUS
 
     structure = [c for c in data["claims"] if c["section"] == "structure"]
     checks = data["structure"]["claims"]
-    assert checks["nondeterminism"]["status"] == checks["deadlock"]["status"] == "sampled"
+    assert checks["nondeterminism"]["status"] == checks["deadlock"]["status"] == "proven"
     # the graph checks (exact), then one claim per check that makes one (an undecided check makes none)
     assert [c["status"] for c in structure] == ["proven"] + [REPORT_STATUS[c["status"]] for c in checks.values()
                                                              if c["status"] in REPORT_STATUS]
@@ -110,8 +110,8 @@ def test_not_falsified_problem_has_its_verdict_table_first():
     assert structure[1]["text"].startswith("nondeterminism of thermostat: no two transitions of equal priority")
     assert {c["status"] for c in data["claims"] if c["section"] == "verification"} == {"sampled"}
     assert data["structure"]["automaton"] == "thermostat" and data["structure"]["checks"]  # hybrid.check ran
-    assert data["structure"]["claims"]["zeno"]["status"] == "undecided"  # not symbolic: no claim made
-    assert "| zeno | UNDECIDED |" in md
+    assert data["structure"]["claims"]["zeno"]["status"] == "proven"  # symbolic: the dwell bound is proven by z3
+    assert "| zeno | PROVEN |" in md
 
 
 def test_falsified_problem_links_its_counterexample(zero_band):
