@@ -224,7 +224,7 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: flo
     pid = os.getpid()
     try:
         with time_limit(timeout_s):
-            trace = problem.simulate(point)
+            trace = problem.trace(point)
             _forked(pid)
     except TimeLimitExceeded as error:
         return Outcome(status="timeout", end="timeout",

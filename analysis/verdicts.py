@@ -213,7 +213,7 @@ def _running_min(evaluations: Sequence[Evaluation], r: int) -> tuple[float, ...]
 def _counterexample(problem: VerificationProblem, search: Search, r: int, unit: tuple[float, ...],
                     how: str) -> Counterexample:
     e = search.evaluations[search.seen[unit]]
-    trace = problem.simulate(problem.point(unit))
+    trace = problem.trace(problem.point(unit))
     why = problem.parsed[r].formula.explain(trace)
     return Counterexample(unit=unit, point=problem.point(unit), robustness=e.outcome.robustness[r],
                           evaluation=e.index, how=how, time=float(why.time), atom=str(why.atom),

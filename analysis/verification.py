@@ -283,7 +283,8 @@ class VerificationProblem:
         if unknown:
             raise ProblemError("VerificationProblem.proofs", unknown, "names of the problem's requirements",
                                "key each proof by the requirement it decides")
-        parsed = parse_requirements(requirements, signals=(*signals, "time", "jumps"), labels=labels,
+        constants = tuple(p.name for p in params if p.name not in signals and p.name not in labels)
+        parsed = parse_requirements(requirements, signals=(*signals, *constants, "time", "jumps"), labels=labels,
                                     horizon=horizon)
         object.__setattr__(self, "parameters", params)
         object.__setattr__(self, "horizon", horizon)
@@ -308,6 +309,20 @@ class VerificationProblem:
             raise ProblemError("unit point", tuple(unit), f"{len(self.parameters)} coordinates",
                                "give one coordinate per parameter")
         return {p.name: p.at(u) for p, u in zip(self.parameters, unit)}
+
+    def trace(self, point: Mapping[str, float]) -> SignalTrace:
+        """``simulate(point)``, with every parameter a formula reads and the trace lacks added as a constant
+        signal (``always (d >= d_min)`` with ``d_min`` a parameter of the box)."""
+        trace = self.simulate(point)
+        if not isinstance(trace, SignalTrace):
+            return trace
+        read = set().union(*(r.formula.signals for r in self.parsed)) if self.parsed else set()
+        missing = [p.name for p in self.parameters if p.name in read and p.name not in trace.signals]
+        if not missing:
+            return trace
+        signals = {**trace.signals, **{name: np.full(trace.n, float(point[name])) for name in missing}}
+        return SignalTrace(times=trace.times, signals=signals, labels=trace.labels, jumps=trace.jumps,
+                           termination=trace.termination, termination_detail=trace.termination_detail)
 
     def nominal(self) -> dict[str, float]:
         """The nominal point."""

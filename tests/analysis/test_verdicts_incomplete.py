@@ -169,3 +169,21 @@ def test_cli_verify_of_a_zeno_model_exits_5_and_says_so(tmp_path):
     assert done.returncode == 5, done.stderr
     assert "INCOMPLETE" in done.stdout and "Zeno" in done.stdout
     assert math.isfinite(float(done.stdout.split("Zeno: the jumps accumulate at t = ")[1].split()[0]))
+
+
+def _decay(point):
+    t = np.linspace(0.0, 2.0, 21)
+    return SignalTrace(times=t, signals={"x": point["x0"] * np.exp(-t)})
+
+
+def test_a_parameter_of_the_box_is_a_constant_signal_of_the_formulas():
+    problem = VerificationProblem(
+        name="floor", simulate=_decay, horizon=2.0, signals=("x",),
+        parameters=(Parameter(name="x0", low=1.0, high=2.0), Parameter(name="floor", low=0.05, high=0.3)),
+        requirements=(Requirement(name="above", formula="always[0, 2] (x >= floor)"),))
+    # closed form: min x = x0 e^-2 >= 0.1353 while floor reaches 0.3: violated at x0 = 1, floor = 0.3
+    result = verify(problem, budget=30, seed=0, method="monte-carlo")
+    assert result.verdict == "falsified"
+    cx = result.requirement("above").counterexample
+    assert cx.point["x0"] * math.exp(-2.0) < cx.point["floor"]
+    assert cx.robustness == pytest.approx(cx.point["x0"] * math.exp(-2.0) - cx.point["floor"], abs=1e-12)

@@ -169,7 +169,7 @@ def counterexample_text(result: Any, verdict: Any, problem: Any, spec: str, opti
 
     cx = verdict.counterexample
     parsed = next(p for p in problem.parsed if p.name == verdict.name)
-    trace = problem.simulate(problem.point(cx.unit))
+    trace = problem.trace(problem.point(cx.unit))
     names = sorted(parsed.formula.signals - {"time", "jumps"})
     labels = sorted(parsed.formula.labels)
     rows = [[float(trace.times[k]), int(trace.jumps[k]), *(trace.label(n)[k] for n in labels),
@@ -394,7 +394,7 @@ def replay_verification(text: str, path: str, as_json: bool) -> int:
     except ParameterError as error:
         return _bad_input(f"replay {path}: {error.render()}")
     formula = problem.parsed[0].formula
-    trace = problem.simulate(point)
+    trace = problem.trace(point)
     rho = float(formula.robustness(trace))
     violated = not formula.satisfied(trace)
     why = formula.explain(trace)

@@ -248,7 +248,7 @@ def _nominal_run(problem: Any, result: Any) -> tuple[dict[str, Any], Any]:
     if first is None or not first.outcome.evaluated:  # a run cut short is still shown, with how it ended
         return data, None
     data["end"], data["end_time"] = first.outcome.end, first.outcome.end_time
-    trace = problem.simulate(problem.nominal())
+    trace = problem.trace(problem.nominal())
     data["decided"] = {p.name: _explained(p.formula, trace) for p in problem.parsed}
     return data, trace
 
@@ -286,7 +286,7 @@ def _figures(problem: Any, result: Any, nominal_trace: Any
         stems[r.name] = None
         if cx is None:
             continue
-        trace = problem.simulate(problem.point(cx.unit))
+        trace = problem.trace(problem.point(cx.unit))
         panel = RequirementPanel(name=r.name, formula=parsed[r.name], violated=True, time=cx.time, atom=cx.atom)
         stem = f"verification_counterexample_{r.name}"
         figures[stem] = run_figure(trace, [panel], title=f"{problem.name}: counterexample to {r.name}")
