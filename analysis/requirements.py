@@ -23,7 +23,8 @@ from hybrid.errors import ParameterError
 
 from analysis.stl import Formula, FormulaError, parse_formula
 
-__all__ = ["Requirement", "ParsedRequirement", "RequirementError", "parse_requirements", "requirement_from_mapping"]
+__all__ = ["Requirement", "ParsedRequirement", "RequirementError", "parse_requirements", "requirement_from_mapping",
+           "min_dwell"]
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*\Z")
 
@@ -135,3 +136,45 @@ def requirement_from_mapping(data: object, where: str) -> Requirement:
         if key not in data:
             raise RequirementError(where, dict(data), f"a key {key!r}", f"add {key} = \"...\"")
     return Requirement(name=data["name"], formula=data["formula"], description=data.get("description", ""))
+
+
+def min_dwell(name: str, seconds: float, modes: Collection[str], horizon: float, *, label: str = "mode",
+              description: str = "") -> Requirement:
+    """No chatter: after every switch into a mode the run stays in it for at least ``seconds``.
+
+    One clause per mode, written out: ``always[0, H - seconds] ((jumps > prev(jumps) and mode == "m")
+    implies always[0, seconds] (mode == "m"))`` for each of ``modes``, joined by ``and``.  A run that ends
+    within ``seconds`` of a switch is judged on what it has (an early end leaves it undecided).
+
+    Parameters
+    ----------
+    name : str
+    seconds : float
+        The minimum dwell [s], ``0 < seconds < horizon``.
+    modes : collection of str
+        The label's values (the problem's ``labels["mode"]``).
+    horizon : float
+        The problem's horizon [s].
+    label : str
+        The label holding the mode.
+
+    Raises
+    ------
+    RequirementError
+        A non-positive or too long dwell, no modes, or a mode name with a quote.
+    """
+    import math
+
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not (
+            math.isfinite(seconds) and 0 < seconds < horizon):
+        raise RequirementError("min_dwell: seconds", seconds, f"a time in (0, {horizon:g}) s (below the horizon)",
+                               "give the relay's or actuator's minimum dwell, e.g. 0.25")
+    modes = tuple(modes)
+    if not modes or any(not isinstance(m, str) or '"' in m or "\\" in m for m in modes):
+        raise RequirementError("min_dwell: modes", modes, "mode names without quotes or backslashes",
+                               "pass the problem's labels['mode']")
+    clauses = [f'((jumps > prev(jumps) and {label} == "{m}") implies always[0, {seconds!r}] ({label} == "{m}"))'
+               for m in modes]
+    formula = f"always[0, {horizon - seconds!r}] (\n    " + "\n    and ".join(clauses) + ")"
+    return Requirement(name=name, formula=formula,
+                       description=description or f"every mode is kept at least {seconds:g} s after a switch into it")

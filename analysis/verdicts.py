@@ -69,7 +69,9 @@ class Counterexample:
     how : str
         How it was found and shrunk.
     time : float
-        Where the robustness is decided (:meth:`analysis.stl.Formula.explain`) [s].
+        Where the robustness is decided (:meth:`analysis.stl.Formula.explain`): its lowest instant [s].
+    first_time : float or None
+        The first instant the requirement is seen violated (:meth:`analysis.stl.Formula.first_violation`) [s].
     atom : str
         The atomic comparison that decides it there.
     atom_value : float
@@ -84,6 +86,7 @@ class Counterexample:
     time: float
     atom: str
     atom_value: float
+    first_time: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -214,10 +217,11 @@ def _counterexample(problem: VerificationProblem, search: Search, r: int, unit: 
                     how: str) -> Counterexample:
     e = search.evaluations[search.seen[unit]]
     trace = problem.trace(problem.point(unit))
-    why = problem.parsed[r].formula.explain(trace)
+    formula = problem.parsed[r].formula
+    why = formula.explain(trace)
     return Counterexample(unit=unit, point=problem.point(unit), robustness=e.outcome.robustness[r],
                           evaluation=e.index, how=how, time=float(why.time), atom=str(why.atom),
-                          atom_value=float(why.value))
+                          atom_value=float(why.value), first_time=formula.first_violation(trace))
 
 
 def _proofs(problem: VerificationProblem) -> dict[str, Proof]:

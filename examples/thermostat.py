@@ -30,7 +30,7 @@ that instant.
 from __future__ import annotations
 
 from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
+from analysis.requirements import Requirement, min_dwell
 from analysis.verification import Parameter, VerificationProblem
 from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition
 from hybrid.symbolic import coordinates, flow_map
@@ -43,13 +43,9 @@ HORIZON_S = 120.0
 REQUIREMENTS = (
     Requirement(name="comfort", formula=f"always[0, {HORIZON_S:g}] (abs(T - {SETPOINT_C:g}) <= 1.5)",
                 description="the room stays within 1.5 °C of the setpoint"),
-    Requirement(
-        name="min_dwell",
-        formula=f"""always[0, {HORIZON_S - 1:g}] (
-                      ((jumps > prev(jumps) and mode == "on") implies always[0, 0.25] (mode == "on"))
-                  and ((jumps > prev(jumps) and mode == "off") implies always[0, 0.25] (mode == "off")))""",
-        description="the heater stays on (off) for at least 0.25 s after switching (a trace that ends sooner "
-                    "is judged on what it has)"),
+    min_dwell("min_dwell", 0.25, ("off", "on"), HORIZON_S,
+              description="the heater stays on (off) for at least 0.25 s after switching (a trace that ends sooner "
+                          "is judged on what it has)"),
 )
 
 

@@ -453,6 +453,22 @@ class _Prefix:
         return lo, hi
 
 
+def _first_false(ev: _Boolean, node: object, i: int) -> int:
+    """The earliest sample at which ``node``, false at ``i``, is seen false (see :meth:`Formula.first_violation`)."""
+    match node:
+        case Temporal("always", interval, arg):
+            lo, hi = ev.window(interval, False)
+            values = ev.value(arg)[lo[i]:hi[i] + 1]
+            k = int(lo[i] + np.flatnonzero(~values)[0])
+            return _first_false(ev, arg, k)
+        case And(left, right):
+            sides = [_first_false(ev, side, i) for side in (left, right) if not bool(ev.value(side)[i])]
+            return min(sides)
+        case Implies(_, right):
+            return _first_false(ev, right, i)
+    return i
+
+
 # --------------------------------------------------------------------------- explanations
 
 
@@ -620,6 +636,21 @@ class Formula:
     def satisfied(self, trace: SignalTrace) -> bool:
         """Boolean semantics at the first sample (a separate evaluation, not ``robustness > 0``)."""
         return bool(self.satisfied_signal(trace)[0])
+
+    def first_violation(self, trace: SignalTrace) -> float | None:
+        """The first instant [s] at which the formula is seen violated on ``trace``; ``None`` when it holds.
+
+        Descends the boolean semantics from the first sample: through ``always`` to the earliest sample of
+        its window where the argument is false, through ``and`` to the earliest false side, through
+        ``implies`` to its consequent and through ``not eventually`` like ``always not``; any other node is
+        violated at the sample it is evaluated at.  (:meth:`explain` gives where the robustness is lowest,
+        which can be later.)
+        """
+        self.check_trace(trace)
+        ev = _Boolean(trace)
+        if bool(ev.value(self.tree)[0]):
+            return None
+        return float(trace.times[_first_false(ev, self.tree, 0)])
 
     def prefix_satisfied(self, trace: SignalTrace) -> bool | None:
         """Boolean semantics at the first sample of a trace *cut short* at its last sample (a run that ended early).

@@ -187,3 +187,12 @@ def test_a_parameter_of_the_box_is_a_constant_signal_of_the_formulas():
     cx = result.requirement("above").counterexample
     assert cx.point["x0"] * math.exp(-2.0) < cx.point["floor"]
     assert cx.robustness == pytest.approx(cx.point["x0"] * math.exp(-2.0) - cx.point["floor"], abs=1e-12)
+
+
+def test_the_first_violation_instant_is_where_the_violation_starts_not_where_it_is_worst():
+    trace = SignalTrace(times=[0.0, 1.0, 2.0, 3.0, 4.0], signals={"x": [1.0, -0.1, 2.0, -5.0, 1.0]})
+    f = parse_formula("always[0, 4] (x > 0)")
+    assert f.first_violation(trace) == 1.0 and f.explain(trace).time == 3.0
+    assert parse_formula("always[0, 4] (x > -1 and x > 0)").first_violation(trace) == 1.0
+    assert parse_formula("always[0, 4] (x > -1 and x < 1.5)").first_violation(trace) == 2.0
+    assert parse_formula("always[0, 4] (x > -10)").first_violation(trace) is None

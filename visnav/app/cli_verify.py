@@ -290,7 +290,9 @@ def _human(result: Any, written: Mapping[str, str], resumed: int) -> str:
         line = f"  {r.verdict:<14} {r.name:<{width}}  robustness {_fmt(r.robustness):>10}"
         if r.counterexample is not None:
             cx = r.counterexample
-            line += f"  at t = {cx.time:.4g} s ({cx.atom}); replay: visnav replay {written.get(r.name)}"
+            first = "" if cx.first_time is None else f"first violated at t = {cx.first_time:.4g} s, "
+            line += (f"  {first}lowest at t = {cx.time:.4g} s ({cx.atom}); replay: visnav replay "
+                     f"{written.get(r.name)}")
         elif r.proof is not None and r.verdict == "proven":
             line += f"  {r.proof.method}"
         elif r.lowest_at:
