@@ -4,7 +4,8 @@ The exit codes are shared by every subcommand (``docs/failure_modes.md``): 0 the
 failed (collision, timeout, a falsified requirement, a finding), 2 bad input (nothing was run, or
 what was given cannot be used; the message says what to change), 3 the run could not complete (a
 simulation diverged or an executor failed), 4 internal error (a defect of visnav: the one-line
-message names the file holding the traceback), 130 interrupted (SIGINT).
+message names the file holding the traceback), 5 incomplete (a check or run did not decide: skipped,
+undecided, ended early, timed out; nothing was found), 130 interrupted (SIGINT).
 
 Each raises :class:`argparse.ArgumentTypeError` naming the value and what to give instead, which
 argparse turns into a usage error (exit code 2).
@@ -15,16 +16,20 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
+__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INCOMPLETE",
+           "EXIT_INTERRUPTED",
            "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
+EXIT_INCOMPLETE = 5
+"""A check or run did not decide (skipped, undecided, ended early, timed out) and nothing was found."""
 EXIT_INTERRUPTED = 130
 """Interrupted by SIGINT (128 + 2, the shells' convention)."""
 EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
               EXIT_BAD_INPUT: "bad input", EXIT_DIVERGED: "the run could not complete",
-              EXIT_INTERNAL: "internal error", EXIT_INTERRUPTED: "interrupted"}
+              EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "a check or run did not decide",
+              EXIT_INTERRUPTED: "interrupted"}
 """What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
 
 
