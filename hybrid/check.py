@@ -59,8 +59,14 @@ Examples
 >>> thermostat = HybridAutomaton(name="thermostat", modes=(Mode(name="off"), Mode(name="on")),
 ...                              transitions=(heat, cool), variables=("T",))
 >>> report = check(thermostat, Box(bounds={"T": (10.0, 30.0)}), samples=200)
->>> report.clean, sorted(report.kinds())
+>>> report.no_findings, sorted(report.kinds())
 (True, ['zeno_candidate'])
+
+Plain callables are sampled, which cannot decide the ``off -> on -> off`` cycle: the report is not
+complete, so not clean (:mod:`hybrid.completeness`):
+
+>>> report.clean, [reason.split(":")[0] for reason in report.incomplete]
+(False, ['zeno undecided'])
 """
 
 from __future__ import annotations
@@ -1172,8 +1178,13 @@ def check(
     SMT solver (:func:`hybrid.decide.decide`: each finding's witness re-checked,
     each clean answer PROVEN), and the others are searched by sampling (SAMPLED);
     :attr:`CheckReport.claims` says which, per check.  ``method="sampled"``
-    samples every mode; ``method="smt"`` decides only (the modes it cannot take
-    are reported, not sampled).
+    samples every mode; ``method="smt"`` decides only: the checks that need a
+    mode it cannot take are ``skipped`` (:data:`hybrid.completeness.SMT_CANNOT_DECIDE`),
+    never labelled sampled, and that mode's plain functions are evaluated at
+    its box corners and centre only, so that one raising or returning NaN or
+    None is the same :class:`ExecutionError` as with the other methods.
+    :attr:`CheckReport.clean` holds only when every check ran and decided
+    (:attr:`CheckReport.complete`) and nothing was found.
 
     Parameters
     ----------

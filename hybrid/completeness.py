@@ -161,11 +161,21 @@ def incomplete_reasons(statuses: Sequence[CheckStatus]) -> tuple[str, ...]:
     out = []
     for s in statuses:
         if not s.complete:
-            status = s.status if s.covered else f"{s.status}, not complete"
-            why = s.reason.split("; ")[0]
+            status = s.status if s.covered or s.status in ("skipped", "undecided") else f"{s.status}, not complete"
+            why = _first_clause(s.reason)
             why = why if len(why) <= SHORT_REASON else why[:SHORT_REASON - 1] + "…"
             out.append(f"{s.check} {status}: {why}")
     return tuple(out)
+
+
+def _first_clause(text: str) -> str:
+    """``text`` up to its first ``"; "`` outside parentheses."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if depth == 0 and text.startswith("; ", i):
+            return text[:i]
+    return text
 
 
 def finding_counts(findings: Sequence[Any]) -> dict[str, int]:

@@ -1648,7 +1648,12 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
             s = "undecided"
         else:
             s = "proven"
-        out[check] = Claim(check=check, status=s, method=method, assumptions=assumptions, detail=note)
+        detail = note
+        if s == "undecided":
+            n = results.count("undecided")
+            detail = "; ".join(x for x in (f"{n} question(s) without an answer (the solver's unknown or its "
+                                            f"timeout of {qs.timeout_s:g} s)", note) if x)
+        out[check] = Claim(check=check, status=s, method=method, assumptions=assumptions, detail=detail)
     retrig = "reset_retriggers" in kinds
     if summary is not None:
         c = summary.counts
@@ -1658,6 +1663,10 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
         detail = (f"{summary.cycles} cycles: {c['non_zeno']} with a proven dwell bound, {c['infeasible']} "
                   f"infeasible, {c['instantaneous']} instantaneous, {c['zeno_point']} with a Zeno point, "
                   f"{undecided} undecided")
+        first = next((v for v in summary.verdicts if v.verdict == "undecided"), None)
+        if first is not None:  # why, on the first undecided cycle
+            detail = (f"{undecided} of {summary.cycles} cycles undecided, e.g. {' -> '.join(first.transitions)}: "
+                      f"{first.binding} ({detail})")
         if summary.min_dwell_s is not None:
             detail += f"; smallest dwell bound {_g(summary.min_dwell_s)} s ({summary.binding})"
         out["zeno"] = Claim(check="zeno", status=zs, method=method, detail=detail,
@@ -1665,6 +1674,6 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
         laps = sum(v.verdict == "undecided" and not v.binding.startswith(NO_LAP) for v in summary.verdicts)
         rs = "found" if retrig else ("undecided" if laps or summary.capped else "proven")
         out["reset_retriggers"] = Claim(check="reset_retriggers", status=rs,
-                                        method=method, assumptions=assumptions, detail="instantaneous laps of cycles" + (
-                                            f"; {laps} cycle(s) whose lap was not decided" if laps else ""))
+                                        method=method, assumptions=assumptions, detail=(f"{laps} cycle(s) whose lap was not decided (instantaneous laps "
+                                                "of cycles)" if laps else "instantaneous laps of cycles"))
     return out

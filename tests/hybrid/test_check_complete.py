@@ -115,3 +115,23 @@ def test_statuses_agree_with_clean_and_the_claims(name, method):
     kinds = [f.kind for f in report.findings]
     assert counts["instantaneous"] == kinds.count("reset_retriggers")
     assert counts["overlap"] == kinds.count("nondeterminism") + kinds.count("priority_overlap")
+
+
+def _unknown(constraints, timeout_s):
+    from hybrid.smt import Answer
+
+    return Answer("unknown", reason="timeout")
+
+
+def test_a_solver_that_answers_unknown_leaves_the_checks_undecided_not_clean(monkeypatch):
+    """Every solver call 'unknown' (as a timeout): the old report was CLEAN with UNDECIDED claims."""
+    import importlib
+
+    decide_module = importlib.import_module("hybrid.decide")  # `hybrid.decide` is also the function
+
+    monkeypatch.setattr(decide_module, "check_sat", _unknown)
+    report = check(F.thermostat(19.0, 21.0, symbolic=True), F.BOX, samples=SAMPLES, method="smt")
+    assert report.no_findings and not report.clean and not report.complete
+    st = statuses(report)
+    assert st["deadlock"] == st["reset_outside_invariant"] == st["zeno"] == "undecided"
+    assert any("without an answer (the solver's unknown or its timeout of 5 s)" in r for r in report.incomplete)

@@ -83,6 +83,8 @@ def test_check_model_proves_the_paper_supervisor(capsys):
     """The supervisor is symbolic: every check decided by the SMT solver, 43 pairs, 578 cycles, no finding."""
     code, report = _check_json(capsys, "--samples", "60", "--starts", "2")
     assert code == 0 and report["clean"] is True and report["scenario"] == "paper"
+    assert report["complete"] is True and report["incomplete"] == []
+    assert {s["status"] for s in report["statuses"].values()} == {"decided"}
     assert report["method"] == "auto" and report["timeout_s"] == 5.0 and report["solver"].startswith("z3")
     assert {name: c["status"] for name, c in report["claims"].items()} == dict.fromkeys((*STATE_CHECKS, "zeno"),
                                                                                          "proven")

@@ -127,3 +127,25 @@ def test_summary_lines_agree_with_the_findings(name, method, capsys):
         if line.startswith("  [info] "):
             kind, count = line[len("  [info] "):].split(": ")
             assert int(count) == kinds.count(kind)
+
+
+def test_a_solver_timeout_is_incomplete(monkeypatch, capsys):
+    """Every solver call 'unknown' (a timeout): UNDECIDED claims beside a CLEAN summary and exit 0 before."""
+    import importlib
+
+    decide_module = importlib.import_module("hybrid.decide")  # `hybrid.decide` is also the function
+    from hybrid.smt import Answer
+
+    monkeypatch.setattr(decide_module, "check_sat", lambda constraints, timeout_s: Answer("unknown", reason="timeout"))
+    code, out = _run(capsys, "symbolic", "--timeout", "2")
+    first = out.splitlines()[0]
+    assert code == EXIT_INCOMPLETE and "CLEAN" not in first
+    assert "deadlock, reset_outside_invariant undecided: 2 question(s) without an answer" in first
+    assert "timeout of 2 s" in first
+
+
+def test_a_mode_without_a_box_is_incomplete(capsys):
+    """check_box for one mode of two: the other mode's checks did not run; was PROVEN and CLEAN before."""
+    code, out = _run(capsys, "partial_box")
+    first = out.splitlines()[0]
+    assert code == EXIT_INCOMPLETE and "CLEAN" not in first and "not searched" in first
