@@ -405,8 +405,9 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
                          + ", ".join(f"{name} {rate:.4g}" for name, rate in finite.items()))
     elif report.searched.cycles_found:
         capped = "+" if report.searched.cycles_capped else ""
+        why = report.claims["zeno"].detail if "zeno" in report.claims else f"method {method}"
         lines.append(f"  Zeno: {report.searched.cycles_found}{capped} cycle(s) of the mode graph not decided "
-                     f"(method {method}): one zeno_candidate info")
+                     f"({why}): one zeno_candidate info")
     assumptions = list(dict.fromkeys(a for name in claimed for a in report.claims[name].assumptions
                                      if report.claims[name].status == "proven"))
     if assumptions:

@@ -97,16 +97,22 @@ def _number(pattern: str, line: str) -> int:
     return int(found.group(1))
 
 
-FIXTURES = ["plain_zero_band", "time_flow_zero_band", "time_flow", "plain_overlap", "symbolic", "no_check_box"]
+EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "thermostat.py"
+FIXTURES = [f"{PROBLEMS}:{name}" for name in ("plain_zero_band", "time_flow_zero_band", "time_flow", "plain_overlap",
+                                              "symbolic", "no_check_box", "partial_box")]
+FIXTURES += [f"{EXAMPLE}:problem", f"{EXAMPLE}:zero_band"]
 
 
-@pytest.mark.parametrize("name", FIXTURES)
+@pytest.mark.parametrize("spec", FIXTURES, ids=lambda spec: spec.rsplit("/", 1)[-1])
 @pytest.mark.parametrize("method", ["auto", "sampled", "smt"])
-def test_summary_lines_agree_with_the_findings(name, method, capsys):
+def test_summary_lines_agree_with_the_findings(spec, method, capsys):
     """'0 instantaneous' beside reset_retriggers errors, '0 can be enabled together' beside a priority_overlap
     before: every count of the summary lines is the number of the findings it counts (counted here from the JSON)."""
-    code, data = _json(capsys, name, "--method", method)
-    _, out = _run(capsys, name, "--method", method)
+    args = ["check-model", "--problem", spec, "--samples", "200", "--method", method]
+    code = main([*args, "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert main(args) == code
+    out = capsys.readouterr().out
     kinds = [f["kind"] for f in data["findings"]]
     lines = out.splitlines()
     first = lines[0]
