@@ -59,8 +59,14 @@ Examples
 >>> thermostat = HybridAutomaton(name="thermostat", modes=(Mode(name="off"), Mode(name="on")),
 ...                              transitions=(heat, cool), variables=("T",))
 >>> report = check(thermostat, Box(bounds={"T": (10.0, 30.0)}), samples=200)
->>> report.clean, sorted(report.kinds())
+>>> report.no_findings, sorted(report.kinds())
 (True, ['zeno_candidate'])
+
+Plain callables are sampled, which cannot decide the ``off -> on -> off`` cycle: the report is not
+complete, so not clean (:mod:`hybrid.completeness`):
+
+>>> report.clean, [reason.split(":")[0] for reason in report.incomplete]
+(False, ['zeno undecided'])
 """
 
 from __future__ import annotations
@@ -76,6 +82,7 @@ import networkx as nx
 import numpy as np
 
 from .errors import ExecutionError, ModelDefinitionError
+from .completeness import check_statuses, incomplete_reasons, state_claims, undecided_cycles, zeno_group
 from .findings import KIND_SEVERITY, SEVERITIES, Finding, Witness, _boxes, _g, _num, _Oracle
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
@@ -299,9 +306,35 @@ class CheckReport:
         return tuple(f for f in self.findings if f.severity == "info")
 
     @property
-    def clean(self) -> bool:
-        """No error and no warning (infos allowed)."""
+    def no_findings(self) -> bool:
+        """No error and no warning (infos allowed); says nothing about checks that were skipped or undecided."""
         return not any(f.severity in ("error", "warning") for f in self.findings)
+
+    @property
+    def statuses(self) -> tuple[Any, ...]:
+        """One :class:`hybrid.completeness.CheckStatus` per check (decided, finding, sampled, skipped, undecided)."""
+        return check_statuses(self)
+
+    @property
+    def complete(self) -> bool:
+        """Every check ran on every mode and gave an answer (none skipped or undecided)."""
+        return not self.incomplete
+
+    @property
+    def incomplete(self) -> tuple[str, ...]:
+        """``"<check> skipped|undecided: <why>"`` for each check that did not decide (empty when complete)."""
+        return incomplete_reasons(self.statuses)
+
+    @property
+    def clean(self) -> bool:
+        """Complete (:attr:`complete`) and no error and no warning (infos allowed)."""
+        return self.complete and self.no_findings
+
+    def completeness(self) -> dict[str, Any]:
+        """JSON-ready ``{"complete", "incomplete", "statuses"}`` (kept out of :meth:`as_dict`, whose keys are fixed)."""
+        statuses = self.statuses
+        return {"complete": not incomplete_reasons(statuses), "incomplete": list(incomplete_reasons(statuses)),
+                "statuses": {s.check: s.as_dict() for s in statuses}}
 
     def kinds(self, *severities: str) -> frozenset[str]:
         """Kinds of the findings, optionally only those of the given severities.
@@ -1124,28 +1157,6 @@ def _graph_findings(a: HybridAutomaton, max_cycles: int) -> tuple[list[Finding],
     return findings, listed, capped
 
 
-def _zeno_group(cycles: Sequence[tuple[tuple[str, ...], tuple[str, ...]]], capped: bool, why: str) -> Finding:
-    """One finding for every cycle left undecided (never one row per cycle)."""
-    (first, names) = cycles[0]
-    examples = "; ".join(f"{' -> '.join((*c, c[0]))} (transitions {list(n)})" for c, n in cycles[:3])
-    more = f" and {len(cycles) - 3} more" if len(cycles) > 3 else ""
-    count = f"{len(cycles)}{'+' if capped else ''} cycle{'s' if len(cycles) != 1 else ''}"
-    return Finding(
-        kind="zeno_candidate",
-        severity=KIND_SEVERITY["zeno_candidate"],
-        message=(
-            f"{count} of the mode graph not decided for Zeno ({why}): {examples}{more}; if the jumps of a cycle "
-            "can follow one another without time passing, executions are Zeno or chatter; a reset that leaves "
-            "every guard of the cycle, hysteresis or a dwell time rules it out"
-        ),
-        modes=first,
-        transitions=names,
-    )
-
-
-
-
-
 # ====================================================================== entry point
 def check(
     model: HybridSystem | HybridAutomaton,
@@ -1167,8 +1178,13 @@ def check(
     SMT solver (:func:`hybrid.decide.decide`: each finding's witness re-checked,
     each clean answer PROVEN), and the others are searched by sampling (SAMPLED);
     :attr:`CheckReport.claims` says which, per check.  ``method="sampled"``
-    samples every mode; ``method="smt"`` decides only (the modes it cannot take
-    are reported, not sampled).
+    samples every mode; ``method="smt"`` decides only: the checks that need a
+    mode it cannot take are ``skipped`` (:data:`hybrid.completeness.SMT_CANNOT_DECIDE`),
+    never labelled sampled, and that mode's plain functions are evaluated at
+    its box corners and centre only, so that one raising or returning NaN or
+    None is the same :class:`ExecutionError` as with the other methods.
+    :attr:`CheckReport.clean` holds only when every check ran and decided
+    (:attr:`CheckReport.complete`) and nothing was found.
 
     Parameters
     ----------
@@ -1261,8 +1277,10 @@ def check(
                           max_cycles=max(int(max_cycles), 5000))
     sampled_modes = set(a.mode_names) if decision is None else (
         set() if method == "smt" else set(decision.sampled_modes))
+    undecidable = {} if decision is None or method != "smt" else dict(decision.sampled_modes)
     mode_summaries, state_findings = _sample_modes(oracle, boxes, sampled_modes, samples=int(samples),
-                                                   starts=int(starts), seed=int(seed), tol=float(tol))
+                                                   starts=int(starts), seed=int(seed), tol=float(tol),
+                                                   undecidable=undecidable)
     if decision is not None:
         findings += [f for f in decision.findings
                      if not (set(f.modes) & set(decision.sampled_modes)) or method == "smt"]
@@ -1281,12 +1299,16 @@ def check(
         checks["zeno_candidate"] = (f"decided: {z.cycles} cycles of transitions"
                                     + (" (capped)" if z.capped else "") + f"; {dict(z.counts)}")
     all_sampled = decision is None or set(boxes or {}) <= sampled_modes
-    undecided = cycles if all_sampled else _undecided_cycles(cycles, decision)
+    undecided = cycles if all_sampled else undecided_cycles(cycles, decision)
     if undecided:
         why = (("method sampled" if method == "sampled" else "the guards, resets or jump maps are not symbolic")
-               if all_sampled else "no dwell bound and no instantaneous lap")
-        findings.append(_zeno_group(undecided, capped, why))
-    claims = _claims(decision, sampled_modes, boxes, findings, method)
+               if all_sampled else "functions not symbolic, method smt" if undecidable
+               else "no dwell bound and no instantaneous lap")
+        findings.append(zeno_group(undecided, capped, why))
+    claims = state_claims(decision, sampled_modes, boxes, findings, method, len(cycles))
+    for c in STATE_CHECKS:
+        if boxes is not None and claims[c].status == "skipped":
+            checks[c] = f"skipped: {claims[c].detail}"
     summary = SearchSummary(
         seed=int(seed),
         samples=int(samples),
@@ -1315,8 +1337,13 @@ CHECK_METHODS = ("auto", "sampled", "smt")
 
 
 def _sample_modes(oracle: _Oracle, boxes: dict[str, Box] | None, modes: set[str], *, samples: int, starts: int,
-                  seed: int, tol: float) -> tuple[list[ModeSearch], list[Finding]]:
-    """The sampled searches of the modes in ``modes`` (the others: decided, or not searched)."""
+                  seed: int, tol: float, undecidable: Mapping[str, str]) -> tuple[list[ModeSearch], list[Finding]]:
+    """The sampled searches of the modes in ``modes`` (the others: decided, or not searched).
+
+    A mode in ``undecidable`` (``method="smt"``: its functions are not symbolic) is neither decided nor
+    sampled: its plain functions are evaluated at the box corners and centre only, so that one that
+    raises or returns NaN or None is the same :class:`ExecutionError` as with the sampled search.
+    """
     a = oracle.automaton
     if boxes is None:
         return [ModeSearch(mode=q, box=None, notes=("not searched: no box given",)) for q in a.mode_names], []
@@ -1329,6 +1356,13 @@ def _sample_modes(oracle: _Oracle, boxes: dict[str, Box] | None, modes: set[str]
             summaries.append(ModeSearch(mode=q, box=None,
                                         notes=("not searched: the box mapping has no entry for this mode",)))
             continue
+        if q in undecidable:
+            before = oracle.calls
+            _probe(oracle, _Space.build(q, boxes[q], oracle.coords, initial))
+            summaries.append(ModeSearch(mode=q, box=boxes[q].describe(), function_calls=oracle.calls - before,
+                                        notes=(f"not decided ({undecidable[q]}) and not sampled (method smt); "
+                                               "functions evaluated at the box corners and centre only",)))
+            continue
         if q not in modes:
             summaries.append(ModeSearch(mode=q, box=boxes[q].describe(),
                                         notes=("decided by the SMT solver (not sampled)",)))
@@ -1340,54 +1374,18 @@ def _sample_modes(oracle: _Oracle, boxes: dict[str, Box] | None, modes: set[str]
     return summaries, findings
 
 
-def _undecided_cycles(cycles: list[tuple[tuple[str, ...], tuple[str, ...]]], decision: Any
-                      ) -> list[tuple[tuple[str, ...], tuple[str, ...]]]:
-    if decision is None or decision.zeno is None:
-        return cycles
-    return [(v.modes, v.transitions) for v in decision.zeno.verdicts if v.verdict == "undecided"]
-
-
-def _claims(decision: Any, sampled: set[str], boxes: dict[str, Box] | None, findings: Sequence[Finding],
-            method: str) -> dict[str, Any]:
-    """Per check: PROVEN (decided everywhere, nothing found), FOUND, SAMPLED (a mode was sampled), UNDECIDED."""
-    from .decide import Claim
-
-    kinds = {f.kind for f in findings}
-    if boxes is None:
-        return {c: Claim(check=c, status="skipped", method="no box given") for c in (*STATE_CHECKS, "zeno")}
-    sampled_method = "sampling (uniform samples, corners, faces, Nelder-Mead); a search that finds nothing is evidence"
-    searched = set(boxes)
-    all_sampled = decision is None or (method != "smt" and searched <= sampled)
-    if decision is None:
-        why = "method sampled" if method == "sampled" else "not decided"
-    else:
-        why = "the model's functions are not symbolic: " + "; ".join(
-            f"{q}: {decision.sampled_modes[q]}" for q in sorted(sampled)[:2] if q in decision.sampled_modes)
-    out: dict[str, Any] = {}
-    for c in (*STATE_CHECKS, "zeno"):
-        found = c in kinds or (c == "zeno" and "reset_retriggers" in kinds)
-        if all_sampled:
-            if c == "zeno":
-                out[c] = Claim(check=c, status="found" if found else "undecided", method=sampled_method,
-                               detail=f"cycles not decided ({why})")
-            else:
-                out[c] = Claim(check=c, status="found" if found else "sampled", method=sampled_method,
-                               detail=f"every mode sampled ({why})")
-            continue
-        decided = decision.claims.get(c)
-        if found:
-            status = "found"
-        elif decided.status == "undecided":
-            status = "undecided"
-        elif sampled and method != "smt":
-            status = "sampled"
-        elif sampled:
-            status = "undecided"
-        else:
-            status = decided.status
-        detail = decided.detail
-        if sampled:
-            detail = (detail + "; " if detail else "") + f"modes sampled, not decided: {sorted(sampled)}"
-        out[c] = Claim(check=c, status=status, method=decided.method if not sampled else
-                       decided.method + "; " + sampled_method, assumptions=decided.assumptions, detail=detail)
-    return out
+def _probe(oracle: _Oracle, space: _Space) -> None:
+    """Evaluate every function of ``space.mode`` at the corners and the centre of its box (raises as the search)."""
+    q = space.mode
+    centre = np.where(np.isnan(space.lower), 0.0, (space.lower + space.upper) / 2.0)
+    corners = space.corners()
+    centre[len(space.box.bounds):len(space.box.names)] = corners[0][len(space.box.bounds):len(space.box.names)]
+    for p in (*corners, centre):
+        x, m = space.split(p)
+        v = oracle.signals(x, m)
+        oracle.invariant(q, x, v, m)
+        if oracle.system is not None:
+            oracle.flow(q, x, m)
+        for t in oracle.outgoing[q]:
+            oracle.guard(t, x, v, m)
+            oracle.jump(t, x, v, m)

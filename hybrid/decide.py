@@ -1390,7 +1390,7 @@ class _Zeno:
         status, model, f, disjuncts = qs.lap(cycle)
         w = qs.lap_witness(cycle, model, f, disjuncts) if status == "sat" else None  # type: ignore[arg-type]
         if w is None:
-            reason = ("no instantaneous lap (proven) but no positive dwell bound from the guards and rates: "
+            reason = (NO_LAP + " but no positive dwell bound from the guards and rates: "
                       "declare rate bounds, or this cycle may accumulate (Zeno behaviour over time)")
             if status != "unsat":
                 reason = ("undecided: " + (f"the solver timed out ({qs.timeout_s:g} s)" if status == "unknown"
@@ -1576,6 +1576,7 @@ def _assemble(qs: _Questions, zeno: bool) -> Decision:
             if p.verdict == "undecided":
                 if "not symbolic" in p.detail:
                     sampled[q] = p.detail
+                    status["nondeterminism"].append("skipped")
                 else:
                     status["nondeterminism"].append("undecided")
             elif p.verdict == "overlap":
@@ -1623,6 +1624,8 @@ def _overlap_finding(qs: _Questions, p: PairVerdict, kind: str) -> Finding:
                    transitions=(p.first, p.second), witness=w)
 
 
+NO_LAP = "no instantaneous lap (proven)"
+"""How a cycle's verdict begins when its lap is proven to take time but no dwell bound was found."""
 MEMORY_ASSUMPTION = ("memory ranges over what the transitions entering each mode can write "
                      "(interval hulls by fixpoint, the entering reset stated exactly)")
 BOX_ASSUMPTION = "every state of the declared box (reachable or not)"
@@ -1639,14 +1642,18 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
         found = check in kinds
         if found:
             s = "found"
-        elif sampled and check in ("nondeterminism", "deadlock", "reset_outside_invariant") and \
-                ("skipped" in results or check == "nondeterminism"):
+        elif sampled and "skipped" in results:
             s = "sampled"
         elif "undecided" in results:
             s = "undecided"
         else:
             s = "proven"
-        out[check] = Claim(check=check, status=s, method=method, assumptions=assumptions, detail=note)
+        detail = note
+        if s == "undecided":
+            n = results.count("undecided")
+            detail = "; ".join(x for x in (f"{n} question(s) without an answer (the solver's unknown or its "
+                                            f"timeout of {qs.timeout_s:g} s)", note) if x)
+        out[check] = Claim(check=check, status=s, method=method, assumptions=assumptions, detail=detail)
     retrig = "reset_retriggers" in kinds
     if summary is not None:
         c = summary.counts
@@ -1656,11 +1663,17 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
         detail = (f"{summary.cycles} cycles: {c['non_zeno']} with a proven dwell bound, {c['infeasible']} "
                   f"infeasible, {c['instantaneous']} instantaneous, {c['zeno_point']} with a Zeno point, "
                   f"{undecided} undecided")
+        first = next((v for v in summary.verdicts if v.verdict == "undecided"), None)
+        if first is not None:  # why, on the first undecided cycle
+            detail = (f"{undecided} of {summary.cycles} cycles undecided, e.g. {' -> '.join(first.transitions)}: "
+                      f"{first.binding} ({detail})")
         if summary.min_dwell_s is not None:
             detail += f"; smallest dwell bound {_g(summary.min_dwell_s)} s ({summary.binding})"
         out["zeno"] = Claim(check="zeno", status=zs, method=method, detail=detail,
                             assumptions=assumptions + ("rate bounds |dx/dt| <= R per mode (declared or from the flow)",))
-        rs = "found" if retrig else ("undecided" if undecided or summary.capped else "proven")
+        laps = sum(v.verdict == "undecided" and not v.binding.startswith(NO_LAP) for v in summary.verdicts)
+        rs = "found" if retrig else ("undecided" if laps or summary.capped else "proven")
         out["reset_retriggers"] = Claim(check="reset_retriggers", status=rs,
-                                        method=method, assumptions=assumptions, detail="instantaneous laps of cycles")
+                                        method=method, assumptions=assumptions, detail=(f"{laps} cycle(s) whose lap was not decided (instantaneous laps "
+                                                "of cycles)" if laps else "instantaneous laps of cycles"))
     return out

@@ -136,10 +136,17 @@ def only(report, kind):
     return found[0]
 
 
+def assert_only_zeno_undecided(report):
+    """Sampled plain callables: no error, every check answered but the Zeno cycles, so the report is not clean."""
+    assert [reason.split()[:2] for reason in report.incomplete] == [["zeno", "undecided:"]], report.incomplete
+    assert not report.complete and not report.clean
+
+
 # ---------------------------------------------------------------------- clean models
 def test_thermostat_with_hysteresis_is_clean():
     report = check(thermostat(), THERMO_BOX, samples=SAMPLES)
-    assert report.clean, [f.message for f in report.findings if f.severity != "info"]
+    assert report.no_findings, [f.message for f in report.findings if f.severity != "info"]
+    assert_only_zeno_undecided(report)
     assert report.kinds() == {"zeno_candidate"}  # the off -> on -> off cycle, an info
     cycle = only(report, "zeno_candidate")
     assert cycle.modes == ("off", "on") and cycle.transitions == ("heat", "cool")
@@ -153,7 +160,8 @@ def test_bouncing_ball_with_crossing_guard_is_clean():
     # The boundary h = 0 is found by bisection from h < 0 samples: there the guard -h sits within tol
     # of zero (enabled within tol), so this is also the test that the deadlock check is not fooled by it.
     report = check(ball(), BALL_BOX, samples=SAMPLES)
-    assert report.clean, [f.message for f in report.findings if f.severity != "info"]
+    assert report.no_findings, [f.message for f in report.findings if f.severity != "info"]
+    assert_only_zeno_undecided(report)
     assert report.kinds() == {"zeno_candidate"}
     assert "crossing guards do not re-fire" in report.searched.checks["reset_retriggers"]
 
@@ -189,7 +197,8 @@ def test_different_priorities_are_a_priority_overlap_info():
     report = check(forked(priority_b=1), X_BOX, samples=SAMPLES)
     finding = only(report, "priority_overlap")
     assert finding.severity == "info" and "in favour of 'to_a'" in finding.message
-    assert "nondeterminism" not in report.kinds() and report.clean
+    assert "nondeterminism" not in report.kinds() and report.no_findings
+    assert_only_zeno_undecided(report)
 
 
 def test_overlap_on_a_single_point_is_found_by_the_optimiser():
@@ -429,7 +438,8 @@ def test_retrigger_on_a_measure_zero_part_of_the_guard_set_is_a_zeno_point():
     system = HybridSystem(automaton=automaton, state_names=("h", "v"), flows=ball().flows,
                           jumps={"bounce": lambda x, m: (x[0], -E * x[1])})
     report = check(system, Box(bounds={"h": (0.0, 10.0), "v": (-20.0, 20.0)}), samples=SAMPLES)
-    assert report.clean
+    assert report.no_findings
+    assert_only_zeno_undecided(report)
     finding = only(report, "zeno_point")
     assert finding.severity == "info"
     assert finding.witness.state["h"] == 0.0 and finding.witness.state["v"] == 0.0

@@ -21,6 +21,7 @@ from typing import Any
 from visnav.app.cli_types import (
     EXIT_BAD_INPUT,
     EXIT_DIVERGED,
+    EXIT_INCOMPLETE,
     EXIT_OK,
     EXIT_TASK_FAILED,
     non_negative_int,
@@ -332,6 +333,8 @@ def _cmd_mode_graph(args: argparse.Namespace) -> int:
 
 CHECK_DEFAULT_METHOD, CHECK_DEFAULT_TIMEOUT_S = "auto", 5.0
 """``visnav check-model``'s ``--method`` and ``--timeout`` when not given."""
+_CHECK_EXIT = {"clean": EXIT_OK, "finding": EXIT_TASK_FAILED, "incomplete": EXIT_INCOMPLETE}
+"""``check-model``'s exit code per :func:`visnav.app.structural.verdict_line` verdict: 0 only when complete and clean."""
 _MOST_FINDINGS = 20
 """Errors and warnings written out one per line in the human summary (``--json`` has them all)."""
 
@@ -345,9 +348,8 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
     errors and warnings (the first :data:`_MOST_FINDINGS`) and the infos counted by kind.
     ``timeout_s`` is ``None`` when the problem's own structural callable chose it.
     """
-    from visnav.app.structural import claim_label, claims_table, pairs_line, zeno_line
+    from visnav.app.structural import claim_label, claims_table, pairs_line, verdict_line, zeno_line
 
-    counts = {sev: sum(1 for f in report.findings if f.severity == sev) for sev in ("error", "warning", "info")}
     modes = report.searched.modes
     sampled = [m for m in modes if m.samples > 0]
     decided = [m for m in modes if any(note.startswith("decided by the SMT solver") for note in m.notes)]
@@ -356,12 +358,16 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
     if decided:
         how.append(f"{len(decided)} decided by {solver or 'the SMT solver'}"
                    + ("" if timeout_s is None else f" (timeout {timeout_s:g} s per solver call)"))
+    neither = [m for m in modes if any(note.startswith("not decided") for note in m.notes)]
+    if neither:
+        how.append(f"{len(neither)} neither decided nor sampled (functions not symbolic)")
+    if all(m.box is None for m in modes):
+        box = "mode graph only (no box given)"
     if sampled:
         how.append(f"{len(sampled)} sampled (seed {report.searched.seed}, {report.searched.samples} samples + "
                    f"corners + face samples per mode, {report.searched.starts} optimiser starts per question)")
     lines = [
-        f"check-model {report.automaton} ({source}): "
-        + ("CLEAN" if report.clean else f"{counts['error']} error(s), {counts['warning']} warning(s)"),
+        f"check-model {report.automaton} ({source}): {verdict_line(report)[1]}",
         f"  checked {len(modes)} modes over the {box}: " + "; ".join(how) + f"; {elapsed:.1f} s",
     ]
     if modes and modes[0].box is not None:
@@ -383,10 +389,10 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
     if not claims:  # a report without claims (a user's own structural callable)
         lines += [f"  {name:<24} {status}" for name, status in report.searched.checks.items()
                   if name == "zeno_candidate"]
-    pairs = pairs_line(getattr(report, "pairs", ()))
+    pairs = pairs_line(getattr(report, "pairs", ()), report.findings)
     if pairs:
         lines.append(f"  pairs: {pairs}")
-    zeno = zeno_line(getattr(report, "zeno", None))
+    zeno = zeno_line(getattr(report, "zeno", None), report.findings)
     if zeno:
         lines.append(f"  Zeno: {zeno}")
         rates: dict[str, float] = {}
@@ -399,8 +405,9 @@ def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeo
                          + ", ".join(f"{name} {rate:.4g}" for name, rate in finite.items()))
     elif report.searched.cycles_found:
         capped = "+" if report.searched.cycles_capped else ""
+        why = report.claims["zeno"].detail if "zeno" in report.claims else f"method {method}"
         lines.append(f"  Zeno: {report.searched.cycles_found}{capped} cycle(s) of the mode graph not decided "
-                     f"(method {method}): one zeno_candidate info")
+                     f"({why}): one zeno_candidate info")
     assumptions = list(dict.fromkeys(a for name in claimed for a in report.claims[name].assumptions
                                      if report.claims[name].status == "proven"))
     if assumptions:
@@ -580,6 +587,8 @@ def _check_problem(args: argparse.Namespace) -> int:
 
     from analysis.problems import StructuralChecks
 
+    from visnav.app.structural import completeness_data, verdict_line
+
     problem = _user_problem(args.problem)
     if isinstance(problem, int):
         return problem
@@ -601,19 +610,20 @@ def _check_problem(args: argparse.Namespace) -> int:
     report = structural()
     elapsed = time.perf_counter() - start
     if args.json:
-        out = {"problem": problem.name, "clean": report.clean, **report.as_dict()}
+        out = {"problem": problem.name, **report.as_dict(), **completeness_data(report)}
+        out["clean"] = verdict_line(report)[0] == "clean"
         if timeout_s is not None:
             out.update(method=method, timeout_s=timeout_s)
         print(json.dumps(out, sort_keys=True))
     else:
         print(_check_human(report, f"problem {problem.name}", elapsed, method=method, timeout_s=timeout_s))
-    return EXIT_OK if report.clean else EXIT_TASK_FAILED
+    return _CHECK_EXIT[verdict_line(report)[0]]
 
 
 def _cmd_check_model(args: argparse.Namespace) -> int:
     import time
 
-    from visnav.app.structural import check_supervisor, supervisor_rates
+    from visnav.app.structural import check_supervisor, completeness_data, supervisor_rates, verdict_line
     from visnav.scenario import load_scenario, scenario_digest
 
     if args.problem is not None:
@@ -632,9 +642,9 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
     parametric = _parametric_pairs(scenario, timeout_s) if args.parametric else None
     if args.json:
         rates = {name: float(f"{rate:.12g}") for name, rate in supervisor_rates(scenario).items()}
-        out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario), "clean": report.clean,
+        out = {"scenario": scenario.name, "scenario_digest": scenario_digest(scenario),
                "method": method, "timeout_s": timeout_s, "rates": rates}
-        out.update(report.as_dict())
+        out.update(report.as_dict(), **completeness_data(report))
         if parametric is not None:
             out["parametric"] = parametric
         print(json.dumps(out, sort_keys=True))
@@ -643,7 +653,7 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
                            box="declared measurement box"))
         if parametric is not None:
             print(_parametric_human(parametric))
-    return EXIT_OK if report.clean else EXIT_TASK_FAILED
+    return _CHECK_EXIT[verdict_line(report)[0]]
 
 
 def _parametric_pairs(scenario: Any, timeout_s: float) -> dict[str, Any]:

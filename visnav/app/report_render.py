@@ -133,7 +133,7 @@ def structural_blocks(checks: dict[str, Any], ran: dict[str, str]) -> list[Block
             found = any(k in kinds for k in graph_kinds)
             rows.append([name, "FOUND" if found else "PROVEN", "exact, on the mode graph",
                          "" if ran[name] == "ran" else ran[name]])
-    zeno = zeno_line(checks.get("zeno"))
+    zeno = zeno_line(checks.get("zeno"), (checks.get("findings") or ()))
     for name in [c for c in _CHECK_ORDER if c in claims] + [c for c in claims if c not in _CHECK_ORDER]:
         claim = claims[name]
         detail = zeno if name == "zeno" and zeno else claim.get("detail") or ""
@@ -145,7 +145,7 @@ def structural_blocks(checks: dict[str, Any], ran: dict[str, str]) -> list[Block
                                      for a in c.get("assumptions") or ()))
     if assumptions:
         blocks.append(Block("p", "PROVEN over: " + "; ".join(assumptions) + "."))
-    pairs = pairs_line(checks.get("pairs"))
+    pairs = pairs_line(checks.get("pairs"), (checks.get("findings") or ()))
     if pairs:
         blocks.append(Block("p", f"Pairs: {pairs}."))
     if zeno:

@@ -32,6 +32,8 @@ __all__ = [
     "supervisor_space",
     "supervisor_rates",
     "check_supervisor",
+    "verdict_line",
+    "completeness_data",
     "claim_label",
     "pairs_line",
     "zeno_line",
@@ -114,6 +116,42 @@ CLAIM_CHECKS = ("nondeterminism", "deadlock", "reset_outside_invariant", "reset_
 """The checks that carry a claim, in the order they are shown."""
 
 
+def verdict_line(report: Any) -> tuple[str, str]:
+    """``(verdict, text)`` of a structural check report, ``verdict`` one of ``"finding"``, ``"incomplete"``,
+    ``"clean"``: ``CLEAN`` only when every check ran and decided and nothing was found.
+
+    ``text`` names the errors and warnings, and every check that was skipped or undecided with why
+    (:attr:`hybrid.check.CheckReport.incomplete`).  A report that does not say whether it is complete
+    (a user's own structural callable returning another type) is incomplete.
+    """
+    findings = tuple(getattr(report, "findings", ()))
+    errors = sum(f.severity == "error" for f in findings)
+    warnings = sum(f.severity == "warning" for f in findings)
+    incomplete = getattr(report, "incomplete", None)
+    if incomplete is None:
+        incomplete = ("the problem's own structural checks do not say whether every check decided "
+                      "(return a hybrid.check.CheckReport)",)
+    groups: dict[str, list[str]] = {}  # "skipped: why" -> the checks
+    for line in incomplete:
+        name, _, rest = line.partition(" ")
+        groups.setdefault(rest, []).append(name)
+    gaps = ((f"INCOMPLETE, {len(incomplete)} check(s) did not decide: "
+             + "; ".join(f"{', '.join(names)} {rest}" for rest, names in groups.items())) if incomplete else "")
+    if errors or warnings:
+        return "finding", f"{errors} error(s), {warnings} warning(s)" + (f"; {gaps}" if gaps else "")
+    if incomplete:
+        return "incomplete", gaps
+    return "clean", "CLEAN"
+
+
+def completeness_data(report: Any) -> dict[str, Any]:
+    """``{"complete", "incomplete", "statuses"}`` of a report, JSON-ready (:func:`verdict_line`'s reading of
+    a report that does not say)."""
+    if callable(getattr(report, "completeness", None)):
+        return report.completeness()
+    return {"complete": False, "incomplete": list(verdict_line(report)[1:]), "statuses": {}}
+
+
 def claim_label(status: str) -> str:
     """``PROVEN``, ``FOUND``, ``SAMPLED``, ``UNDECIDED`` or ``SKIPPED``."""
     return status.upper()
@@ -132,23 +170,27 @@ def claims_table(report: Any) -> list[dict[str, str]]:
             for name in order]
 
 
-def pairs_line(pairs: Any) -> str | None:
+def pairs_line(pairs: Any, findings: Any) -> str | None:
     """``43 pairs of transitions sharing a source mode: 29 can be enabled together (re-checked witnesses),
     14 exclusive (proven); equal-priority overlaps: 0`` (``None`` without decided pairs).
 
-    ``pairs`` is a sequence of :class:`hybrid.decide.PairVerdict` or of their JSON dicts.
+    ``pairs`` is a sequence of :class:`hybrid.decide.PairVerdict` or of their JSON dicts; the overlaps
+    are counted from ``findings`` (:func:`hybrid.completeness.finding_counts`), the proofs and the
+    pairs the solver left undecided from ``pairs``.
     """
+    from hybrid.completeness import finding_counts
+
     rows = [p if isinstance(p, Mapping) else p.as_dict() for p in (pairs or ())]
     if not rows:
         return None
-    overlap = sum(r["verdict"] == "overlap" for r in rows)
+    counts = finding_counts(findings)
+    overlap, same = counts["overlap"], counts["equal_priority_overlap"]
     exclusive = sum(r["verdict"] == "exclusive" for r in rows)
-    undecided = len(rows) - overlap - exclusive
-    same = sum(r["verdict"] == "overlap" and r["same_priority"] for r in rows)
+    undecided = sum(r["verdict"] not in ("overlap", "exclusive") for r in rows)
     text = (f"{len(rows)} pair{'s' if len(rows) != 1 else ''} of transitions sharing a source mode: {overlap} can be "
             f"enabled together (re-checked witnesses), {exclusive} exclusive (proven)")
     if undecided:
-        text += f", {undecided} undecided"
+        text += f", {undecided} not decided by the solver"
     return text + f"; equal-priority overlaps: {same}"
 
 
@@ -156,16 +198,21 @@ def _seconds(value: Any) -> str:
     return f"{float(value):.4g} s"
 
 
-def zeno_line(zeno: Any) -> str | None:
+def zeno_line(zeno: Any, findings: Any) -> str | None:
     """The cycles grouped by verdict, one line: ``578 cycles: 578 non-Zeno (proven), smallest dwell bound
     0.05 s in LEAVE|CLEAR between ...; 0 instantaneous; 0 undecided`` (``None`` when not decided).
 
-    ``zeno`` is a :class:`hybrid.decide.ZenoSummary` or its JSON dict.
+    ``zeno`` is a :class:`hybrid.decide.ZenoSummary` or its JSON dict; the instantaneous cycles and
+    the Zeno points are counted from ``findings`` (``reset_retriggers``, ``zeno_point``:
+    :func:`hybrid.completeness.finding_counts`), the proofs and the undecided cycles from ``zeno``.
     """
+    from hybrid.completeness import finding_counts
+
     if zeno is None:
         return None
     z = zeno if isinstance(zeno, Mapping) else zeno.as_dict(verdicts=False)
-    counts = dict(z["counts"])
+    counts = {**dict(z["counts"]), **{k: v for k, v in finding_counts(findings).items()
+                                      if k in ("instantaneous", "zeno_point")}}
     cycles = f"{z['cycles']}{'+' if z.get('capped') else ''} cycle{'s' if z['cycles'] != 1 else ''}"
     text = f"{cycles}: {counts.get('non_zeno', 0)} non-Zeno (proven)"
     if z.get("min_dwell_s") is not None:
@@ -269,7 +316,7 @@ def report_claims(report: Any, *, section: str, subject: str, claim: Callable[..
                                   + (f"{errors} error(s)" if errors else "no error found")
                                   + f" ({sampling}by sampling: a search that finds nothing can miss cases)")))
         return claims
-    pairs, zeno = pairs_line(getattr(report, "pairs", ())), zeno_line(getattr(report, "zeno", None))
+    pairs, zeno = pairs_line(getattr(report, "pairs", ()), findings), zeno_line(getattr(report, "zeno", None), findings)
     for row in table:
         name, status = row["check"], row["status"]
         if status not in REPORT_STATUS:

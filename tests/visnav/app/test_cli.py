@@ -83,6 +83,8 @@ def test_check_model_proves_the_paper_supervisor(capsys):
     """The supervisor is symbolic: every check decided by the SMT solver, 43 pairs, 578 cycles, no finding."""
     code, report = _check_json(capsys, "--samples", "60", "--starts", "2")
     assert code == 0 and report["clean"] is True and report["scenario"] == "paper"
+    assert report["complete"] is True and report["incomplete"] == []
+    assert {s["status"] for s in report["statuses"].values()} == {"decided"}
     assert report["method"] == "auto" and report["timeout_s"] == 5.0 and report["solver"].startswith("z3")
     assert {name: c["status"] for name, c in report["claims"].items()} == dict.fromkeys((*STATE_CHECKS, "zeno"),
                                                                                          "proven")
@@ -119,14 +121,19 @@ def test_check_model_json_is_identical_across_processes():
 
 
 def test_check_model_sampled_method_gives_sampled_claims(capsys):
+    """Sampling leaves the 578 Zeno cycles undecided: INCOMPLETE (exit 5), never CLEAN."""
     code, report = _check_json(capsys, "--method", "sampled", "--samples", "30", "--starts", "1")
-    assert code == 0 and report["method"] == "sampled" and report["pairs"] == [] and report["zeno"] is None
+    assert code == 5 and report["method"] == "sampled" and report["pairs"] == [] and report["zeno"] is None
+    assert report["clean"] is False and report["complete"] is False
+    assert [line.split(":")[0] for line in report["incomplete"]] == ["zeno undecided"]
     assert {name: report["claims"][name]["status"] for name in STATE_CHECKS} == dict.fromkeys(STATE_CHECKS,
                                                                                                "sampled")
     assert report["claims"]["zeno"]["status"] == "undecided"
     assert sum(f["kind"] == "zeno_candidate" for f in report["findings"]) == 1  # the cycles grouped in one row
-    assert main(["check-model", "--method", "sampled", "--samples", "30", "--starts", "1"]) == 0
+    assert main(["check-model", "--method", "sampled", "--samples", "30", "--starts", "1"]) == 5
     out = capsys.readouterr().out
+    assert "INCOMPLETE, 1 check(s) did not decide: zeno undecided: cycles not decided (method sampled)" in (
+        out.splitlines()[0]) and "CLEAN" not in out.splitlines()[0]
     claimed = {ln.split()[0]: ln.split()[1] for ln in out.splitlines() if ln.split()[:1] in ([n] for n in
                                                                                             (*STATE_CHECKS, "zeno"))}
     assert claimed == {**dict.fromkeys(STATE_CHECKS, "SAMPLED"), "zeno": "UNDECIDED"}
@@ -184,7 +191,8 @@ def test_check_model_proves_a_users_symbolic_problem(symbolic_problem, capsys):
     assert "  Zeno: 1 cycle: 1 non-Zeno (proven), smallest dwell bound" in out
     # --method sampled reaches the problem's checks too
     code, report = _check_json(capsys, "--problem", symbolic_problem, "--method", "sampled")
-    assert code == 0 and {report["claims"][n]["status"] for n in STATE_CHECKS} == {"sampled"}
+    assert {report["claims"][n]["status"] for n in STATE_CHECKS} == {"sampled"}
+    assert code == 5 and not report["clean"] and report["incomplete"][0].startswith("zeno undecided")
 
 
 def test_mode_graph_as_json(capsys):
