@@ -30,7 +30,7 @@ EXIT_INTERRUPTED = 130
 """Interrupted by SIGINT (128 + 2, the shells' convention)."""
 EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
               EXIT_BAD_INPUT: "bad input", EXIT_DIVERGED: "the run could not complete",
-              EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "incomplete: not everything was decided",
+              EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "a check or run did not decide",
               EXIT_MODEL_ERROR: "the model's code raised", EXIT_INTERRUPTED: "interrupted"}
 """What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
 
