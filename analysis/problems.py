@@ -250,7 +250,8 @@ class StructuralChecks:
     The modes whose guards, invariants, resets and jump maps are symbolic (:mod:`hybrid.symbolic`)
     are decided by the SMT solver with ``method="auto"`` (their claims PROVEN), the others sampled;
     ``method``, ``rates`` (declared ``|dx_j/dt|`` bounds per second, for the Zeno dwell bounds) and
-    ``timeout_s`` (per solver call) are :func:`hybrid.check`'s.
+    ``timeout_s`` (per solver call) and ``budget_s`` (of the sampled searches, ``None`` the default) are
+    :func:`hybrid.check`'s.
     """
 
     model: Any
@@ -260,12 +261,14 @@ class StructuralChecks:
     method: str = "auto"
     rates: Mapping[str, float] | None = None
     timeout_s: float = 5.0
+    budget_s: float | None = None
 
     def __call__(self) -> Any:
-        from hybrid.check import check
+        from hybrid.check import SEARCH_BUDGET_S, check
 
         return check(self.model, self.box, samples=self.samples, seed=self.seed, method=self.method,
-                     rates=None if self.rates is None else dict(self.rates), timeout_s=self.timeout_s)
+                     rates=None if self.rates is None else dict(self.rates), timeout_s=self.timeout_s,
+                     budget_s=SEARCH_BUDGET_S if self.budget_s is None else self.budget_s)
 
 
 @dataclass(frozen=True, slots=True)

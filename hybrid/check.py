@@ -73,6 +73,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -83,7 +84,7 @@ import numpy as np
 
 from .errors import ExecutionError, ModelDefinitionError
 from .completeness import check_statuses, incomplete_reasons, state_claims, undecided_cycles, zeno_group
-from .findings import KIND_SEVERITY, SEVERITIES, Finding, Witness, _boxes, _g, _num, _Oracle
+from .findings import KIND_SEVERITY, SEVERITIES, Finding, SearchBudgetExceeded, Witness, _boxes, _g, _num, _Oracle
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import HybridAutomaton, Transition
@@ -91,6 +92,7 @@ from .region import Box
 from .system import HybridSystem
 
 __all__ = [
+    "SEARCH_BUDGET_S",
     "KIND_SEVERITY",
     "GRAPH_CHECKS",
     "STATE_CHECKS",
@@ -1157,6 +1159,10 @@ def _graph_findings(a: HybridAutomaton, max_cycles: int) -> tuple[list[Finding],
     return findings, listed, capped
 
 
+SEARCH_BUDGET_S = 120.0
+"""Default wall-clock budget of :func:`check`'s sampled searches [s]."""
+
+
 # ====================================================================== entry point
 def check(
     model: HybridSystem | HybridAutomaton,
@@ -1170,6 +1176,7 @@ def check(
     method: str = "auto",
     rates: Mapping[str, float] | None = None,
     timeout_s: float = 5.0,
+    budget_s: float | None = SEARCH_BUDGET_S,
 ) -> CheckReport:
     """Structural checks of a hybrid system or automaton, each finding with a witness.
 
@@ -1213,6 +1220,10 @@ def check(
         Declared rate bounds ``|dx_j/dt| <= rates[j]`` of coordinates, for the Zeno dwell bounds.
     timeout_s : float
         Timeout of one solver call [s]; a call that times out makes its answer "undecided".
+    budget_s : float or None
+        Wall-clock budget of all the sampled searches together [s]: when it runs out, the mode being
+        searched and those after it are "not searched (time budget)", so their checks are skipped
+        and the report incomplete (never CLEAN); ``None``: no budget.
     tol : float
         Tolerance: a boundary point has ``0 <= inv <= tol``; a deadlock needs
         every guard ``< -tol`` and ``d/dt inv < -tol``; a reset lands outside
@@ -1278,9 +1289,15 @@ def check(
     sampled_modes = set(a.mode_names) if decision is None else (
         set() if method == "smt" else set(decision.sampled_modes))
     undecidable = {} if decision is None or method != "smt" else dict(decision.sampled_modes)
+    if budget_s is not None and (isinstance(budget_s, bool) or not isinstance(budget_s, (int, float))
+                                 or not math.isfinite(budget_s) or budget_s <= 0):
+        raise ExecutionError(f"check(): budget_s = {budget_s!r}; expected a time > 0 [s] or None")
+    oracle.deadline = None if budget_s is None else time.monotonic() + float(budget_s)
     mode_summaries, state_findings = _sample_modes(oracle, boxes, sampled_modes, samples=int(samples),
                                                    starts=int(starts), seed=int(seed), tol=float(tol),
                                                    undecidable=undecidable)
+    oracle.deadline = None
+    out_of_time = [s.mode for s in mode_summaries if any(n.startswith(_OUT_OF_TIME) for n in s.notes)]
     if decision is not None:
         findings += [f for f in decision.findings
                      if not (set(f.modes) & set(decision.sampled_modes)) or method == "smt"]
@@ -1290,7 +1307,10 @@ def check(
         checks.update({c: reason for c in STATE_CHECKS})
     else:
         missing = [q for q in a.mode_names if q not in boxes]
-        remark = f"ran: modes {missing} not searched (no box)" if missing else "ran"
+        parts = ([f"modes {missing} not searched (no box)"] if missing else []) + (
+            [f"modes {out_of_time} not searched (the sampled search's time budget of {budget_s:g} s ran out)"]
+            if out_of_time else [])
+        remark = "ran: " + "; ".join(parts) if parts else "ran"
         checks.update({c: remark for c in STATE_CHECKS})
         if not any(t.direction == 0 for t in a.transitions):
             checks["reset_retriggers"] = "ran: no level-triggered transition (crossing guards do not re-fire)"
@@ -1368,10 +1388,22 @@ def _sample_modes(oracle: _Oracle, boxes: dict[str, Box] | None, modes: set[str]
                                         notes=("decided by the SMT solver (not sampled)",)))
             continue
         space = _Space.build(q, boxes[q], oracle.coords, initial)
-        found, summary = checker.search_mode(space, rng)
+        before = oracle.calls
+        try:
+            found, summary = checker.search_mode(space, rng)
+        except SearchBudgetExceeded:
+            summaries.append(ModeSearch(mode=q, box=boxes[q].describe(), function_calls=oracle.calls - before,
+                                        notes=(f"{_OUT_OF_TIME} ran out after {oracle.calls - before} function "
+                                               "calls in this mode: its checks are not covered (raise the budget, "
+                                               "or write the model symbolically to have it decided)",)))
+            continue
         findings += found
         summaries.append(summary)
     return summaries, findings
+
+
+_OUT_OF_TIME = "not searched: the sampled search's time budget"
+"""How a mode the sampled search had no time left for is noted (its checks are skipped)."""
 
 
 def _probe(oracle: _Oracle, space: _Space) -> None:

@@ -12,6 +12,7 @@ Shared by the sampled search (:mod:`hybrid.check`) and the SMT-decided checks
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -22,7 +23,7 @@ from .model import HybridAutomaton, Transition, refuse_bool
 from .region import Box
 from .system import HybridSystem
 
-__all__ = ["KIND_SEVERITY", "SEVERITIES", "SIGNIFICANT_DIGITS", "Witness", "Finding"]
+__all__ = ["KIND_SEVERITY", "SEVERITIES", "SIGNIFICANT_DIGITS", "Witness", "Finding", "SearchBudgetExceeded"]
 
 KIND_SEVERITY: Mapping[str, str] = MappingProxyType(
     {
@@ -147,8 +148,13 @@ def _g(x: float) -> str:
 
 
 # ====================================================================== model access
+class SearchBudgetExceeded(Exception):
+    """The sampled search ran past its wall-clock budget (raised by the oracle's next call into the model)."""
+
+
 class _Oracle:
-    """Every call into the model: counted, checked for NaN, errors re-raised with context."""
+    """Every call into the model: counted, checked for NaN, errors re-raised with context; past ``deadline``
+    (``time.monotonic()``) the next call raises :class:`SearchBudgetExceeded`."""
 
     def __init__(self, model: HybridSystem | HybridAutomaton) -> None:
         if isinstance(model, HybridSystem):
@@ -168,6 +174,12 @@ class _Oracle:
         self.outgoing = {q: a.outgoing(q) for q in a.mode_names}
         self.invariants = {mode.name: mode.invariant for mode in a.modes}
         self.calls = 0
+        self.deadline: float | None = None
+
+    def _tick(self) -> None:
+        self.calls += 1
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise SearchBudgetExceeded()
 
     # ---------------------------------------------------------------- messages
     def where(self, x: Sequence[float], m: Mapping[str, float]) -> str:
@@ -206,7 +218,7 @@ class _Oracle:
     def signals(self, x: tuple[float, ...], m: Mapping[str, float]) -> tuple[float, ...]:
         if self.system is None:
             return x
-        self.calls += 1
+        self._tick()
         try:
             return tuple(float(c) for c in self.system.signals(0.0, x))
         except Exception as err:
@@ -216,7 +228,7 @@ class _Oracle:
         f = self.invariants[q]
         if f is None:
             return math.inf
-        self.calls += 1
+        self._tick()
         what = f"invariant of mode {q!r}"
         try:
             value = f(v, m)
@@ -225,7 +237,7 @@ class _Oracle:
         return self._real(value, what, x, m)
 
     def guard(self, t: Transition, x: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]) -> float:
-        self.calls += 1
+        self._tick()
         what = f"guard of transition {t.name!r}"
         try:
             value = t.guard(v, m)
@@ -235,7 +247,7 @@ class _Oracle:
 
     def flow(self, q: str, x: tuple[float, ...], m: Mapping[str, float]) -> tuple[float, ...]:
         assert self.system is not None
-        self.calls += 1
+        self._tick()
         try:
             return self.system.flow(q, 0.0, x, m)
         except Exception as err:
@@ -246,7 +258,7 @@ class _Oracle:
     ) -> tuple[tuple[float, ...], dict[str, float]]:
         """State and memory after ``t`` (both maps read the pre-jump values)."""
         if self.system is not None:
-            self.calls += 1
+            self._tick()
             try:
                 post = self.system.jump(t.name, 0.0, x, m)
             except Exception as err:
@@ -255,7 +267,7 @@ class _Oracle:
             post = x
         memory = dict(m)
         if t.reset is not None:
-            self.calls += 1
+            self._tick()
             what = f"reset of transition {t.name!r}"
             try:
                 update = t.reset(v, m)

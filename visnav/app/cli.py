@@ -101,6 +101,9 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
                      help="timeout of one solver call [s]; a call that times out leaves its answer undecided "
                           "(default: 5)")
+    chk.add_argument("--search-budget", type=positive_seconds, default=None, metavar="SECONDS",
+                     help="wall-clock budget of the sampled searches [s]; modes left when it runs out are not "
+                          "searched and the report is INCOMPLETE (default: 120)")
     chk.add_argument("--parametric", action="store_true",
                      help="also decide which pairs of transitions are exclusive for EVERY admissible envelope "
                           "(0 < d- < d0 < d+, 0 < D- < D0 < D+, hysteresis > 0, 0 < arm < pi/2), not only the "
@@ -599,7 +602,7 @@ def _check_problem(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     method, timeout_s = args.method or CHECK_DEFAULT_METHOD, args.timeout or CHECK_DEFAULT_TIMEOUT_S
     if isinstance(structural, StructuralChecks):
-        structural = dataclasses.replace(structural, method=method, timeout_s=timeout_s)
+        structural = dataclasses.replace(structural, method=method, timeout_s=timeout_s, budget_s=args.search_budget)
     else:
         if args.method is not None or args.timeout is not None:
             print(f"visnav: note: problem {problem.name!r} has its own structural checks (not "
@@ -637,7 +640,7 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
     method, timeout_s = args.method or CHECK_DEFAULT_METHOD, args.timeout or CHECK_DEFAULT_TIMEOUT_S
     start = time.perf_counter()
     report = check_supervisor(scenario, samples=args.samples, starts=args.starts, seed=args.seed, method=method,
-                              timeout_s=timeout_s)
+                              timeout_s=timeout_s, budget_s=args.search_budget)
     elapsed = time.perf_counter() - start
     parametric = _parametric_pairs(scenario, timeout_s) if args.parametric else None
     if args.json:

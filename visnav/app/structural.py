@@ -71,7 +71,7 @@ def supervisor_rates(scenario: Scenario) -> dict[str, float]:
 
 
 def check_supervisor(scenario: Scenario, *, samples: int, starts: int, seed: int, method: str = "auto",
-                     timeout_s: float = DEFAULT_TIMEOUT_S) -> Any:
+                     timeout_s: float = DEFAULT_TIMEOUT_S, budget_s: float | None = None) -> Any:
     """:func:`hybrid.check` of ``scenario``'s supervisor over its measurement box.
 
     Parameters
@@ -82,6 +82,8 @@ def check_supervisor(scenario: Scenario, *, samples: int, starts: int, seed: int
     method : {"auto", "sampled", "smt"}
     timeout_s : float
         Timeout of one solver call [s], ``> 0``.
+    budget_s : float or None
+        Wall-clock budget of the sampled searches [s] (``None``: :data:`hybrid.check.SEARCH_BUDGET_S`).
 
     Returns
     -------
@@ -107,7 +109,7 @@ def check_supervisor(scenario: Scenario, *, samples: int, starts: int, seed: int
     system = measurement_system(model)
     return check(system, measurement_box(model, scenario.camera.half_width_px), samples=samples, starts=starts,
                  seed=seed, method=method, rates=supervisor_rates(scenario),
-                 timeout_s=float(timeout_s))
+                 timeout_s=float(timeout_s), **({} if budget_s is None else {"budget_s": float(budget_s)}))
 
 
 # --------------------------------------------------------------------------- the claims in words
