@@ -140,7 +140,8 @@ def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved")
     visnav.scenario.ScenarioError
         The scenario does not load or its requirements do not parse.
     analysis.verification.ProblemError
-        An unknown variant (the message lists the known ones).
+        An unknown variant (the message lists the known ones), or a loop that does not clip for a
+        scenario whose every requirement reads the demand.
     """
     from visnav.requirements import demand_requirements, signal_catalogue
     from visnav.scenario import load_scenario
@@ -151,6 +152,12 @@ def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved")
     signals, labels = signal_catalogue(base)
     left_out = () if saturate else demand_requirements(base)
     requirements = tuple(r for r in base.requirements if r.name not in left_out)
+    if left_out and not requirements:
+        from analysis.verification import ProblemError
+
+        raise ProblemError("--variant", variant, f"a loop that clips ({SATURATED}): every requirement of scenario "
+                           f"{base.name!r} reads the demand, which a loop that does not clip applies as it is",
+                           f"use --variant {SATURATED}, or add a requirement on the applied command (v_mps, ...)")
     suffix = "" if variant == "resolved" else f"~{variant}"
     description = f"Folio & Cadenat closed loop, scenario {base.name}, supervisor {supervisor}"
     if saturate:

@@ -169,6 +169,18 @@ def test_the_saturated_variant_and_its_requirements(scenario):
     assert loop_variant("paper") == ("paper", False) and loop_variant("saturated") == ("resolved", True)
 
 
+def test_a_scenario_with_requirements_on_the_demand_only_needs_the_saturated_loop(scenario):
+    import dataclasses
+
+    only = dataclasses.replace(scenario, requirements=tuple(r for r in scenario.requirements
+                                                            if r.name == "demand_within_limits"))
+    with pytest.raises(ProblemError) as caught:
+        paper_problem(only)
+    assert "every requirement of scenario 'paper' reads the demand" in caught.value.render()
+    assert "--variant saturated" in caught.value.render()
+    assert paper_problem(only, SATURATED).requirement_names == ("demand_within_limits",)
+
+
 @pytest.mark.parametrize("name", ["saturate", "bogus+saturated", "saturated+saturated", "paper+", "+saturated",
                                   "", 3, None])
 def test_an_unknown_variant_is_refused_naming_the_known_ones(name):
