@@ -7,6 +7,12 @@ just ended, and, once the supervisor has jumped, computes the global control
 (19) from the risk parameters of the new mode.  The plant is the cart with its
 pan-platform, integrated exactly under zero-order hold.
 
+The loop applies the demand (19) as it is (the paper's loop), or, with
+``saturate=True``, clipped to the actuator limits of the scenario's
+``[limits]`` (:func:`clip_command`, the one place where a command is
+clipped): the plant and the estimator then move with the applied command,
+and the demand is recorded (:data:`DEMAND_RECORDS`) next to it.
+
 Per-sample cost matters (the paper scenario must run 1000× faster than real
 time): everything here works on Python floats and tuples.
 """
@@ -39,12 +45,40 @@ from visnav.geometry import (
     proximity,
     wrap_angle,
 )
-from visnav.parameters import Scenario
+from visnav.parameters import ActuatorLimits, Scenario
 from visnav.supervisor import SupervisorModel, build_supervisor, split_mode
 
-__all__ = ["ClosedLoop", "LoopState", "Observation", "robot_plant", "desired_features", "record_names"]
+__all__ = ["ClosedLoop", "LoopState", "Observation", "robot_plant", "desired_features", "record_names",
+           "clip_command", "DEMAND_RECORDS"]
 
 Point = tuple[float, float, float]
+
+DEMAND_RECORDS = ("v_demand_mps", "omega_demand_radps", "pan_rate_demand_radps")
+"""Records of a saturating loop (:attr:`ClosedLoop.saturate`): the demand (19) ``(v, ω, ϖ)`` before clipping
+[m/s, rad/s, rad/s] (the trace's inputs are the applied, clipped command)."""
+
+
+def clip_command(u: Sequence[float], limits: ActuatorLimits) -> tuple[float, float, float]:
+    """The command ``(v, ω, ϖ)`` each clipped to ``[-max, max]`` of its actuator limit.
+
+    Parameters
+    ----------
+    u : (v, ω, ϖ)
+        Demanded linear velocity [m/s], angular velocity of the base [rad/s] and pan rate [rad/s].
+    limits : ActuatorLimits
+        ``v_max_mps``, ``omega_max_radps``, ``pan_rate_max_radps`` (positive).
+
+    Returns
+    -------
+    (v, ω, ϖ)
+        The applied command: each component independently saturated (the actuators are
+        independent); a NaN stays NaN (the executor reports it).
+    """
+    out = []
+    for value, bound in zip(u, (limits.v_max_mps, limits.omega_max_radps, limits.pan_rate_max_radps)):
+        value = float(value)
+        out.append(-bound if value < -bound else (bound if value > bound else value))
+    return out[0], out[1], out[2]
 
 
 def robot_plant() -> Plant:
@@ -71,8 +105,11 @@ def desired_features(scenario: Scenario) -> tuple[Point, ...]:
     return project_points(*cam, scenario.robot.camera_height_m, scenario.target.points_m)
 
 
-def record_names(n_points: int) -> tuple[str, ...]:
-    """Names of the values :meth:`ClosedLoop.control` records each sample for ``n_points`` points."""
+def record_names(n_points: int, saturate: bool = False) -> tuple[str, ...]:
+    """Names of the values :meth:`ClosedLoop.control` records each sample for ``n_points`` points.
+
+    A saturating loop (``saturate``) records the demand (:data:`DEMAND_RECORDS`) last.
+    """
     names = ["mu_coll", "mu_occ"]
     names += [f"{c}{i}" for i in range(n_points) for c in ("X", "Y")]
     names += [f"{c}{i}_est" for i in range(n_points) for c in ("X", "Y")]
@@ -80,6 +117,8 @@ def record_names(n_points: int) -> tuple[str, ...]:
     names += [f"z{i}_est" for i in range(n_points)]
     names += ["n_hidden", "n_occluded", "reconstructing", "clearance_m", "feature_error_px"]
     names += ["occluder_y_minus", "occluder_y_plus"]
+    if saturate:
+        names += DEMAND_RECORDS
     return tuple(names)
 
 
@@ -134,9 +173,14 @@ class ClosedLoop:
     supervisor : SupervisorModel
     desired : tuple of (X*, Y*, z*)
         Image of the target at the goal pose.
+    saturate : bool
+        Clip the applied command to ``scenario.limits`` (:func:`clip_command`); the demand (19)
+        is recorded as :data:`DEMAND_RECORDS`.  Default ``False``: the paper's loop, which
+        applies the demand as it is.
     """
 
     scenario: Scenario
+    saturate: bool = False
     supervisor: SupervisorModel = field(init=False)
     desired: tuple[Point, ...] = field(init=False)
     record_names: tuple[str, ...] = field(init=False)
@@ -154,7 +198,7 @@ class ClosedLoop:
         object.__setattr__(
             self, "_occluding", tuple(o.occludes(s.robot.camera_height_m) for o in s.obstacles)
         )
-        object.__setattr__(self, "record_names", record_names(len(s.target.points_m)))
+        object.__setattr__(self, "record_names", record_names(len(s.target.points_m), self.saturate))
 
     # ------------------------------------------------------------------ protocol
     def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
@@ -230,7 +274,14 @@ class ClosedLoop:
         mode: str,
         memory: Mapping[str, float],
     ) -> tuple[tuple[float, float, float], LoopState, tuple[float, ...]]:
-        """Global control (19) in ``mode``; starts/stops the reconstruction with µ_occ."""
+        """Global control (19) in ``mode``, applied through :meth:`actuate`; starts/stops the reconstruction.
+
+        The reconstruction runs while µ_occ > 0.
+
+        Returns the applied command (what the plant integrates and the estimator's screw
+        reads), the state and the row of :attr:`record_names` (with the demand last when
+        :attr:`saturate`).
+        """
         px, py, theta, pan = x
         collision, occlusion = split_mode(mode)
         mu_coll = self.supervisor.mu_coll(collision, v, memory)
@@ -246,8 +297,9 @@ class ClosedLoop:
             c.estimated = c.true_features
         image = c.image
         assert image is not None
-        u = self.command(x, v, image, _merge(c.true_features, c.estimated, image.visible), c.estimated, mode, memory,
-                         risk=(mu_coll, mu_occ))
+        demand = self.command(x, v, image, _merge(c.true_features, c.estimated, image.visible), c.estimated, mode,
+                              memory, risk=(mu_coll, mu_occ))
+        u = self.actuate(demand)
         c.last_input = u
         c.last_pan = pan
         n_hidden = sum(1 for vis in image.visible if not vis)
@@ -261,7 +313,13 @@ class ClosedLoop:
         row += [p[2] for p in c.estimated]
         row += [float(n_hidden), float(n_occluded), float(c.reconstructing), c.clearance, c.feature_error_px]
         row += [image.y_o_minus, image.y_o_plus]
+        if self.saturate:
+            row += demand
         return u, c, tuple(row)
+
+    def actuate(self, demand: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The command the robot applies for ``demand`` (v, ω, ϖ): clipped to the limits when :attr:`saturate`."""
+        return clip_command(demand, self.scenario.limits) if self.saturate else demand
 
     def command(
         self,
@@ -333,7 +391,8 @@ class ClosedLoop:
     def continuous_system(self) -> HybridSystem:
         """The loop with the controller evaluated continuously (no sampling, no hold).
 
-        State ``(x, y, θ, ϑ)``; the output is the supervisor's signals of
+        The command is :meth:`actuate` of (19) (clipped when :attr:`saturate`).  State ``(x, y, θ, ϑ)``; the
+        output is the supervisor's signals of
         :meth:`observe`; every mode's flow is the cart kinematics under the
         control (19) of that mode.  The feature/depth estimator is ideal: in
         continuous time, integrating (13) exactly from the last measured image
@@ -346,7 +405,7 @@ class ClosedLoop:
         def flow_of(mode: str) -> Callable[[float, Sequence[float], Mapping[str, float]], tuple[float, ...]]:
             def flow(t: float, x: Sequence[float], memory: Mapping[str, float]) -> tuple[float, ...]:
                 obs = self.observe(x)
-                u = self.command(x, obs.signals, obs.image, obs.features, obs.features, mode, memory)
+                u = self.actuate(self.command(x, obs.signals, obs.image, obs.features, obs.features, mode, memory))
                 return model.pose_rates(x[2], u[0], u[1], u[2])
 
             return flow

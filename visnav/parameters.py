@@ -128,7 +128,8 @@ class Gains:
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ActuatorLimits:
-    """Stated actuator limits; the simulation reports (never clips) any excess."""
+    """Stated actuator limits; the paper's loop reports (never clips) any excess, a saturated loop clips to them
+    (:func:`visnav.closed_loop.clip_command`)."""
 
     v_max_mps: float = 0.6
     omega_max_radps: float = 1.0

@@ -69,6 +69,7 @@ from visnav.supervisor import (
 __all__ = [
     "UNBOUNDED",
     "MEMORY",
+    "DEMAND_SIGNALS",
     "MemoryView",
     "SIGNAL_TABLE",
     "MODE_LABEL",
@@ -80,6 +81,7 @@ __all__ = [
     "result_trace",
     "paper_requirements",
     "parsed_requirements",
+    "demand_requirements",
     "requirement_values",
 ]
 
@@ -92,6 +94,10 @@ below 1e3)."""
 
 MEMORY = ("obstacle", "side", "arm_sign", "dL", "d_end", "DL", "D_end")
 """The supervisor's latched memory, exposed as signals (``docs/supervisor.md``)."""
+
+DEMAND_SIGNALS = ("v_demand_mps", "omega_demand_radps", "pan_rate_demand_radps")
+"""The demand of the control (19) before clipping (the applied command is ``v_mps``, ``omega_radps``,
+``pan_rate_radps``); they differ only in a saturated loop (:func:`demand_requirements`)."""
 
 MODE_LABEL = "mode"
 """The one label of the trace: the supervisor's mode name, ``COLLISION|OCCLUSION``."""
@@ -120,10 +126,15 @@ _STATE = {
     "pan_rad": ("rad", "pan angle ϑ, not wrapped"),
 }
 _INPUTS = {
-    "v_mps": ("m/s", "linear velocity v (the input held from this sample on; before the jumps: the one held "
+    "v_mps": ("m/s", "linear velocity v applied to the robot: the control (19), clipped to [limits] in a "
+                     "saturated loop (the input held from this sample on; before the jumps: the one held "
                      "until this instant)"),
-    "omega_radps": ("rad/s", "angular velocity ω of the base (same)"),
-    "pan_rate_radps": ("rad/s", "pan rate ϖ (same)"),
+    "omega_radps": ("rad/s", "angular velocity ω of the base, applied (same)"),
+    "pan_rate_radps": ("rad/s", "pan rate ϖ, applied (same)"),
+    "v_demand_mps": ("m/s", "linear velocity v demanded by the control (19), before any clipping: v_mps in a "
+                            "loop that does not clip (held as v_mps)"),
+    "omega_demand_radps": ("rad/s", "angular velocity ω demanded by (19) (same)"),
+    "pan_rate_demand_radps": ("rad/s", "pan rate ϖ demanded by (19) (same)"),
 }
 _RISK = {
     "mu_coll": ("-", "collision risk µ_coll of the row's mode, eq. (2) as resolved"),
@@ -490,13 +501,29 @@ def _measured_rows(
     return out
 
 
-def _controller_rows(trace: SampledTrace, rows: _Rows) -> dict[str, np.ndarray]:
-    """The input; on a pre-jump row the one held until the instant (zero before the first sample)."""
+def _held(values: np.ndarray, rows: _Rows) -> np.ndarray:
+    """``values`` (one row per sample) on every row; on a pre-jump row the previous sample's (zero before the first)."""
     k = rows.sample
-    inputs = trace.inputs[k].copy()
+    out = values[k].copy()
     before = k[rows.pre] - 1
-    inputs[rows.pre] = np.where(before[:, None] >= 0, trace.inputs[np.maximum(before, 0)], 0.0)
-    return {"v_mps": inputs[:, 0], "omega_radps": inputs[:, 1], "pan_rate_radps": inputs[:, 2]}
+    out[rows.pre] = np.where(before[:, None] >= 0, values[np.maximum(before, 0)], 0.0)
+    return out
+
+
+def _controller_rows(trace: SampledTrace, rows: _Rows) -> dict[str, np.ndarray]:
+    """The applied input and the demand; on a pre-jump row the ones held until the instant (zero before the first
+    sample).  The demand is the trace's records :data:`visnav.closed_loop.DEMAND_RECORDS` (a saturated loop), or
+    else the input itself: a loop without these records applies its demand unclipped."""
+    from visnav.closed_loop import DEMAND_RECORDS
+
+    inputs = _held(trace.inputs, rows)
+    if all(name in trace.record_names for name in DEMAND_RECORDS):
+        demand = _held(np.stack([trace.record(name) for name in DEMAND_RECORDS], axis=1), rows)
+    else:
+        demand = inputs
+    out = {"v_mps": inputs[:, 0], "omega_radps": inputs[:, 1], "pan_rate_radps": inputs[:, 2]}
+    out.update({name: demand[:, i].copy() for i, name in enumerate(DEMAND_SIGNALS)})
+    return out
 
 
 def result_trace(result: object) -> SignalTrace:
@@ -525,6 +552,16 @@ def parsed_requirements(scenario: Scenario) -> tuple[ParsedRequirement, ...]:
     """
     signals, labels = signal_catalogue(scenario)
     return parse_requirements(scenario.requirements, signals=signals, labels=labels, horizon=scenario.duration_s)
+
+
+def demand_requirements(scenario: Scenario) -> tuple[str, ...]:
+    """The names of the scenario's requirements that read the demand (a signal of :data:`DEMAND_SIGNALS`).
+
+    In a loop that does not clip, the demand is the applied command: such a requirement repeats one on
+    ``v_mps``, ``omega_radps``, ``pan_rate_radps`` (``demand_within_limits`` is ``controls_within_limits``
+    there); it tells something of its own only in a saturated loop.
+    """
+    return tuple(p.name for p in parsed_requirements(scenario) if p.formula.signals & set(DEMAND_SIGNALS))
 
 
 def requirement_values(scenario: Scenario, trace: SignalTrace) -> tuple[tuple[str, RequirementValue], ...]:

@@ -12,6 +12,16 @@ breaks a rule of the paper's hypotheses (``docs/scenarios.md``) is outside
 the problem (:class:`analysis.verification.InvalidPoint`).  ``variant``
 drives the closed loop with another supervisor: ``paper`` (the logic as
 printed) or a planted mutant (``visnav/fuzzing``).
+
+``variant="saturated"`` is the design answer to actuator saturation: the
+resolved loop whose applied command is clipped to the scenario's ``[limits]``
+(:attr:`visnav.closed_loop.ClosedLoop.saturate`); ``NAME+saturated`` clips the
+loop of another supervisor.  :func:`loop_variant` splits a name into the
+supervisor and the clipping.  The requirements that read the demand of (19)
+before clipping (:func:`visnav.requirements.demand_requirements`,
+``demand_within_limits`` in ``paper.toml``) are verified only in a loop that
+clips: in the paper's loop the demand *is* the applied command, and they would
+repeat the requirement on it (``controls_within_limits``).
 """
 
 from __future__ import annotations
@@ -25,7 +35,10 @@ from analysis.verification import InvalidPoint, Parameter, VerificationProblem
 from visnav.parameters import Scenario
 from visnav.perturbation import Perturbation, Symmetric, apply_perturbation
 
-__all__ = ["paper_problem", "paper_box", "PaperSimulation"]
+__all__ = ["paper_problem", "paper_box", "PaperSimulation", "SATURATED", "loop_variant", "variant_names"]
+
+SATURATED = "saturated"
+"""The closed-loop option of :func:`loop_variant`: the applied command clipped to ``[limits]``."""
 
 
 def paper_box(scenario: Scenario) -> tuple[Perturbation, tuple[Parameter, ...]]:
@@ -48,14 +61,52 @@ def paper_box(scenario: Scenario) -> tuple[Perturbation, tuple[Parameter, ...]]:
     return perturbation, tuple(params)
 
 
+def variant_names() -> tuple[str, ...]:
+    """The names :func:`loop_variant` accepts, for messages: the supervisors, ``saturated``, ``NAME+saturated``."""
+    from visnav.fuzzing.variants import VARIANTS
+
+    return (*VARIANTS, SATURATED, f"NAME+{SATURATED}")
+
+
+def loop_variant(name: str) -> tuple[str, bool]:
+    """The supervisor variant and whether the loop clips its command, for a ``--variant`` name.
+
+    ``"saturated"`` is ``("resolved", True)``, ``"NAME+saturated"`` is ``(NAME, True)`` and a supervisor of
+    :data:`visnav.fuzzing.variants.VARIANTS` is ``(NAME, False)``.
+
+    Raises
+    ------
+    analysis.verification.ProblemError
+        Any other name (the message lists the known ones).
+    """
+    from analysis.verification import ProblemError
+
+    from visnav.fuzzing.variants import RESOLVED, VARIANTS
+
+    if isinstance(name, str):
+        supervisor, plus, option = name.rpartition("+")
+        if not plus and option == SATURATED:
+            return RESOLVED, True
+        if not plus and option in VARIANTS:
+            return option, False
+        if plus and option == SATURATED and supervisor in VARIANTS:
+            return supervisor, True
+    raise ProblemError("--variant", name, f"one of {', '.join(variant_names())} (NAME a supervisor)",
+                       f"use --variant {RESOLVED}, or --variant {SATURATED} for the loop that clips its command")
+
+
 @dataclass(frozen=True, kw_only=True, slots=True)
 class PaperSimulation:
-    """Simulate the perturbed scenario's closed loop around ``variant``; picklable."""
+    """Simulate the perturbed scenario's closed loop around the supervisor ``variant``; picklable.
+
+    ``saturate``: the applied command clipped to the scenario's ``[limits]``.
+    """
 
     scenario: Scenario
     perturbation: Perturbation
     labels: tuple[str, ...]
     variant: str
+    saturate: bool = False
 
     def __call__(self, point: Mapping[str, float]) -> SignalTrace:
         from visnav.fuzzing.closed_loop import simulate_variant
@@ -67,7 +118,7 @@ class PaperSimulation:
         if drawn.scenario is None:
             raise InvalidPoint(str(drawn.error))
         scenario = drawn.scenario
-        run = simulate_variant(scenario, self.variant)
+        run = simulate_variant(scenario, self.variant, saturate=self.saturate)
         model = make_variant(self.variant, scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
         return run_trace(scenario, run.trace, model)
 
@@ -75,32 +126,49 @@ class PaperSimulation:
 def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved") -> VerificationProblem:
     """The verification problem of a case-study scenario (built-in name, TOML path or Scenario).
 
+    Parameters
+    ----------
+    scenario : str or Scenario
+    variant : str
+        A supervisor (:data:`visnav.fuzzing.variants.VARIANTS`), ``"saturated"`` (the resolved
+        loop clipping its command to ``[limits]``) or ``"NAME+saturated"`` (:func:`loop_variant`).
+        A loop that does not clip leaves out the requirements on the demand
+        (:func:`visnav.requirements.demand_requirements`), and its description says so.
+
     Raises
     ------
     visnav.scenario.ScenarioError
         The scenario does not load or its requirements do not parse.
     analysis.verification.ProblemError
-        An unknown variant (the message lists the known ones).
+        An unknown variant (the message lists the known ones), or a loop that does not clip for a
+        scenario whose every requirement reads the demand.
     """
-    from analysis.verification import ProblemError
-
-    from visnav.fuzzing.variants import VARIANTS
-    from visnav.requirements import signal_catalogue
+    from visnav.requirements import demand_requirements, signal_catalogue
     from visnav.scenario import load_scenario
 
+    supervisor, saturate = loop_variant(variant)
     base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    if variant not in VARIANTS:
-        raise ProblemError("--variant", variant, f"one of {', '.join(VARIANTS)}", "use --variant resolved")
     perturbation, params = paper_box(base)
     signals, labels = signal_catalogue(base)
+    left_out = () if saturate else demand_requirements(base)
+    requirements = tuple(r for r in base.requirements if r.name not in left_out)
+    if left_out and not requirements:
+        from analysis.verification import ProblemError
+
+        raise ProblemError("--variant", variant, f"a loop that clips ({SATURATED}): every requirement of scenario "
+                           f"{base.name!r} reads the demand, which a loop that does not clip applies as it is",
+                           f"use --variant {SATURATED}, or add a requirement on the applied command (v_mps, ...)")
     suffix = "" if variant == "resolved" else f"~{variant}"
-    source = "paper"
+    description = f"Folio & Cadenat closed loop, scenario {base.name}, supervisor {supervisor}"
+    if saturate:
+        description += ", applied commands clipped to the actuator limits (saturated loop)"
+    if left_out:
+        description += (f"; not verified here: {', '.join(left_out)} (they read the demand of (19), which this "
+                        f"loop applies unclipped: --variant {SATURATED} verifies them)")
     return VerificationProblem(
         name=f"{base.name}{suffix}",
         simulate=PaperSimulation(scenario=base, perturbation=perturbation, labels=tuple(p.name for p in params),
-                                 variant=variant),
-        parameters=params, horizon=base.duration_s, requirements=tuple(base.requirements),
-        signals=tuple(signals), labels=labels,
-        description=f"Folio & Cadenat closed loop, scenario {base.name}, supervisor {variant}",
-        source=source,
+                                 variant=supervisor, saturate=saturate),
+        parameters=params, horizon=base.duration_s, requirements=requirements,
+        signals=tuple(signals), labels=labels, description=description, source="paper",
     )

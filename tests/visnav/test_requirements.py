@@ -28,7 +28,8 @@ from visnav.simulation import dense_clearance, simulate
 
 #: The requirements of paper.toml, in file order (the table of docs/requirements.md).
 NAMES = (
-    "no_collision", "task_success", "controls_within_limits", "mu_in_unit_interval", "mu_coll_continuous",
+    "no_collision", "task_success", "controls_within_limits", "demand_within_limits", "mu_in_unit_interval",
+    "mu_coll_continuous",
     "mu_occ_continuous", "mu_coll_follows_eq2", "mu_occ_follows_eq3", "reconstruction_while_hidden",
     "reconstruction_error_px_bounded", "reconstruction_depth_error_bounded", "avoid_set_not_before",
     "avoid_set_not_after", "avoid_released_with_leave", "leave_implies_avoid", "leave_after_passing",
@@ -45,6 +46,7 @@ LOWER_BOUNDS = {
     "no_collision": 0.25,  # 0.2608 m: the minimum clearance along the exact trajectory
     "task_success": 1e-4,  # 0.0034 px: the run stops at the first sample below 1 px
     "controls_within_limits": 0.15,  # 0.156 rad/s below omega_max
+    "demand_within_limits": 0.15,  # the same: the loop does not clip, the demand is the applied command
     "reconstruction_error_px_bounded": 0.015,  # max 0.00066 px per point against 0.017
     "reconstruction_depth_error_bounded": 0.11,  # max 0.00065 mm against 0.12
     "avoid_set_not_before": 0.004,  # AVOID set at d = 0.2959 m
@@ -65,6 +67,7 @@ PAPER_FALSIFIES = {
     "task_success": 32.25,  # never released, the robot goes round the tall obstacle: stuck_in_loop
     "side_latched": 42.15,  # no latch: the side the controller reads flips during the avoidance
     "controls_within_limits": 42.25,  # |omega| = 1.95 rad/s > 1.2
+    "demand_within_limits": 42.25,  # the same demand: the paper's loop does not clip
     "leave_released_not_after": 43.8,  # d_coll beyond the release band with LEAVE still set
     "reconstruction_error_px_bounded": 60.25,  # during the second, uncontrolled occlusion
     "reconstruction_depth_error_bounded": 60.25,
@@ -73,8 +76,8 @@ PAPER_FALSIFIES = {
 #: Which requirements catch which supervisor mutant in closed loop on the paper scenario.
 MUTANT_CATCHERS = {
     "drop_dl_latch": {"task_success", "mu_coll_follows_eq2"},
-    "reset_avoid_on_leave": {"controls_within_limits", "mu_coll_continuous", "mu_coll_follows_eq2",
-                             "avoid_released_with_leave", "leave_implies_avoid"},
+    "reset_avoid_on_leave": {"controls_within_limits", "demand_within_limits", "mu_coll_continuous",
+                             "mu_coll_follows_eq2", "avoid_released_with_leave", "leave_implies_avoid"},
     "no_hysteresis": {"leave_released_not_before", "approach_released_not_before"},
     "no_release_phase": {"mu_occ_continuous"},
     "raw_pan": set(),  # |pan| never reaches pi here: the run is the resolved one, sample for sample
@@ -222,6 +225,14 @@ def test_clearance_and_reconstruction_errors(scenario, resolved, trace):
     assert np.all(px[off] == 0.0) and np.all(mm[off] == 0.0)
     # max over points <= the norm over all points that the metrics report
     assert 0.0 < px.max() <= m.max_reconstruction_error_px and 0.0 < mm.max() <= m.max_depth_error_mm
+
+
+def test_without_clipping_the_demand_is_the_applied_command(resolved, trace):
+    """The paper's loop records no demand: the demand signals are the inputs, row for row (pre-jump rows too)."""
+    assert "v_demand_mps" not in resolved.trace.record_names
+    for applied, demand in (("v_mps", "v_demand_mps"), ("omega_radps", "omega_demand_radps"),
+                            ("pan_rate_radps", "pan_rate_demand_radps")):
+        assert np.array_equal(trace.signal(applied), trace.signal(demand)), demand
 
 
 def test_memory_and_flags(trace):

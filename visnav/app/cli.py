@@ -210,6 +210,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
                  f"{counts['proven']} proven, {counts['measured']} measured, {counts['sampled']} sampled claims in "
                  f"{elapsed:.1f} s"]
         lines += _verdict_lines(report.data["verification"]["requirements"], folder)
+        if "saturated" in report.data:  # the loop clipping its commands: its own verdict, not the report's
+            saturated = report.data["saturated"]
+            lines.append(f"  saturated loop ({saturated['problem']}): {VERDICT_LABELS[saturated['verdict']]}")
+            lines += _verdict_lines(saturated["requirements"], folder)
         lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
         lines += [f"  wrote {p}" for p in written]
         print("\n".join(lines))

@@ -57,7 +57,9 @@ def add_parser(sub: Any) -> None:
     ver.add_argument("--requirement", action="append", default=None, metavar="NAME",
                      help="verify only this requirement (repeatable)")
     ver.add_argument("--scenario", default=None, help="paper only: built-in scenario name or TOML file")
-    ver.add_argument("--variant", default=None, help="paper only: supervisor variant (resolved, paper, a mutant)")
+    ver.add_argument("--variant", default=None,
+                     help="paper only: supervisor variant (resolved, paper, a mutant), or saturated: the resolved "
+                          "loop with its applied commands clipped to [limits] (NAME+saturated: another supervisor)")
     ver.add_argument("--out", default=None, help="folder of the journal, verification.json and counterexamples "
                                                  "(default: out/verify/<problem>/<method>-seed<S>-budget<N>)")
     ver.add_argument("--workers", type=positive_int, default=None,

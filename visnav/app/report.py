@@ -7,8 +7,12 @@ path, no date), the figures as matplotlib figures and the counterexample
 files.  The first section is the verification of the scenario's requirements
 (:func:`visnav.verification.paper_problem`, the generic section of
 :mod:`visnav.app.verification_report`): ``report.json``'s top-level
-``verdict`` is its overall verdict.  Then come the case study's own sections
-(model, simulation, analysis, stiffness, fuzzing, campaign).  Rendering to
+``verdict`` is its overall verdict.  The second, ``saturated``, verifies the
+same requirements on the loop whose applied commands are clipped to the
+actuator limits (``paper_problem(scenario, "saturated")``: the design answer
+to actuator saturation), with its own verdict.  Then come
+the case study's own sections (model, simulation, analysis, stiffness,
+fuzzing, campaign).  Rendering to
 Markdown and self-contained HTML is :mod:`visnav.app.report_render`; writing the
 files is :mod:`visnav.app.report_files`.
 
@@ -393,6 +397,22 @@ def _verification_section(scenario: Scenario, options: ReportOptions, source: st
     return verification_section(problem, result, spec="paper", options={"scenario": source})
 
 
+def _saturated_section(scenario: Scenario, options: ReportOptions, source: str) -> Section:
+    """The same verification for the saturated loop (``paper_problem(scenario, "saturated")``: the applied
+    commands clipped to ``[limits]``), with the same budget and seed: its own verdict table, figures and
+    counterexample files (``counterexamples/saturated~NAME.json``); the report's verdict stays the first section's.
+    """
+    from analysis.verdicts import verify
+
+    from visnav.app.verification_report import verification_section
+    from visnav.verification import SATURATED, paper_problem
+
+    problem = paper_problem(scenario, SATURATED)
+    result = verify(problem, budget=options.verify_budget, seed=options.seed)
+    return verification_section(problem, result, spec="paper", options={"scenario": source, "variant": SATURATED},
+                                name="saturated")
+
+
 _SECTIONS: tuple[tuple[str, Callable[..., tuple[dict[str, Any], list[Claim], dict]]], ...] = (
     ("model", _model_section),
     ("simulation", _simulation_section),
@@ -434,7 +454,8 @@ def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
     sections: list[tuple[str, Section]] = []
     timings: dict[str, float] = {}
     verification = functools.partial(_verification_section, source=source)
-    for name, build in (("verification", verification), *_SECTIONS):
+    saturated = functools.partial(_saturated_section, source=source)
+    for name, build in (("verification", verification), ("saturated", saturated), *_SECTIONS):
         if progress is not None:
             progress(name)
         start = time.perf_counter()
@@ -448,7 +469,7 @@ def build_report(scenario: Scenario, options: ReportOptions | None = None, *,
         "tool": "visnav report",
         "scenario": scenario.name,
         "scenario_digest": scenario_digest(scenario),
-        "automaton_digest": sections[1][1].data["automaton"]["digest"],  # computed once, by the model section
+        "automaton_digest": dict(sections)["model"].data["automaton"]["digest"],  # computed once, by the model section
         "quick": options.quick,
         "seeds": {"report": options.seed},
         "budgets": {"verify_budget": options.verify_budget, "check_samples": options.check_samples,

@@ -270,6 +270,20 @@ def _verification_blocks(data: dict[str, Any]) -> list[Block]:
     return blocks
 
 
+def _saturated_blocks(data: dict[str, Any]) -> list[Block]:
+    """The saturated loop's verification (``visnav verify paper --variant saturated``), drawn as the first one."""
+    view = {**data, "verification": data["saturated"],
+            "claims": [{**c, "section": "verification"} for c in _claims_of(data, "saturated")]}
+    blocks = _verification_blocks(view)
+    blocks.insert(1, Block("p", "The same requirements on the loop that clips the applied commands (v, ω, ϖ) to "
+                                "the actuator limits of `[limits]`: `v_mps`, `omega_radps`, `pan_rate_radps` are "
+                                "the applied command (`controls_within_limits` in paper.toml), `v_demand_mps`, "
+                                "`omega_demand_radps`, `pan_rate_demand_radps` the demand of (19) before clipping "
+                                "(`demand_within_limits`). The report's verdict is the paper's loop's, above; this "
+                                "is the verdict of the design answer to saturation."))
+    return blocks
+
+
 def _structure_blocks(data: dict[str, Any]) -> list[Block]:
     st = data["structure"]
     blocks = [Block("h2", f"Structural checks of `{st['automaton']}`")]
@@ -473,6 +487,7 @@ def _campaign_blocks(data: dict[str, Any]) -> list[Block]:
 
 SECTION_RENDERERS: dict[str, Callable[[dict[str, Any]], list[Block]]] = {
     "verification": _verification_blocks,
+    "saturated": _saturated_blocks,
     "structure": _structure_blocks,
     "stability": _stability_blocks,
     "model": _model_blocks,
@@ -505,8 +520,8 @@ def report_blocks(data: dict[str, Any]) -> list[Block]:
     versions and seeds."""
     meta = data["meta"]
     blocks = [Block("h1", f"Verification report — {_subject(meta)}" + (" (quick)" if meta["quick"] else ""))]
-    first = [name for name in data["sections"] if name == "verification"]
-    rest = [name for name in data["sections"] if name != "verification"]
+    first = [name for name in data["sections"] if name in ("verification", "saturated")]
+    rest = [name for name in data["sections"] if name not in first]
     for name in first:
         blocks += SECTION_RENDERERS[name](data)
     blocks += [Block("h2", "Claims"), _claims_intro(data), Block("claims", data["claims"])]

@@ -214,20 +214,21 @@ def _evidence(verdict: Any, result: Any, problem: Any) -> str:
     return text
 
 
-def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None) -> Claim:
+def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None,
+                       section: str = "verification") -> Claim:
     label = VERDICT_LABELS[verdict.verdict]
     if verdict.verdict == "proven":
-        return Claim(section="verification", status="proven",
+        return Claim(section=section, status="proven",
                      text=f"requirement {verdict.name} {label} over the whole box: {verdict.proof.method} "
                           f"({verdict.proof.evidence})")
     if verdict.counterexample is not None:
         cx = verdict.counterexample
-        return Claim(section="verification", status="measured",
+        return Claim(section=section, status="measured",
                      text=(f"requirement {verdict.name} {label}: robustness {_number(cx.robustness)} at "
                            f"{_point_text(cx.point, problem)}, violated at t = {cx.time:.4g} s by "
                            f"`{cx.atom.strip()}`; replay with `visnav replay {file}`"))
     share = _coverage_share(result)
-    return Claim(section="verification", status="sampled",
+    return Claim(section=section, status="sampled",
                  text=(f"requirement {verdict.name} {label} in {verdict.simulations} simulations (method "
                        f"{result.method}, seed {result.seed}): lowest robustness {_number(verdict.robustness)}, "
                        f"nominal {_number(verdict.nominal_robustness)}"
@@ -253,7 +254,8 @@ def _nominal_run(problem: Any, result: Any) -> tuple[dict[str, Any], Any]:
     return data, trace
 
 
-def _nominal_figures(problem: Any, result: Any, trace: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+def _nominal_figures(problem: Any, result: Any, trace: Any, prefix: str = "verification"
+                     ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The nominal run's figures, :data:`~visnav.app.figures_verification.PANELS_PER_FIGURE` requirements
     each, and their pages (stem, first and last requirement number)."""
     from visnav.app.figures_verification import PANELS_PER_FIGURE, RequirementPanel, run_figure
@@ -264,7 +266,7 @@ def _nominal_figures(problem: Any, result: Any, trace: Any) -> tuple[dict[str, A
     pages = []
     for first in range(0, len(names), PANELS_PER_FIGURE):
         chunk = names[first:first + PANELS_PER_FIGURE]
-        stem = "verification_nominal" + (f"_{first // PANELS_PER_FIGURE + 1}" if first else "")
+        stem = f"{prefix}_nominal" + (f"_{first // PANELS_PER_FIGURE + 1}" if first else "")
         title = f"{problem.name}: nominal run" + (
             f" (requirements {first + 1}–{first + len(chunk)} of {len(names)})" if len(names) > len(chunk) else "")
         figures[stem] = run_figure(trace, [RequirementPanel(name=n, formula=parsed[n], violated=False)
@@ -273,13 +275,13 @@ def _nominal_figures(problem: Any, result: Any, trace: Any) -> tuple[dict[str, A
     return figures, pages
 
 
-def _figures(problem: Any, result: Any, nominal_trace: Any
+def _figures(problem: Any, result: Any, nominal_trace: Any, prefix: str = "verification"
              ) -> tuple[dict[str, Any], list[dict[str, Any]], dict[str, str | None]]:
     """The figures by stem, the nominal run's pages, and the stem of each requirement's counterexample figure."""
     from visnav.app.figures_verification import RequirementPanel, robustness_history_figure, run_figure
 
     parsed = {p.name: p.formula for p in problem.parsed}
-    figures, pages = ({}, []) if nominal_trace is None else _nominal_figures(problem, result, nominal_trace)
+    figures, pages = ({}, []) if nominal_trace is None else _nominal_figures(problem, result, nominal_trace, prefix)
     stems: dict[str, str | None] = {}
     for r in result.requirements:
         cx = r.counterexample
@@ -288,11 +290,11 @@ def _figures(problem: Any, result: Any, nominal_trace: Any
             continue
         trace = problem.trace(problem.point(cx.unit))
         panel = RequirementPanel(name=r.name, formula=parsed[r.name], violated=True, time=cx.time, atom=cx.atom)
-        stem = f"verification_counterexample_{r.name}"
+        stem = f"{prefix}_counterexample_{r.name}"
         figures[stem] = run_figure(trace, [panel], title=f"{problem.name}: counterexample to {r.name}")
         stems[r.name] = stem
     if result.evaluations:
-        figures["verification_robustness"] = robustness_history_figure(
+        figures[f"{prefix}_robustness"] = robustness_history_figure(
             {r.name: r.history for r in result.requirements}, title=f"{problem.name}: {result.method} search")
     return figures, pages, stems
 
@@ -305,8 +307,8 @@ def _parameters(problem: Any, result: Any) -> list[dict[str, Any]]:
             for p in problem.parameters]
 
 
-def verification_section(problem: Any, result: Any, *, spec: str, options: Mapping[str, Any] | None = None
-                         ) -> Section:
+def verification_section(problem: Any, result: Any, *, spec: str, options: Mapping[str, Any] | None = None,
+                         name: str = "verification") -> Section:
     """The verification section of ``problem`` verified as ``result``.
 
     Parameters
@@ -318,6 +320,10 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
         How ``visnav replay`` loads the problem again (``paper``, ``pkg.mod:OBJ``, ``file.py:OBJ``).
     options : Mapping, optional
         The loading options (``{"scenario": ..., "variant": ...}`` for ``paper``).
+    name : str
+        The section's name: its claims' section, the prefix of its figure stems, and, for another
+        name than ``verification``, of its counterexample files (``counterexamples/NAME~REQ.json``),
+        so that two verification sections share a report.
 
     Returns
     -------
@@ -330,20 +336,21 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
 
     options = dict(options or {})
     nominal, nominal_trace = _nominal_run(problem, result)
-    figures, pages, stems = _figures(problem, result, nominal_trace)
+    figures, pages, stems = _figures(problem, result, nominal_trace, name)
+    tag = "" if name == "verification" else f"{name}~"
     files: dict[str, str] = {}
     rows = []
     for r in result.requirements:
         file = None
         if r.counterexample is not None:
-            file = f"{COUNTEREXAMPLE_DIR}/{r.name}.json"
+            file = f"{COUNTEREXAMPLE_DIR}/{tag}{r.name}.json"
             files[file] = counterexample_text(result, r, problem, spec, options)
         rows.append({**r.as_dict(), "history": list(r.history), "evidence": _evidence(r, result, problem),
                      "counterexample_file": file, "figure": stems[r.name]})
-    claims = [_requirement_claim(r, result, problem, row["counterexample_file"])
+    claims = [_requirement_claim(r, result, problem, row["counterexample_file"], name)
               for r, row in zip(result.requirements, rows)]
     if result.diverged:
-        claims.append(Claim(section="verification", status="measured",
+        claims.append(Claim(section=name, status="measured",
                             text=f"{len(result.diverged)} simulation(s) diverged or cycled at one instant; first: "
                                  f"{result.diverged[0]['status']} at {_point_text(result.diverged[0]['point'], problem)}"
                                  f" ({result.diverged[0]['detail']})"))
@@ -355,7 +362,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
         "invalid": result.invalid, "invalid_reasons": summary["invalid_reasons"], "diverged": summary["diverged"],
         "coverage": summary["coverage"], "parameters": _parameters(problem, result), "requirements": rows,
         "nominal": {**nominal, "figures": pages},
-        "robustness_figure": "verification_robustness" if "verification_robustness" in figures else None,
+        "robustness_figure": f"{name}_robustness" if f"{name}_robustness" in figures else None,
         "figures": list(figures),
     }
     return Section(data=to_jsonable(data, nonfinite="string"), claims=tuple(claims), figures=figures, files=files)

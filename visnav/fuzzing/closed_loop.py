@@ -124,8 +124,8 @@ class VariantLoop(ClosedLoop):
 class BlendMonitor:
     """What :func:`simulate_variant` finds when it checks the blend of the controllers at every sample.
 
-    At every sample the applied control ``(v, ω, ϖ)`` is compared with
-    eqs. (18)–(19) (:func:`~visnav.fuzzing.loop_mutants.resolved_blend`)
+    At every sample the control ``(v, ω, ϖ)`` (in a saturated loop the demand,
+    before clipping) is compared with eqs. (18)–(19) (:func:`~visnav.fuzzing.loop_mutants.resolved_blend`)
     recomputed from the µ the loop recorded and the resolved loop's pure
     controls at the same state, image, features and memory.  Filled in
     during the run, so it keeps what was seen even if the run later raises.
@@ -211,7 +211,8 @@ class _SwitchProbe:
         if monitor is not None and c.image is not None:
             features = tuple(tr if vis else es for tr, es, vis in zip(c.true_features, c.estimated, c.image.visible))
             pure = loop.pure_controls(x, v, c.image, features, c.estimated, mode, loop._view(v, memory))
-            monitor.compare(t, mode, (row[0], row[1]), u, pure)
+            demand = row[-3:] if loop.saturate else u  # (19) before clipping: the demand records, last
+            monitor.compare(t, mode, (row[0], row[1]), demand, pure)
         return u, c, row
 
 
@@ -229,7 +230,7 @@ class ScenarioRun:
 
 
 def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
-                     blend_monitor: BlendMonitor | None = None) -> ScenarioRun:
+                     blend_monitor: BlendMonitor | None = None, saturate: bool = False) -> ScenarioRun:
     """Run ``scenario``'s closed loop around a variant and classify the outcome.
 
     Parameters
@@ -240,6 +241,9 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
         the resolved supervisor with that mutant's estimator or blend.
     blend_monitor : BlendMonitor or None
         Filled in with the comparison of the applied control with (18)–(19) at every sample.
+    saturate : bool
+        Clip the applied command to the scenario's ``[limits]``
+        (:attr:`visnav.closed_loop.ClosedLoop.saturate`; the demand is recorded too).
 
     Raises
     ------
@@ -248,7 +252,7 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
     """
     model_variant = make_variant(variant, scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
     mutant = loop_mutant(variant) if variant in LOOP_MUTANTS else None
-    loop = VariantLoop(scenario=scenario, variant=model_variant, mutant=mutant)
+    loop = VariantLoop(scenario=scenario, variant=model_variant, mutant=mutant, saturate=saturate)
     probe = _SwitchProbe(loop, blend_monitor)
     plant: Plant = robot_plant()
     trace = simulate_sampled(

@@ -46,7 +46,17 @@ def test_quick_report_is_byte_identical_across_processes(quick_dirs, report_tool
 def test_report_contents_and_claims(quick_dirs):
     out = quick_dirs[0]
     data = json.loads((out / "report.json").read_text())
-    assert data["sections"][:4] == ["verification", "model", "simulation", "analysis"]
+    assert data["sections"][:5] == ["verification", "saturated", "model", "simulation", "analysis"]
+    # the paper's loop as published: controls_within_limits only reads the applied command, which is the
+    # demand; the saturated loop also verifies the demand, and the applied command is within the limits
+    published = {r["name"]: r for r in data["verification"]["requirements"]}
+    saturated = {r["name"]: r for r in data["saturated"]["requirements"]}
+    assert "demand_within_limits" not in published and set(saturated) == {*published, "demand_within_limits"}
+    assert data["saturated"]["problem"] == "paper~saturated" and data["saturated"]["options"]["variant"] == "saturated"
+    assert saturated["controls_within_limits"]["verdict"] == "not_falsified"
+    assert saturated["controls_within_limits"]["robustness"] >= 0.0
+    for row in data["saturated"]["requirements"]:
+        assert row["counterexample_file"] is None or (out / row["counterexample_file"]).is_file()
     assert data["verdict"] == data["verification"]["verdict"]
     assert data["meta"]["budgets"]["verify_budget"] == ReportOptions.for_mode(quick=True).verify_budget
     for row in data["verification"]["requirements"]:  # every counterexample linked is next to the report
@@ -196,7 +206,7 @@ def failing_task(tmp_path_factory):
 def test_a_failing_task_exits_1_and_says_so(failing_task):
     _, out, runs = failing_task
     data = json.loads((out / "report.json").read_text())
-    assert data["sections"] == ["verification", "model", "simulation"]
+    assert data["sections"] == ["verification", "saturated", "model", "simulation"]
     assert data["verdict"] == "not_falsified"  # the requirement holds: the exit code comes from the task
     metrics = data["simulation"]["metrics"]
     assert metrics["success"] is False and metrics["termination"] == "end_time"

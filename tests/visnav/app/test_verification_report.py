@@ -261,3 +261,37 @@ def test_bad_problem_spec_is_a_clear_error(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(ROOT)
     assert main(["report", "--problem", "examples/no_such_file.py:problem", "--out", str(tmp_path / "x")]) == 2
     assert "no_such_file.py" in capsys.readouterr().err
+
+
+def test_a_second_verification_section_has_its_own_figures_files_and_claims(zero_band):
+    """``verification_section(..., name="saturated")`` (the case study's saturated loop): nothing it writes
+    collides with the first section's, and the document shows both tables, the first before the claims."""
+    from analysis.verdicts import verify
+
+    from visnav.app.verification_report import assemble_report, verification_section
+
+    problem, report = zero_band
+    result = verify(problem, budget=BUDGET, seed=0)
+    first = verification_section(problem, result, spec=f"{THERMOSTAT}:zero_band")
+    second = verification_section(problem, result, spec=f"{THERMOSTAT}:zero_band", name="saturated")
+    assert set(first.figures) == set(report.figures) and set(first.files) == set(report.files)
+    assert set(second.figures) == {stem.replace("verification_", "saturated_", 1) for stem in first.figures}
+    assert set(second.files) == {"counterexamples/saturated~min_dwell.json"}
+    assert second.files["counterexamples/saturated~min_dwell.json"] == first.files["counterexamples/min_dwell.json"]
+    assert {c.section for c in second.claims} == {"saturated"} and {c.section for c in first.claims} == {
+        "verification"}
+    assert [c.text.replace("saturated~", "") for c in second.claims] == [c.text for c in first.claims]
+    row = {r["name"]: r for r in second.data["requirements"]}["min_dwell"]
+    assert row["counterexample_file"] == "counterexamples/saturated~min_dwell.json"
+    assert row["figure"] == "saturated_counterexample_min_dwell" and second.data["robustness_figure"] == (
+        "saturated_robustness")
+    meta = {"tool": "test", "problem": problem.name, "quick": True, "seeds": {"report": 0},
+            "budgets": {"verify_budget": BUDGET}, "command": "-", "versions": {}}
+    both = assemble_report(meta, [("verification", first), ("saturated", second)])
+    assert both.verdict == "falsified" and len(both.claims) == 2 * len(first.claims)
+    md = render_markdown(both.data, {stem: f"figures/{stem}.png" for stem in (*first.figures, *second.figures)})
+    headings = [line for line in md.splitlines() if line.startswith("## ")]
+    assert headings[:3] == [f"## Verification of `{problem.name}`"] * 2 + ["## Claims"]
+    assert "clips the applied commands (v, ω, ϖ)" in md
+    assert "[counterexamples/saturated~min_dwell.json](counterexamples/saturated~min_dwell.json)" in md
+    assert "figures/saturated_counterexample_min_dwell.png" in md and "figures/verification_robustness.png" in md
