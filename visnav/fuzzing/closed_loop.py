@@ -8,13 +8,14 @@ supervisor of :data:`visnav.fuzzing.variants.VARIANTS` or a closed-loop mutant
 of :data:`visnav.fuzzing.loop_mutants.LOOP_MUTANTS` (the resolved supervisor
 with a mutated estimator or blend).  A :class:`BlendMonitor` passed to it
 compares the applied control at every sample with eqs. (18)–(19) recomputed
-from the recorded µ.  The properties on these runs are in
+from the recorded µ and pure controllers computed apart from the loop
+(:func:`visnav.fuzzing.blend_reference.blend_reference`).  The properties on these runs are in
 :mod:`visnav.fuzzing.scenario_properties` and :mod:`visnav.fuzzing.properties`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -23,7 +24,8 @@ from hybrid import Plant, SampledTrace, simulate_sampled
 from hybrid.errors import NumericalFailure
 
 from visnav.closed_loop import ClosedLoop, LoopState, robot_plant
-from visnav.fuzzing.loop_mutants import LOOP_MUTANTS, LoopMutant, PureControls, loop_mutant, resolved_blend
+from visnav.fuzzing.blend_reference import blend_reference
+from visnav.fuzzing.loop_mutants import LOOP_MUTANTS, LoopMutant, PureControls, loop_mutant
 from visnav.fuzzing.mutants import RESOLVED, SupervisorVariant
 from visnav.fuzzing.variants import make_variant
 from visnav.geometry import ImageMeasurement
@@ -125,10 +127,12 @@ class BlendMonitor:
     """What :func:`simulate_variant` finds when it checks the blend of the controllers at every sample.
 
     At every sample the applied control ``(v, ω, ϖ)`` is compared with
-    eqs. (18)–(19) (:func:`~visnav.fuzzing.loop_mutants.resolved_blend`)
-    recomputed from the µ the loop recorded and the resolved loop's pure
-    controls at the same state, image, features and memory.  Filled in
-    during the run, so it keeps what was seen even if the run later raises.
+    eqs. (18)–(19) written out (:func:`~visnav.fuzzing.blend_reference.blend_reference`)
+    from the µ the loop recorded and the pure controllers computed apart from
+    the loop at the same state, image, features and memory: neither
+    :func:`visnav.controllers.blend`, :func:`visnav.controllers.avoidance_control`
+    nor the loop's :meth:`~visnav.closed_loop.ClosedLoop.command` takes part.
+    Filled in during the run, so it keeps what was seen even if the run later raises.
 
     Attributes
     ----------
@@ -154,10 +158,10 @@ class BlendMonitor:
     skipped: int = 0
 
     def compare(self, t: float, mode: str, mu: tuple[float, float], applied: Sequence[float],
-                pure: PureControls) -> None:
-        """Compare one sample's applied control with (18)–(19) at the recorded ``mu``."""
+                reference: Callable[[], Sequence[float]]) -> None:
+        """Compare one sample's applied control with ``reference()``, (18)–(19) at the recorded ``mu``."""
         try:
-            expected = resolved_blend(mu[0], mu[1], pure)
+            expected = tuple(reference())
         except NumericalFailure:
             self.skipped += 1
             return
@@ -210,8 +214,10 @@ class _SwitchProbe:
         monitor = self.blend_monitor
         if monitor is not None and c.image is not None:
             features = tuple(tr if vis else es for tr, es, vis in zip(c.true_features, c.estimated, c.image.visible))
-            pure = loop.pure_controls(x, v, c.image, features, c.estimated, mode, loop._view(v, memory))
-            monitor.compare(t, mode, (row[0], row[1]), u, pure)
+            image, estimated, view, mu = c.image, c.estimated, loop._view(v, memory), (row[0], row[1])
+            pose = (float(x[0]), float(x[1]), float(x[2]), float(x[3]))
+            monitor.compare(t, mode, mu, u,
+                            lambda: blend_reference(loop, pose, image, features, estimated, view, mu))
         return u, c, row
 
 
