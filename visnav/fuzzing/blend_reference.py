@@ -41,30 +41,41 @@ class LoopView(Protocol):
     desired: tuple[Point, ...]
 
 
+def _given(name: str, value: object, weight: float) -> None:
+    if value is None:
+        raise ValueError(f"eq_18_19: {name} is None but its weight is {weight!r}; compute that controller "
+                         "(only a controller of weight exactly 0 may be left out)")
+
+
 def eq_18_19(mu_coll: float, mu_occ: float, q_vs: Joint | None, q_occ: Joint | None,
              coll: tuple[float, float, float | None, float | None] | None) -> Joint:
     """(19) with (18) inside, term by term; ``coll = (v_coll, ω_coll, ϖ, ϖ~)``.
 
     Terms of weight exactly 0 are left out (their controller may be ``None``).
+
+    Raises
+    ------
+    ValueError
+        A controller of non-zero weight is ``None``.
     """
     w_vs, w_occ = (1.0 - mu_occ) * (1.0 - mu_coll), (1.0 - mu_coll) * mu_occ
     v = omega = pan_rate = 0.0
     if w_vs != 0.0:
-        assert q_vs is not None
-        v, omega, pan_rate = v + w_vs * q_vs[0], omega + w_vs * q_vs[1], pan_rate + w_vs * q_vs[2]
+        _given("q_vs", q_vs, w_vs)
+        v, omega, pan_rate = v + w_vs * q_vs[0], omega + w_vs * q_vs[1], pan_rate + w_vs * q_vs[2]  # type: ignore[index]
     if w_occ != 0.0:
-        assert q_occ is not None
-        v, omega, pan_rate = v + w_occ * q_occ[0], omega + w_occ * q_occ[1], pan_rate + w_occ * q_occ[2]
+        _given("q_occ", q_occ, w_occ)
+        v, omega, pan_rate = v + w_occ * q_occ[0], omega + w_occ * q_occ[1], pan_rate + w_occ * q_occ[2]  # type: ignore[index]
     if mu_coll != 0.0:
-        assert coll is not None
-        v_coll, omega_coll, pan_real, pan_rec = coll
+        _given("coll", coll, mu_coll)
+        v_coll, omega_coll, pan_real, pan_rec = coll  # type: ignore[misc]
         pan_coll = 0.0
         if mu_occ != 1.0:
-            assert pan_real is not None
-            pan_coll += (1.0 - mu_occ) * pan_real
+            _given("the real pan rate", pan_real, 1.0 - mu_occ)
+            pan_coll += (1.0 - mu_occ) * pan_real  # type: ignore[operator]
         if mu_occ != 0.0:
-            assert pan_rec is not None
-            pan_coll += mu_occ * pan_rec
+            _given("the reconstructed pan rate", pan_rec, mu_occ)
+            pan_coll += mu_occ * pan_rec  # type: ignore[operator]
         v, omega, pan_rate = v + mu_coll * v_coll, omega + mu_coll * omega_coll, pan_rate + mu_coll * pan_coll
     return (v, omega, pan_rate)
 

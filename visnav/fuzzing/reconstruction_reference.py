@@ -52,6 +52,7 @@ __all__ = [
     "camera_screw_zoh",
     "period_mean_screw",
     "image_rates",
+    "zoh_maps",
     "zoh_flow",
     "ReconstructionReference",
     "zoh_reconstruction_reference",
@@ -120,11 +121,17 @@ def camera_screw_zoh(pan: np.ndarray | float, v: float, omega: float, pan_rate: 
                                         -turn + 0.0 * s), axis=-1)
 
 
-def period_mean_screw(pan: float, joint_rates: Sequence[float], h: float, geometry: RobotGeometry) -> np.ndarray:
-    """Mean of the screw over one ZOH period (8-point Gauss–Legendre, exact to round-off here)."""
-    v, omega, pan_rate = joint_rates
+def period_mean_screw(pan: np.ndarray | float, joint_rates: np.ndarray | Sequence[float], h: float,
+                      geometry: RobotGeometry) -> np.ndarray:
+    """Mean of the screw over ZOH period(s) (8-point Gauss–Legendre, exact to round-off here).
+
+    ``pan`` of shape ``(K,)`` and ``joint_rates`` of shape ``(K, 3)`` give ``(K, 3)``; scalars give ``(3,)``.
+    """
+    rates = np.asarray(joint_rates, dtype=float)
+    v, omega, pan_rate = (rates[..., i, None] for i in range(3))
     tau = 0.5 * h * (1.0 + _GAUSS_NODES)
-    return 0.5 * _GAUSS_WEIGHTS @ camera_screw_zoh(pan + pan_rate * tau, v, omega, pan_rate, geometry)
+    screws = camera_screw_zoh(np.asarray(pan, dtype=float)[..., None] + pan_rate * tau, v, omega, pan_rate, geometry)
+    return 0.5 * np.einsum("j,...jc->...c", _GAUSS_WEIGHTS, screws)
 
 
 def _point_rates(p: np.ndarray, screw: np.ndarray) -> np.ndarray:
@@ -146,51 +153,78 @@ def image_rates(psi: np.ndarray, screw: np.ndarray) -> np.ndarray:
 
 
 def _image_rate_jacobian(psi: np.ndarray, screw: np.ndarray) -> np.ndarray:
-    """``∂F/∂ψ`` per point, shape ``(n, 3, 3)``, by central differences (relative step 1e-6)."""
-    jac = np.empty((psi.shape[0], 3, 3))
+    """``∂F/∂ψ`` per point, shape ``(n, 3, 3)``, by central differences (relative step 1e-6), in one evaluation."""
+    n = psi.shape[0]
+    step = 1e-6 * np.maximum(1.0, np.abs(psi))  # (n, 3)
+    shifted = np.repeat(psi[None, :, :], 6, axis=0)  # +e_X, +e_Y, +e_z, -e_X, -e_Y, -e_z
     for col in range(3):
-        step = 1e-6 * np.maximum(1.0, np.abs(psi[:, col]))
-        plus, minus = psi.copy(), psi.copy()
-        plus[:, col] += step
-        minus[:, col] -= step
-        jac[:, :, col] = (image_rates(plus, screw) - image_rates(minus, screw)) / (2.0 * step[:, None])
-    return jac
+        shifted[col, :, col] += step[:, col]
+        shifted[3 + col, :, col] -= step[:, col]
+    rates = image_rates(shifted.reshape(6 * n, 3), screw).reshape(6, n, 3)
+    return np.transpose((rates[:3] - rates[3:]) / (2.0 * step.T[:, :, None]), (1, 2, 0))
 
 
-def zoh_flow(psi: np.ndarray, pan: float, joint_rates: Sequence[float], h: float, geometry: RobotGeometry,
+def zoh_maps(pan: np.ndarray, inputs: np.ndarray, h: float, geometry: RobotGeometry,
              substeps: int = FLOW_SUBSTEPS) -> np.ndarray:
-    """The image points ``psi`` (rows ``X, Y, z``) one ZOH period of length ``h`` [s] later.
+    """The affine maps ``(y, z) -> M (y, z) + w`` of ZOH periods, rows ``(M11, M12, M21, M22, w1, w2)``.
 
-    Classical RK4 on the camera-frame coordinates ``p = (X z, Y z, z)`` of fixed
-    world points, ``ṗ = −V(t) − Ω × p`` with the screw of ``ϑ(t) = pan + ϖ t``.
-    The equation is affine in ``p`` (``x`` constant, ``(y, z)`` turned at the
-    constant rate ``Ω_x`` and shifted by ``−(V_y, V_z)``), so RK4 is run once on
-    the affine map ``(y, z) -> M (y, z) + w`` of the period (the same arithmetic
-    as RK4 on every point) and the map applied to all points.
+    For fixed world points in camera coordinates ``p = (x, y, z)``,
+    ``ṗ = −V(t) − Ω × p`` is affine in ``p``: ``x`` is constant and ``(y, z)``
+    turns at the constant rate ``Ω_x = −(ω + ϖ)`` while shifted by
+    ``−(V_y(t), V_z(t))``, with the screw of ``ϑ(t) = ϑ_k + ϖ t``.  Classical RK4
+    with ``substeps`` equal substeps is run on the map itself (the same
+    arithmetic as RK4 on every point), for all periods at once.
+
+    Parameters
+    ----------
+    pan : ndarray, shape (K,)
+        Pan angle at the start of every period [rad].
+    inputs : ndarray, shape (K, 3)
+        Joint rates ``(v, ω, ϖ)`` held over every period [m/s, rad/s, rad/s].
+    h : float
+        Period [s].
+
+    Returns
+    -------
+    ndarray, shape (K, 6)
     """
-    v, omega, pan_rate = (float(u) for u in joint_rates)
+    pan = np.asarray(pan, dtype=float).reshape(-1)
+    v, omega, pan_rate = (np.asarray(inputs, dtype=float).reshape(-1, 3)[:, i] for i in range(3))
     dt = h / substeps
-    screws = camera_screw_zoh(pan + pan_rate * (0.5 * dt) * np.arange(2 * substeps + 1), v, omega, pan_rate,
-                              geometry).tolist()
-    w_x = screws[0][2]  # constant over the period: -(omega + pan_rate)
+    times = (0.5 * dt) * np.arange(2 * substeps + 1)
+    screws = camera_screw_zoh(pan[:, None] + pan_rate[:, None] * times[None, :], v[:, None], omega[:, None],
+                              pan_rate[:, None], geometry)  # (K, 2 substeps + 1, 3)
+    w_x = -(omega + pan_rate)
 
-    def rate(m: tuple[float, ...], vy: float, vz: float) -> tuple[float, ...]:
+    def rate(m: list[np.ndarray], vy: np.ndarray, vz: np.ndarray) -> list[np.ndarray]:
         a, b, c, d, e, f = m  # y' = a y + b z + e, z' = c y + d z + f
-        return (w_x * c, w_x * d, -w_x * a, -w_x * b, w_x * f - vy, -w_x * e - vz)
+        return [w_x * c, w_x * d, -w_x * a, -w_x * b, w_x * f - vy, -w_x * e - vz]
 
-    m = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+    one, zero = np.ones_like(pan), np.zeros_like(pan)
+    m = [one, zero, zero, one, zero, zero]
     for j in range(substeps):
-        (vy0, vz0, _), (vy1, vz1, _), (vy2, vz2, _) = screws[2 * j], screws[2 * j + 1], screws[2 * j + 2]
-        k1 = rate(m, vy0, vz0)
-        k2 = rate(tuple(x + 0.5 * dt * k for x, k in zip(m, k1)), vy1, vz1)
-        k3 = rate(tuple(x + 0.5 * dt * k for x, k in zip(m, k2)), vy1, vz1)
-        k4 = rate(tuple(x + dt * k for x, k in zip(m, k3)), vy2, vz2)
-        m = tuple(x + dt / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4) for x, q1, q2, q3, q4 in zip(m, k1, k2, k3, k4))
+        s0, s1, s2 = screws[:, 2 * j], screws[:, 2 * j + 1], screws[:, 2 * j + 2]
+        k1 = rate(m, s0[:, 0], s0[:, 1])
+        k2 = rate([x + 0.5 * dt * k for x, k in zip(m, k1)], s1[:, 0], s1[:, 1])
+        k3 = rate([x + 0.5 * dt * k for x, k in zip(m, k2)], s1[:, 0], s1[:, 1])
+        k4 = rate([x + dt * k for x, k in zip(m, k3)], s2[:, 0], s2[:, 1])
+        m = [x + dt / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4) for x, q1, q2, q3, q4 in zip(m, k1, k2, k3, k4)]
+    return np.stack(m, axis=1)
+
+
+def _apply_map(psi: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Image points ``psi`` (rows ``X, Y, z``) moved by one period's map (row of :func:`zoh_maps`)."""
     a, b, c, d, e, f = m
     z = psi[:, 2]
     x, y = psi[:, 0] * z, psi[:, 1] * z
     y_new, z_new = a * y + b * z + e, c * y + d * z + f
     return np.stack((x / z_new, y_new / z_new, z_new), axis=1)
+
+
+def zoh_flow(psi: np.ndarray, pan: float, joint_rates: Sequence[float], h: float, geometry: RobotGeometry,
+             substeps: int = FLOW_SUBSTEPS) -> np.ndarray:
+    """The image points ``psi`` (rows ``X, Y, z``) one ZOH period of length ``h`` [s] later (:func:`zoh_maps`)."""
+    return _apply_map(psi, zoh_maps(np.array([pan]), np.array([joint_rates]), h, geometry, substeps)[0])
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -223,22 +257,20 @@ class ReconstructionReference:
 
 
 def _step_screw(model: str, k: int, order: int, pan: np.ndarray, inputs: np.ndarray, h: float,
-                geometry: RobotGeometry, means: dict[int, np.ndarray]) -> np.ndarray:
-    """The screw the specified model gives the BDF step over period ``k`` (``docs/estimator.md``)."""
-    def mean(i: int) -> np.ndarray:
-        if i not in means:
-            means[i] = period_mean_screw(float(pan[i]), inputs[i], h, geometry)
-        return means[i]
+                geometry: RobotGeometry, means: np.ndarray) -> np.ndarray:
+    """The screw the specified model gives the BDF step over period ``k`` (``docs/estimator.md``).
 
+    ``means``: the period means of every period (:func:`period_mean_screw`), shape ``(K, 3)``.
+    """
     v, omega, pan_rate = (float(u) for u in inputs[k])
     if model == "end":
         return camera_screw_zoh(float(pan[k]) + pan_rate * h, v, omega, pan_rate, geometry)
     if model == "start":
         return camera_screw_zoh(float(pan[k]), v, omega, pan_rate, geometry)
     if model == "mean":
-        return mean(k)
+        return means[k]
     cells = min(order, min(order, k) + 1)  # the estimator keeps the means of the last `order` periods
-    return sum((w * mean(k - i) for i, w in enumerate(histopolation_formula(cells))), np.zeros(3))
+    return sum((w * means[k - i] for i, w in enumerate(histopolation_formula(cells))), np.zeros(3))
 
 
 def _intervals(reconstructing: np.ndarray) -> list[tuple[int, int]]:
@@ -315,12 +347,13 @@ def zoh_reconstruction_reference(
     ref = np.array(true, dtype=float, copy=True)
     err = np.zeros_like(ref)
     advanced = np.zeros(len(ref), dtype=bool)
-    means: dict[int, np.ndarray] = {}
+    means = period_mean_screw(pan, inputs, h, geometry)
+    maps = zoh_maps(pan, inputs, h, geometry)
     gap, steps, fresh = 0.0, 0, 0  # fresh: first sample of the measured history
     for s, e in _intervals(np.asarray(reconstructing, dtype=bool)):
         history = min(order, s - fresh + 1)
         for k in range(s, e):  # the step over period k gives sample k + 1
-            ref[k + 1] = zoh_flow(ref[k], float(pan[k]), inputs[k], h, geometry)
+            ref[k + 1] = _apply_map(ref[k], maps[k])
             advanced[k + 1] = True
             gap = max(gap, float(np.max(np.abs(ref[k + 1] - true[k + 1]))))
             if history < order:  # exact start-up step

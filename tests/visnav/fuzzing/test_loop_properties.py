@@ -32,6 +32,7 @@ from analysis.fuzzing import PropertyViolation
 from visnav.closed_loop import ClosedLoop
 from visnav.estimator import FeatureEstimator
 from visnav.fuzzing import blend_reference, loop_properties, reconstruction_reference
+from visnav.fuzzing.blend_reference import eq_18_19
 from visnav.fuzzing.closed_loop import BlendMonitor, simulate_variant
 from visnav.fuzzing.loop_properties import (
     check_blend_weights,
@@ -43,6 +44,7 @@ from visnav.fuzzing.reconstruction_reference import (
     bdf_formula,
     camera_screw_zoh,
     histopolation_formula,
+    period_mean_screw,
     zoh_flow,
 )
 from visnav.fuzzing.run import fuzz_property
@@ -126,7 +128,30 @@ def test_the_zoh_flow_matches_dop853_on_a_fast_motion():
         return np.stack((X * (vz / z + Y * wx), (Y * vz - vy) / z + (1 + Y * Y) * wx, -vz - z * Y * wx), 1).ravel()
 
     exact = solve_ivp(rhs, (0.0, h), psi.ravel(), method="DOP853", rtol=1e-13, atol=1e-14).y[:, -1].reshape(-1, 3)
-    assert np.max(np.abs(zoh_flow(psi, pan, rates, h, geometry) - exact)) < 1e-10
+    assert np.max(np.abs(zoh_flow(psi, pan, rates, h, geometry) - exact)) < 1e-12  # measured 5e-15
+
+
+def test_the_quadrature_mean_screw_is_the_estimators_closed_form():
+    # two routes to the same mean (Gauss-Legendre here, sinc at the mid-angle in visnav.estimator)
+    geometry = RobotGeometry()
+    pans, rates = np.array([0.3, -1.2, 2.0]), np.array([[0.3, 0.5, -1.5], [0.6, -1.0, 1.2], [0.1, 0.0, 1e-5]])
+    means = period_mean_screw(pans, rates, 0.05, geometry)
+    for pan, rate, mean in zip(pans, rates, means):
+        assert np.max(np.abs(mean - estimator_module.mean_camera_screw(pan, *rate, 0.05, geometry))) < 1e-14
+
+
+def test_eq_18_19_is_the_printed_bilinear_form():
+    rng = np.random.default_rng(7)
+    q_vs, q_occ = tuple(rng.normal(size=3)), tuple(rng.normal(size=3))
+    v_coll, w_coll, pan, pan_rec = rng.normal(size=4)
+    for mu_coll, mu_occ in [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, 1.0), *rng.uniform(size=(20, 2))]:
+        got = eq_18_19(mu_coll, mu_occ, q_vs, q_occ, (v_coll, w_coll, pan, pan_rec))
+        q_coll = np.array([v_coll, w_coll, (1 - mu_occ) * pan + mu_occ * pan_rec])
+        want = (1 - mu_occ) * (1 - mu_coll) * np.array(q_vs) + (1 - mu_coll) * mu_occ * np.array(q_occ) + mu_coll * q_coll
+        assert np.max(np.abs(np.array(got) - want)) < 1e-15
+    assert eq_18_19(0.0, 0.0, q_vs, None, None) == q_vs  # a corner returns the pure controller, others unused
+    with pytest.raises(ValueError, match="q_occ is None but its weight is 0.5"):
+        eq_18_19(0.0, 0.5, q_vs, None, None)
 
 
 @functools.lru_cache(maxsize=None)
