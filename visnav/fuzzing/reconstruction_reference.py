@@ -15,10 +15,11 @@ every formula is written again from its definition, by another route.
   the moving camera, ``ṗ = −V − Ω × p`` in camera coordinates ``p = (X z, Y z, z)``:
   ``ẋ = 0``, ``ẏ = −V_y + Ω_x z``, ``ż = −V_z − Ω_x y`` (linear in ``p``; (13) is this
   equation divided by the depth).  Under zero-order hold the joint rates are
-  constant over a period and ``ϑ(t) = ϑ_k + ϖ (t − t_k)``; :func:`zoh_flow`
-  integrates it with classical RK4 and :data:`FLOW_SUBSTEPS` substeps per period,
-  the screw evaluated at the exact time of every stage (error below 1e-12 for
-  the robot's rates; a test checks it against ``solve_ivp(DOP853, rtol=1e-12)``).
+  constant over a period and ``ϑ(t) = ϑ_k + ϖ (t − t_k)``; :func:`zoh_maps`
+  integrates the affine map of every period with classical RK4 and
+  :data:`FLOW_SUBSTEPS` substeps, the screw evaluated at the exact time of every
+  stage, and :func:`zoh_flow` applies it (5e-15 from ``solve_ivp(DOP853,
+  rtol=1e-13)`` on a period at the rate limits, depths 0.6–4 m; a test checks < 1e-12).
 * **The specified BDF** (``docs/estimator.md``): the coefficients of
   ``Σ_{j=1}^{q} (1/j) ∇^j ψ_{k+1} = h F(ψ_{k+1})`` expanded with exact fractions
   (:func:`bdf_formula`), the histopolation weights from the cell means of a
