@@ -9,8 +9,10 @@ of :data:`visnav.fuzzing.loop_mutants.LOOP_MUTANTS` (the resolved supervisor
 with a mutated estimator or blend).  A :class:`BlendMonitor` passed to it
 compares the applied control at every sample with eqs. (18)–(19) recomputed
 from the recorded µ and pure controllers computed apart from the loop
-(:func:`visnav.fuzzing.blend_reference.blend_reference`).  The properties on these runs are in
-:mod:`visnav.fuzzing.scenario_properties` and :mod:`visnav.fuzzing.properties`.
+(:func:`visnav.fuzzing.blend_reference.blend_reference`); an :class:`EstimatorLog`
+keeps what the estimator saw and gave at every sample, even if the run raises.
+The properties on these runs are in
+:mod:`visnav.fuzzing.scenario_properties` and :mod:`visnav.fuzzing.loop_properties`.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ __all__ = [
     "VariantLoop",
     "ScenarioRun",
     "BlendMonitor",
+    "EstimatorLog",
     "classify_outcome",
     "simulate_variant",
 ]
@@ -176,19 +179,63 @@ class BlendMonitor:
                 self.first_at = at
 
 
+@dataclass(kw_only=True, slots=True)
+class EstimatorLog:
+    """What the loop's estimator saw and gave at every sample, filled in during the run (kept if it raises).
+
+    The same values as the trace's records (``pan_rad`` state, inputs, ``X0..z{n-1}``,
+    their ``_est``, ``reconstructing``, ``n_hidden``), for the samples run so far.
+
+    Attributes
+    ----------
+    times : list of float
+        Sample times [s].
+    pan : list of float
+        Pan angle at the sample [rad].
+    inputs : list of (v, ω, ϖ)
+        Joint rates held from the sample on [m/s, rad/s, rad/s].
+    true, estimated : list of tuple of (X, Y, z)
+        True and estimated features after the sample's control [-, -, m].
+    reconstructing : list of bool
+        Whether the loop reconstructs after the sample's control.
+    hidden : list of int
+        Target points not visible at the sample.
+    """
+
+    times: list[float] = field(default_factory=list)
+    pan: list[float] = field(default_factory=list)
+    inputs: list[tuple[float, float, float]] = field(default_factory=list)
+    true: list[tuple[tuple[float, float, float], ...]] = field(default_factory=list)
+    estimated: list[tuple[tuple[float, float, float], ...]] = field(default_factory=list)
+    reconstructing: list[bool] = field(default_factory=list)
+    hidden: list[int] = field(default_factory=list)
+
+    def add(self, t: float, pan: float, u: Sequence[float], c: LoopState) -> None:
+        """Record one sample (after the loop's control)."""
+        self.times.append(float(t))
+        self.pan.append(float(pan))
+        self.inputs.append((float(u[0]), float(u[1]), float(u[2])))
+        self.true.append(tuple(c.true_features))
+        self.estimated.append(tuple(c.estimated))
+        self.reconstructing.append(bool(c.reconstructing))
+        self.hidden.append(0 if c.image is None else sum(1 for vis in c.image.visible if not vis))
+
+
 class _SwitchProbe:
     """Wraps a loop; at every sample whose jumps changed the mode, compares the controls of both modes.
 
     With a :class:`BlendMonitor` it also compares, at every sample, the applied control with (18)–(19).
     """
 
-    def __init__(self, loop: VariantLoop, blend_monitor: BlendMonitor | None = None) -> None:
+    def __init__(self, loop: VariantLoop, blend_monitor: BlendMonitor | None = None,
+                 estimator_log: EstimatorLog | None = None) -> None:
         self.loop = loop
         self.record_names = loop.record_names
         self.previous: tuple[str, Mapping[str, float]] | None = None
         self.worst = 0.0
         self.worst_at: dict[str, Any] = {}
         self.blend_monitor = blend_monitor
+        self.estimator_log = estimator_log
 
     def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
         return self.loop.initial_state(t, x)
@@ -211,6 +258,8 @@ class _SwitchProbe:
                                  "after": list(u_after)}
         u, c, row = loop.control(t, x, c, v, mode, memory)
         self.previous = (mode, dict(memory))
+        if self.estimator_log is not None:
+            self.estimator_log.add(t, x[3], u, c)
         monitor = self.blend_monitor
         if monitor is not None and c.image is not None:
             features = tuple(tr if vis else es for tr, es, vis in zip(c.true_features, c.estimated, c.image.visible))
@@ -235,7 +284,8 @@ class ScenarioRun:
 
 
 def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
-                     blend_monitor: BlendMonitor | None = None) -> ScenarioRun:
+                     blend_monitor: BlendMonitor | None = None,
+                     estimator_log: EstimatorLog | None = None) -> ScenarioRun:
     """Run ``scenario``'s closed loop around a variant and classify the outcome.
 
     Parameters
@@ -246,6 +296,8 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
         the resolved supervisor with that mutant's estimator or blend.
     blend_monitor : BlendMonitor or None
         Filled in with the comparison of the applied control with (18)–(19) at every sample.
+    estimator_log : EstimatorLog or None
+        Filled in with what the estimator saw and gave at every sample.
 
     Raises
     ------
@@ -255,7 +307,7 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
     model_variant = make_variant(variant, scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
     mutant = loop_mutant(variant) if variant in LOOP_MUTANTS else None
     loop = VariantLoop(scenario=scenario, variant=model_variant, mutant=mutant)
-    probe = _SwitchProbe(loop, blend_monitor)
+    probe = _SwitchProbe(loop, blend_monitor, estimator_log)
     plant: Plant = robot_plant()
     trace = simulate_sampled(
         loop.supervisor.automaton, plant, probe, scenario.start.as_tuple(),

@@ -30,7 +30,7 @@ import numpy as np
 from analysis.fuzzing import Observer, PropertyViolation
 from hybrid import DivergenceError, HybridError
 
-from visnav.fuzzing.closed_loop import BlendMonitor, ScenarioRun, simulate_variant
+from visnav.fuzzing.closed_loop import BlendMonitor, EstimatorLog, ScenarioRun, simulate_variant
 from visnav.fuzzing.reconstruction_reference import ReconstructionReference, zoh_reconstruction_reference
 from visnav.parameters import Scenario
 
@@ -71,14 +71,12 @@ def _run(prop: str, variant: str, scenario: Scenario, **options: Any) -> Scenari
         raise PropertyViolation(prop, f"the run raised {type(err).__name__}: {err}") from err
 
 
-def reconstruction_yardstick(run: ScenarioRun) -> ReconstructionReference:
-    """:func:`~visnav.fuzzing.reconstruction_reference.zoh_reconstruction_reference` of a run's trace."""
-    tr, s = run.trace, run.scenario
-    n = len(s.target.points_m)
-    true = np.stack([np.stack([tr.record(f"{c}{i}") for c in ("X", "Y", "z")], axis=1) for i in range(n)], axis=1)
+def reconstruction_yardstick(log: EstimatorLog, scenario: Scenario) -> ReconstructionReference:
+    """:func:`~visnav.fuzzing.reconstruction_reference.zoh_reconstruction_reference` of a run's estimator log."""
     return zoh_reconstruction_reference(
-        true, tr.state("pan_rad"), np.asarray(tr.inputs, dtype=float), tr.record("reconstructing") > 0,
-        s.sampling_period_s, s.robot, s.estimator.order, s.estimator.screw_model,
+        np.array(log.true, dtype=float), np.array(log.pan, dtype=float), np.array(log.inputs, dtype=float),
+        np.array(log.reconstructing, dtype=bool), scenario.sampling_period_s, scenario.robot,
+        scenario.estimator.order, scenario.estimator.screw_model,
     )
 
 
@@ -114,19 +112,33 @@ def check_reconstruction_bounded(variant: str, scenario: Scenario, observe: Obse
     on the wrong history sample breaks consistency.  Also: the integrated
     motion must match the true features the run records (1e-7), or (13) and
     the simulated world disagree.  Inputs: random scenarios respecting the
-    hypotheses.  Guided search maximises the ratio.
+    hypotheses.  If the run raises (a step of a slipped estimator fails, say),
+    the samples before are judged all the same and a violation there is what
+    is reported.  Guided search maximises the ratio.
     """
-    run = _run("reconstruction_bounded", variant, scenario)
-    tr = run.trace
-    hidden = (tr.record("n_hidden") > 0) & (tr.record("reconstructing") > 0)
+    log = EstimatorLog()
+    try:
+        run: ScenarioRun | None = _run("reconstruction_bounded", variant, scenario, estimator_log=log)
+        raised = None
+    except PropertyViolation as err:
+        run, raised = None, err
+    _judge_reconstruction(log, scenario, observe, raised)
+    if raised is not None:
+        raise raised
+    assert run is not None
+    return run
+
+
+def _judge_reconstruction(log: EstimatorLog, scenario: Scenario, observe: Observer,
+                          raised: PropertyViolation | None) -> None:
+    """The checks of :func:`check_reconstruction_bounded` on the samples logged (all, or those before a raise)."""
+    hidden = (np.array(log.hidden) > 0) & np.array(log.reconstructing, dtype=bool)
     if not hidden.any():
         observe("reconstruction error / predicted BDF error", 0.0)
-        return run
-    yard = reconstruction_yardstick(run)
-    n = len(scenario.target.points_m)
-    est = np.stack([np.stack([tr.record(f"{c}{i}_est") for c in ("X", "Y", "z")], axis=1) for i in range(n)], axis=1)
+        return
+    yard = reconstruction_yardstick(log, scenario)
     f, settings = scenario.camera.focal_px, scenario.estimator
-    px, mm = (a[hidden] for a in _pixels_and_mm(est - yard.reference, f))
+    px, mm = (a[hidden] for a in _pixels_and_mm(np.array(log.estimated, dtype=float) - yard.reference, f))
     ref_px, ref_mm = (a[hidden] for a in _pixels_and_mm(yard.predicted, f))
     newton = settings.newton_tol * max(yard.bdf_steps, 1) * (1.0 + float(np.abs(yard.reference).max()))
     floor_px, floor_mm = RECONSTRUCTION_FLOOR[0] + f * newton, RECONSTRUCTION_FLOOR[1] + 1000.0 * newton
@@ -134,28 +146,29 @@ def check_reconstruction_bounded(variant: str, scenario: Scenario, observe: Obse
     ratio = np.maximum(px / (ref_px + floor_px), mm / (ref_mm + floor_mm))
     worst = int(np.argmax(ratio))
     observe("reconstruction error / predicted BDF error", float(ratio[worst]))
-    k = int(np.flatnonzero(hidden)[worst])
+    t = log.times[int(np.flatnonzero(hidden)[worst])]
     details = {"max_reconstruction_error_px": float(px.max()), "max_depth_error_mm": float(mm.max()),
                "predicted_px": float(ref_px.max()), "predicted_mm": float(ref_mm.max()),
-               "t_s": float(tr.times[k]), "error_px": float(px[worst]), "error_mm": float(mm[worst]),
+               "t_s": t, "error_px": float(px[worst]), "error_mm": float(mm[worst]),
                "predicted_px_there": float(ref_px[worst]), "predicted_mm_there": float(ref_mm[worst]),
-               "truth_gap": yard.truth_gap, "bdf_steps": yard.bdf_steps, "hidden_s": run.metrics.occlusion_duration_s}
+               "truth_gap": yard.truth_gap, "bdf_steps": yard.bdf_steps,
+               "hidden_s": float(np.count_nonzero(log.hidden) * scenario.sampling_period_s)}
+    after = "" if raised is None else f"; the run raised afterwards ({raised.message})"
     if yard.truth_gap > TRUTH_TOLERANCE:
         raise PropertyViolation(
             "reconstruction_bounded",
             f"the exact ZOH motion of the hidden points, integrated from the last measured image, differs from the "
             f"recorded true features by {yard.truth_gap:.3g} (> {TRUTH_TOLERANCE:g}): equation (13) and the "
-            "simulated world disagree", details=details)
+            f"simulated world disagree{after}", details=details)
     if px[worst] > factor * ref_px[worst] + floor_px or mm[worst] > factor * ref_mm[worst] + floor_mm:
         raise PropertyViolation(
             "reconstruction_bounded",
-            f"reconstruction error while hidden {px[worst]:.6g} px / {mm[worst]:.6g} mm at t = {tr.times[k]:.6g} s "
+            f"reconstruction error while hidden {px[worst]:.6g} px / {mm[worst]:.6g} mm at t = {t:.6g} s "
             f"against the exact ZOH motion, where the specified BDF{settings.order} ({settings.screw_model} screw) "
             f"makes {ref_px[worst]:.6g} px / {ref_mm[worst]:.6g} mm (first order): more than {factor:g}x "
             f"(+{floor_px:.2g} px / {floor_mm:.2g} mm); largest {px.max():.6g} px / {mm.max():.6g} mm against "
-            f"{ref_px.max():.6g} px / {ref_mm.max():.6g} mm", details=details,
+            f"{ref_px.max():.6g} px / {ref_mm.max():.6g} mm{after}", details=details,
         )
-    return run
 
 
 def check_blend_weights(variant: str, scenario: Scenario, observe: Observer) -> ScenarioRun:
