@@ -186,7 +186,9 @@ def check_blend_weights(variant: str, scenario: Scenario, observe: Observer) -> 
     weight reading the wrong µ, 1 − µ for µ, two weights swapped, a component
     summed into the wrong one: all show wherever the controls they mix differ.
     If the run later raises, the first wrong blend is still what is reported.
-    Inputs: random scenarios respecting the hypotheses.  Guided search
+    A sample where a pure controller cannot be computed is not judged, and a
+    run with such a sample is reported (never passed as clean; the resolved
+    loop computes the same controllers, so it never has one).  Inputs: random scenarios respecting the hypotheses.  Guided search
     maximises the gap.
     """
     monitor = BlendMonitor(tolerance=BLEND_TOLERANCE)
@@ -206,6 +208,13 @@ def check_blend_weights(variant: str, scenario: Scenario, observe: Observer) -> 
             f"t = {at['t_s']:.6g} s in {at['mode']} (largest gap {monitor.worst:.6g})"
             + ("" if run is not None else "; the run raised afterwards"),
             details={**at, "worst_gap": monitor.worst, "samples": monitor.samples},
+        )
+    if monitor.skipped:  # never clean: samples the yardstick could not evaluate are not judged
+        raise PropertyViolation(
+            "blend_weights",
+            f"(18)-(19) could not be evaluated at {monitor.skipped} of {monitor.samples + monitor.skipped} samples "
+            "(a pure controller raised there while the loop applied a control): those samples are not judged",
+            details={"skipped": monitor.skipped, "samples": monitor.samples, "worst_gap": monitor.worst},
         )
     assert run is not None
     return run

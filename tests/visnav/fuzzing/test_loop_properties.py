@@ -30,6 +30,7 @@ import visnav.controllers as controllers_module
 import visnav.estimator as estimator_module
 import visnav.model as model_module
 from analysis.fuzzing import PropertyViolation
+from hybrid.errors import NumericalFailure
 from visnav.closed_loop import ClosedLoop
 from visnav.estimator import FeatureEstimator
 from visnav.fuzzing import blend_reference, loop_properties, reconstruction_reference
@@ -308,3 +309,13 @@ def test_blend_weights_catch_a_slip_in_the_blend(slip, monkeypatch):
     assert v.details["gap"] > 1e-3 and v.details["t_s"] == 0.0  # the paper run has mu_occ = 0.375 at t = 0
     result = fuzz_property("blend_weights", examples=FUZZ_EXAMPLES, seed=FUZZ_SEED, shrink=False)
     assert not result.passed and "differs from (18)-(19)" in result.counterexample.message
+
+
+def test_blend_weights_never_passes_a_run_it_could_not_judge(monkeypatch):
+    def failing(*args, **kwargs):
+        raise NumericalFailure("visual servoing: singular interaction matrix (planted)")
+
+    monkeypatch.setattr(blend_reference, "visual_servoing", failing)
+    with pytest.raises(PropertyViolation) as caught:
+        check_blend_weights(RESOLVED, _paper(), _no_target)
+    assert "could not be evaluated" in caught.value.message and caught.value.details["skipped"] > 0
