@@ -13,7 +13,9 @@ The supervisor is driven in two ways:
   state machine of :mod:`~visnav.fuzzing.machine`;
 * **whole scenarios**: random layouts (:mod:`~visnav.fuzzing.layouts`) run
   through the closed loop (:mod:`~visnav.fuzzing.closed_loop`), checked by
-  :mod:`~visnav.fuzzing.scenario_properties`.
+  :mod:`~visnav.fuzzing.scenario_properties` and :mod:`~visnav.fuzzing.loop_properties`
+  (whose yardsticks, :mod:`~visnav.fuzzing.reconstruction_reference` and
+  :mod:`~visnav.fuzzing.blend_reference`, share no code with what they judge).
 
 Every property is a named, documented check in :data:`PROPERTIES`
 (:mod:`~visnav.fuzzing.registry`; ``visnav fuzz --property NAME``).

@@ -8,13 +8,16 @@ supervisor of :data:`visnav.fuzzing.variants.VARIANTS` or a closed-loop mutant
 of :data:`visnav.fuzzing.loop_mutants.LOOP_MUTANTS` (the resolved supervisor
 with a mutated estimator or blend).  A :class:`BlendMonitor` passed to it
 compares the applied control at every sample with eqs. (18)–(19) recomputed
-from the recorded µ.  The properties on these runs are in
-:mod:`visnav.fuzzing.scenario_properties` and :mod:`visnav.fuzzing.properties`.
+from the recorded µ and pure controllers computed apart from the loop
+(:func:`visnav.fuzzing.blend_reference.blend_reference`); an :class:`EstimatorLog`
+keeps what the estimator saw and gave at every sample, even if the run raises.
+The properties on these runs are in
+:mod:`visnav.fuzzing.scenario_properties` and :mod:`visnav.fuzzing.loop_properties`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -23,7 +26,8 @@ from hybrid import Plant, SampledTrace, simulate_sampled
 from hybrid.errors import NumericalFailure
 
 from visnav.closed_loop import ClosedLoop, LoopState, robot_plant
-from visnav.fuzzing.loop_mutants import LOOP_MUTANTS, LoopMutant, PureControls, loop_mutant, resolved_blend
+from visnav.fuzzing.blend_reference import blend_reference
+from visnav.fuzzing.loop_mutants import LOOP_MUTANTS, LoopMutant, PureControls, loop_mutant
 from visnav.fuzzing.mutants import RESOLVED, SupervisorVariant
 from visnav.fuzzing.variants import make_variant
 from visnav.geometry import ImageMeasurement
@@ -37,6 +41,7 @@ __all__ = [
     "VariantLoop",
     "ScenarioRun",
     "BlendMonitor",
+    "EstimatorLog",
     "classify_outcome",
     "simulate_variant",
 ]
@@ -124,11 +129,13 @@ class VariantLoop(ClosedLoop):
 class BlendMonitor:
     """What :func:`simulate_variant` finds when it checks the blend of the controllers at every sample.
 
-    At every sample the control ``(v, ω, ϖ)`` (in a saturated loop the demand,
-    before clipping) is compared with eqs. (18)–(19) (:func:`~visnav.fuzzing.loop_mutants.resolved_blend`)
-    recomputed from the µ the loop recorded and the resolved loop's pure
-    controls at the same state, image, features and memory.  Filled in
-    during the run, so it keeps what was seen even if the run later raises.
+    At every sample the control ``(v, ω, ϖ)`` (in a saturated loop the demand, before clipping) is compared with
+    eqs. (18)–(19) written out (:func:`~visnav.fuzzing.blend_reference.blend_reference`)
+    from the µ the loop recorded and the pure controllers computed apart from
+    the loop at the same state, image, features and memory: neither
+    :func:`visnav.controllers.blend`, :func:`visnav.controllers.avoidance_control`
+    nor the loop's :meth:`~visnav.closed_loop.ClosedLoop.command` takes part.
+    Filled in during the run, so it keeps what was seen even if the run later raises.
 
     Attributes
     ----------
@@ -154,10 +161,10 @@ class BlendMonitor:
     skipped: int = 0
 
     def compare(self, t: float, mode: str, mu: tuple[float, float], applied: Sequence[float],
-                pure: PureControls) -> None:
-        """Compare one sample's applied control with (18)–(19) at the recorded ``mu``."""
+                reference: Callable[[], Sequence[float]]) -> None:
+        """Compare one sample's applied control with ``reference()``, (18)–(19) at the recorded ``mu``."""
         try:
-            expected = resolved_blend(mu[0], mu[1], pure)
+            expected = tuple(reference())
         except NumericalFailure:
             self.skipped += 1
             return
@@ -172,19 +179,63 @@ class BlendMonitor:
                 self.first_at = at
 
 
+@dataclass(kw_only=True, slots=True)
+class EstimatorLog:
+    """What the loop's estimator saw and gave at every sample, filled in during the run (kept if it raises).
+
+    The same values as the trace's records (``pan_rad`` state, inputs, ``X0..z{n-1}``,
+    their ``_est``, ``reconstructing``, ``n_hidden``), for the samples run so far.
+
+    Attributes
+    ----------
+    times : list of float
+        Sample times [s].
+    pan : list of float
+        Pan angle at the sample [rad].
+    inputs : list of (v, ω, ϖ)
+        Joint rates held from the sample on [m/s, rad/s, rad/s].
+    true, estimated : list of tuple of (X, Y, z)
+        True and estimated features after the sample's control [-, -, m].
+    reconstructing : list of bool
+        Whether the loop reconstructs after the sample's control.
+    hidden : list of int
+        Target points not visible at the sample.
+    """
+
+    times: list[float] = field(default_factory=list)
+    pan: list[float] = field(default_factory=list)
+    inputs: list[tuple[float, float, float]] = field(default_factory=list)
+    true: list[tuple[tuple[float, float, float], ...]] = field(default_factory=list)
+    estimated: list[tuple[tuple[float, float, float], ...]] = field(default_factory=list)
+    reconstructing: list[bool] = field(default_factory=list)
+    hidden: list[int] = field(default_factory=list)
+
+    def add(self, t: float, pan: float, u: Sequence[float], c: LoopState) -> None:
+        """Record one sample (after the loop's control)."""
+        self.times.append(float(t))
+        self.pan.append(float(pan))
+        self.inputs.append((float(u[0]), float(u[1]), float(u[2])))
+        self.true.append(tuple(c.true_features))
+        self.estimated.append(tuple(c.estimated))
+        self.reconstructing.append(bool(c.reconstructing))
+        self.hidden.append(0 if c.image is None else sum(1 for vis in c.image.visible if not vis))
+
+
 class _SwitchProbe:
     """Wraps a loop; at every sample whose jumps changed the mode, compares the controls of both modes.
 
     With a :class:`BlendMonitor` it also compares, at every sample, the applied control with (18)–(19).
     """
 
-    def __init__(self, loop: VariantLoop, blend_monitor: BlendMonitor | None = None) -> None:
+    def __init__(self, loop: VariantLoop, blend_monitor: BlendMonitor | None = None,
+                 estimator_log: EstimatorLog | None = None) -> None:
         self.loop = loop
         self.record_names = loop.record_names
         self.previous: tuple[str, Mapping[str, float]] | None = None
         self.worst = 0.0
         self.worst_at: dict[str, Any] = {}
         self.blend_monitor = blend_monitor
+        self.estimator_log = estimator_log
 
     def initial_state(self, t: float, x: Sequence[float]) -> LoopState:
         return self.loop.initial_state(t, x)
@@ -207,12 +258,16 @@ class _SwitchProbe:
                                  "after": list(u_after)}
         u, c, row = loop.control(t, x, c, v, mode, memory)
         self.previous = (mode, dict(memory))
+        if self.estimator_log is not None:
+            self.estimator_log.add(t, x[3], u, c)
         monitor = self.blend_monitor
         if monitor is not None and c.image is not None:
             features = tuple(tr if vis else es for tr, es, vis in zip(c.true_features, c.estimated, c.image.visible))
-            pure = loop.pure_controls(x, v, c.image, features, c.estimated, mode, loop._view(v, memory))
+            image, estimated, view, mu = c.image, c.estimated, loop._view(v, memory), (row[0], row[1])
+            pose = (float(x[0]), float(x[1]), float(x[2]), float(x[3]))
             demand = row[-3:] if loop.saturate else u  # (19) before clipping: the demand records, last
-            monitor.compare(t, mode, (row[0], row[1]), demand, pure)
+            monitor.compare(t, mode, mu, demand,
+                            lambda: blend_reference(loop, pose, image, features, estimated, view, mu))
         return u, c, row
 
 
@@ -230,7 +285,8 @@ class ScenarioRun:
 
 
 def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
-                     blend_monitor: BlendMonitor | None = None, saturate: bool = False) -> ScenarioRun:
+                     blend_monitor: BlendMonitor | None = None,
+                     estimator_log: EstimatorLog | None = None, saturate: bool = False) -> ScenarioRun:
     """Run ``scenario``'s closed loop around a variant and classify the outcome.
 
     Parameters
@@ -241,6 +297,8 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
         the resolved supervisor with that mutant's estimator or blend.
     blend_monitor : BlendMonitor or None
         Filled in with the comparison of the applied control with (18)–(19) at every sample.
+    estimator_log : EstimatorLog or None
+        Filled in with what the estimator saw and gave at every sample.
     saturate : bool
         Clip the applied command to the scenario's ``[limits]``
         (:attr:`visnav.closed_loop.ClosedLoop.saturate`; the demand is recorded too).
@@ -253,7 +311,7 @@ def simulate_variant(scenario: Scenario, variant: str = RESOLVED, *,
     model_variant = make_variant(variant, scenario.envelopes, scenario.supervisor, len(scenario.obstacles))
     mutant = loop_mutant(variant) if variant in LOOP_MUTANTS else None
     loop = VariantLoop(scenario=scenario, variant=model_variant, mutant=mutant, saturate=saturate)
-    probe = _SwitchProbe(loop, blend_monitor)
+    probe = _SwitchProbe(loop, blend_monitor, estimator_log)
     plant: Plant = robot_plant()
     trace = simulate_sampled(
         loop.supervisor.automaton, plant, probe, scenario.start.as_tuple(),

@@ -14,10 +14,9 @@ The properties written against slips (``docs/fuzzing.md``, "Slips") are
 monitors of ``docs/supervisor.md`` that do not read the automaton's guards:
 ``occlu_timing`` (when OCCLU is set and reset), ``release_band`` (µ along the
 LEAVE and RELEASE bands and where they end), ``side_latched`` (the bypass side
-the controllers get), and two closed-loop checks on whole runs,
-``check_reconstruction_bounded`` and ``check_blend_weights``
-(``check(variant_name, scenario, observe) -> ScenarioRun``, as in
-:mod:`visnav.fuzzing.scenario_properties`).
+the controllers get); the two closed-loop checks written against slips,
+``reconstruction_bounded`` and ``blend_weights``, are in
+:mod:`visnav.fuzzing.loop_properties`.
 """
 
 from __future__ import annotations
@@ -26,23 +25,16 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import numpy as np
-
 from analysis.fuzzing import Channel, Observer, PropertyViolation
-from hybrid import DivergenceError, HybridError
-from hybrid.errors import NumericalFailure
 
 from visnav import model as kinematics
 from visnav.controllers import avoidance_control, blend
-from visnav.estimator import FeatureEstimator
-from visnav.fuzzing.closed_loop import BlendMonitor, ScenarioRun, simulate_variant
 from visnav.fuzzing.mutants import SupervisorVariant
 from visnav.fuzzing.paper_logic import mu_coll_cases, mu_occ_cases
 from visnav.fuzzing.runner import MAX_JUMPS_PER_SAMPLE, Step
 from visnav.fuzzing.space import MeasurementSpace, cached_channels
 from visnav.fuzzing.variants import variant_flags
 from visnav.geometry import wrap_angle
-from visnav.parameters import Scenario
 from visnav.supervisor import I_D_BORD, I_D_NEAREST, I_D_OCC, split_mode
 
 __all__ = [
@@ -62,11 +54,6 @@ __all__ = [
     "check_occlu_timing",
     "check_release_band",
     "check_side_latched",
-    "check_reconstruction_bounded",
-    "check_blend_weights",
-    "RECONSTRUCTION_FACTOR",
-    "RECONSTRUCTION_FLOOR",
-    "specified_reconstruction",
     "check_sample",
     "check_stateful",
 ]
@@ -806,166 +793,6 @@ def check_side_latched(
                     latched_obstacle=held[0], detected_at=held[2],
                 )
     observe("flips of the measured bypass side while an obstacle is held", float(flips))
-
-
-# ---- closed-loop checks of the slips ------------------------------------------------------------
-
-RECONSTRUCTION_FACTOR = 2.0
-"""How much worse than the specified estimator a loop's reconstruction may be (``reconstruction_bounded``)."""
-RECONSTRUCTION_FLOOR = (1e-3, 1e-3)
-"""Absolute slack of ``reconstruction_bounded`` [px, mm] (the specified estimator may be exact)."""
-
-
-def _run(prop: str, variant: str, scenario: Scenario, **options: Any) -> ScenarioRun:
-    """:func:`simulate_variant`, an exception of the executor reported as a violation of ``prop``."""
-    try:
-        return simulate_variant(scenario, variant, **options)
-    except DivergenceError as err:
-        raise PropertyViolation(prop, f"the run raised DivergenceError: {err}",
-                                details={"time_s": err.time, "mode": err.mode, "cause": err.cause}) from err
-    except HybridError as err:
-        raise PropertyViolation(prop, f"the run raised {type(err).__name__}: {err}") from err
-
-
-def _hidden_errors(run: ScenarioRun, estimates: np.ndarray | None = None) -> tuple[float, float]:
-    """Max ``f ‖s − s̃‖`` [px] and ``‖z − z̃‖`` [mm] over the samples with a hidden point.
-
-    ``estimates`` (rows ``X0_est, Y0_est, ..., z0_est, ...``) replace the recorded ones when given.
-    """
-    tr, n = run.trace, len(run.scenario.target.points_m)
-    xy = [f"{c}{i}" for i in range(n) for c in ("X", "Y")]
-    zs = [f"z{i}" for i in range(n)]
-    true = np.stack([tr.record(name) for name in xy + zs], axis=1)
-    est = estimates if estimates is not None else np.stack([tr.record(f"{name}_est") for name in xy + zs], axis=1)
-    hidden = tr.record("n_hidden") > 0
-    if not hidden.any():
-        return 0.0, 0.0
-    diff = (true - est)[hidden]
-    px = run.scenario.camera.focal_px * np.linalg.norm(diff[:, :2 * n], axis=1)
-    mm = 1000.0 * np.linalg.norm(diff[:, 2 * n:], axis=1)
-    return float(px.max()), float(mm.max())
-
-
-def specified_reconstruction(run: ScenarioRun) -> np.ndarray:
-    """The reconstruction the specified estimator makes along the run's own motion.
-
-    A fresh :class:`~visnav.estimator.FeatureEstimator` with the scenario's
-    settings (order, ``screw_model``; ``docs/estimator.md``) is fed what the
-    loop feeds its estimator (:meth:`visnav.closed_loop.ClosedLoop.measure`):
-    the measured features and the ZOH record ``(ϑ_{k−1}, q̇_{k−1}, T)`` of every
-    period while not reconstructing, one step per period while reconstructing,
-    started and stopped where the run did.  Rows as the recorded estimates
-    (``X0_est, Y0_est, ..., z0_est, ...``).
-
-    Raises
-    ------
-    hybrid.errors.NumericalFailure
-        When a step of the specified estimator fails on this motion.
-    """
-    tr, scenario = run.trace, run.scenario
-    n = len(scenario.target.points_m)
-    true = np.stack([tr.record(f"{c}{i}") for i in range(n) for c in ("X", "Y", "z")], axis=1)
-    reconstructing = tr.record("reconstructing") > 0
-    pan, inputs, h = tr.state("pan_rad"), tr.inputs, scenario.sampling_period_s
-    estimator = FeatureEstimator(scenario.robot, scenario.estimator)
-    rows = np.empty((len(tr.times), 3 * n))
-    was = False
-    for k in range(len(tr.times)):
-        psi = tuple((float(true[k, 3 * i]), float(true[k, 3 * i + 1]), float(true[k, 3 * i + 2])) for i in range(n))
-        if was:
-            estimated = estimator.advance(float(pan[k - 1]), tuple(map(float, inputs[k - 1])), h)
-        else:
-            if k:
-                estimator.observe(psi, float(pan[k - 1]), tuple(map(float, inputs[k - 1])), h)
-            else:
-                estimator.observe(psi)
-            estimated = psi
-        now = bool(reconstructing[k])
-        if now and not was:
-            estimator.start()
-        elif was and not now:
-            estimator.stop()
-            estimated = psi
-        was = now
-        rows[k, :2 * n] = [c for p in estimated for c in p[:2]]
-        rows[k, 2 * n:] = [p[2] for p in estimated]
-    return rows
-
-
-def check_reconstruction_bounded(variant: str, scenario: Scenario, observe: Observer) -> ScenarioRun:
-    """While target points are hidden the loop reconstructs them as well as the specified estimator.
-
-    Over the samples where at least one point is hidden, the loop's largest
-    ``f ‖s − s̃‖`` [px] and ``‖z − z̃‖`` [mm] (recorded estimates against the
-    true features) are at most twice those of the estimator that
-    ``docs/estimator.md`` specifies for the scenario's settings (BDF order,
-    ``screw_model``), replayed on the run's own motion
-    (:func:`specified_reconstruction`), plus 1e-3 px / 1e-3 mm.  The yardstick
-    is the motion's own: the specified BDF4 with the histopolated screw
-    reaches 0.0013 px on the paper scenario and up to 0.6 px on fast random
-    layouts, while a first-order screw (the held one, at either end of the
-    period) is 3–3000× worse on the same motion.  A run where the specified
-    estimator itself fails is not judged.  Inputs: random scenarios
-    respecting the hypotheses.  Guided search maximises the ratio.
-    """
-    run = _run("reconstruction_bounded", variant, scenario)
-    px, mm = _hidden_errors(run)
-    if px == 0.0 and mm == 0.0:
-        observe("reconstruction error / specified estimator's", 0.0)
-        return run
-    try:
-        ref_px, ref_mm = _hidden_errors(run, specified_reconstruction(run))
-    except NumericalFailure:
-        return run
-    (floor_px, floor_mm), factor = RECONSTRUCTION_FLOOR, RECONSTRUCTION_FACTOR
-    ratio = max(px / (ref_px + floor_px), mm / (ref_mm + floor_mm))
-    observe("reconstruction error / specified estimator's", ratio)
-    if px > factor * ref_px + floor_px or mm > factor * ref_mm + floor_mm:
-        raise PropertyViolation(
-            "reconstruction_bounded",
-            f"reconstruction error while hidden {px:.6g} px / {mm:.6g} mm, the specified estimator "
-            f"({scenario.estimator.screw_model} screw, BDF{scenario.estimator.order}) makes {ref_px:.6g} px / "
-            f"{ref_mm:.6g} mm on the same motion: more than {factor:g}x (+{floor_px:g} px / {floor_mm:g} mm)",
-            details={"max_reconstruction_error_px": px, "max_depth_error_mm": mm, "specified_px": ref_px,
-                     "specified_mm": ref_mm, "hidden_s": run.metrics.occlusion_duration_s},
-        )
-    return run
-
-
-def check_blend_weights(variant: str, scenario: Scenario, observe: Observer) -> ScenarioRun:
-    """The applied control is (18)–(19) of the pure controls with the recorded µ, at every sample.
-
-    At every sample of the closed-loop run the input ``(v, ω, ϖ)`` equals
-    ``(1 − µ_occ)(1 − µ_coll) q̇_VS + (1 − µ_coll) µ_occ q̇_occ + µ_coll q̇_coll``,
-    ``q̇_coll = (v_coll, ω_coll, (1 − µ_occ) ϖ + µ_occ ϖ~)`` (1e-9), with the
-    µ the loop recorded and the pure controls of the resolved loop at the
-    same state, image, features and memory
-    (:class:`~visnav.fuzzing.closed_loop.BlendMonitor`).  A weight reading the
-    wrong µ, or 1 − µ for µ, shows wherever the controls it mixes differ.  If
-    the run later raises, the first wrong blend is still what is reported.
-    Inputs: random scenarios respecting the hypotheses.  Guided search
-    maximises the gap.
-    """
-    monitor = BlendMonitor(tolerance=CONTROL_TOLERANCE)
-    try:
-        run = _run("blend_weights", variant, scenario, blend_monitor=monitor)
-    except PropertyViolation:
-        if monitor.first_at is None:
-            raise
-        run = None
-    observe("largest gap to (18)-(19) [m/s, rad/s]", monitor.worst)
-    if monitor.first_at is not None:
-        at = monitor.first_at
-        raise PropertyViolation(
-            "blend_weights",
-            f"the applied control {at['applied']} differs from (18)-(19) with the recorded mu_coll = "
-            f"{at['mu_coll']:.6g}, mu_occ = {at['mu_occ']:.6g}, {at['eq_18_19']}, by {at['gap']:.6g} at "
-            f"t = {at['t_s']:.6g} s in {at['mode']} (largest gap {monitor.worst:.6g})"
-            + ("" if run is not None else "; the run raised afterwards"),
-            details={**at, "worst_gap": monitor.worst, "samples": monitor.samples},
-        )
-    assert run is not None
-    return run
 
 
 # ---- the state machine's invariants ------------------------------------------------------------

@@ -6,7 +6,7 @@ signal-sequence properties of :mod:`visnav.fuzzing.properties`, the state
 machine of :mod:`visnav.fuzzing.machine` (replayed as a sequence by
 ``check_stateful``) and the closed-loop properties of
 :mod:`visnav.fuzzing.scenario_properties` (and the two closed-loop checks of
-:mod:`visnav.fuzzing.properties` written against slips,
+:mod:`visnav.fuzzing.loop_properties` written against slips,
 ``reconstruction_bounded`` and ``blend_weights``).
 """
 
@@ -21,8 +21,8 @@ from typing import Any
 from hypothesis import strategies as st
 
 from visnav.fuzzing.layouts import scenarios
+from visnav.fuzzing.loop_properties import check_blend_weights, check_reconstruction_bounded
 from visnav.fuzzing.properties import (
-    check_blend_weights,
     check_control_continuity,
     check_determinism,
     check_differential,
@@ -33,7 +33,6 @@ from visnav.fuzzing.properties import (
     check_mu_range,
     check_no_chatter,
     check_occlu_timing,
-    check_reconstruction_bounded,
     check_release_band,
     check_side_latched,
     check_stateful,
