@@ -18,7 +18,8 @@ Examples
 """
 
 from .affine import AffineError, AffineForm, Halfspace, Polyhedron, affine_form, affine_vector, condition_polyhedra
-from .engine import ModeInput, ReachError, initial_zonotope, reach
+from .engine import ModeInput, reach
+from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, affine_model
 from .result import INCONCLUSIVE, ReachJump, ReachResult, ReachSegment, Termination, zonotope_contains
 from .sets import UnsafeSet, unsafe_set

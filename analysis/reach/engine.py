@@ -29,20 +29,20 @@ from typing import Any
 
 import numpy as np
 
-from hybrid.errors import ParameterError
 
 from .flowpipe import ModeDynamics, mode_dynamics, segments
+from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, AffineTransition, affine_model
 from .result import ReachJump, ReachResult, ReachSegment, Termination
 from .series import MAX_NORM_STEP
 from .sets import UnsafeSet, clip_box, definitely_outside, polyhedra_to_float, tighten_box
 from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_order, round_down, round_up, with_error
 
-__all__ = ["ReachError", "ModeInput", "reach", "initial_zonotope"]
+__all__ = ["ReachError", "ModeInput", "reach"]
 
 
-class ReachError(ParameterError):
-    """A parameter of :func:`reach` is invalid (named, with what was expected and the fix)."""
+MAX_STORED_NUMBERS = 25_000_000
+"""The stored segments hold at most this many floats (200 MB): memory stays bounded whatever the options."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -85,6 +85,7 @@ class _Run:
     segments: list[ReachSegment]
     jumps: list[ReachJump]
     terminations: list[Termination]
+    stored: list[int]  # numbers held by the stored segments (one cell, mutable)
 
 
 def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initial_mode: str | None = None,
@@ -97,8 +98,10 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     ----------
     system : hybrid.system.HybridSystem
         Symbolic and affine (flows, jump maps, guards, invariants, output).
-    initial : Zonotope, mapping {state name: (lo, hi)}, or array_like of shape (k, n)
-        The initial set: a zonotope, a box, or a polytope given by its vertices (enclosed by its box).
+    initial : Zonotope, mapping {state name: (lo, hi)}, array_like of shape (k, n), or symbolic condition
+        The initial set: a zonotope, a box, a polytope given by its vertices, or a bounded polytope
+        written as a conjunction of affine comparisons over the state names (both polytopes are
+        enclosed in their bounding box, proven: :mod:`analysis.reach.initial`).
     horizon : float
         Time horizon ``T > 0`` [s].
     time_step : float
@@ -144,7 +147,7 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     start = initial_zonotope(initial, model.state_names)
     run = _Run(model=model, step=float(time_step), horizon=float(horizon), max_jumps=max_jumps, order=order,
                stored_order=stored_order, size_limit=float(size_limit), max_segments=max_segments,
-               inputs=_inputs(inputs, model), dynamics={}, segments=[], jumps=[], terminations=[])
+               inputs=_inputs(inputs, model), dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
     _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes)
     result = ReachResult(system=model.name, state_names=model.state_names, horizon=run.horizon,
                          max_jumps=max_jumps, time_step=run.step, segments=tuple(run.segments),
@@ -167,41 +170,6 @@ def _unsafe(unsafe: Sequence[UnsafeSet]) -> tuple[UnsafeSet, ...]:
         if not isinstance(u, UnsafeSet):
             raise ReachError("unsafe", u, "UnsafeSet objects", "build them with analysis.reach.unsafe_set()")
     return items
-
-
-def initial_zonotope(initial: Any, names: Sequence[str]) -> Zonotope:
-    """The initial set as a zonotope over the states ``names`` (see :func:`reach`).
-
-    Raises
-    ------
-    ReachError
-        Wrong dimension, a missing or unknown state, ``lo > hi``, NaN or inf (an unbounded set).
-    """
-    n = len(names)
-    expected = (f"a bounded set over ({', '.join(names)}): a Zonotope, a box {{name: (lo, hi)}} with finite "
-                "lo <= hi, or polytope vertices of shape (k, n)")
-    fix = "give finite bounds for every state (reachability needs a bounded initial set)"
-    if isinstance(initial, Zonotope):
-        if initial.dimension != n or not initial.is_finite():
-            raise ReachError("initial", initial, expected, fix)
-        return initial
-    if isinstance(initial, Mapping):
-        if set(initial) != set(names):
-            raise ReachError("initial", dict(initial), expected, f"give bounds for exactly {list(names)}")
-        try:
-            bounds = np.array([[float(initial[k][0]), float(initial[k][1])] for k in names])
-        except (TypeError, ValueError, IndexError):
-            raise ReachError("initial", dict(initial), expected, fix) from None
-        if not np.all(np.isfinite(bounds)) or np.any(bounds[:, 0] > bounds[:, 1]):
-            raise ReachError("initial", dict(initial), expected, fix)
-        return from_box(bounds[:, 0], bounds[:, 1])
-    try:
-        vertices = np.asarray(initial, dtype=float)
-    except (TypeError, ValueError):
-        raise ReachError("initial", initial, expected, fix) from None
-    if vertices.ndim != 2 or vertices.shape[1] != n or vertices.shape[0] == 0 or not np.all(np.isfinite(vertices)):
-        raise ReachError("initial", initial, expected, fix)
-    return from_box(vertices.min(axis=0), vertices.max(axis=0))
 
 
 def _inputs(inputs: Mapping[str, ModeInput] | None, model: AffineHybridModel
@@ -333,8 +301,10 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
                 reason="left_invariant", mode=work.mode, time=t_lo, jumps=work.jumps,
                 detail=f"the flowpipe left the invariant of mode {work.mode!r} by t = {t_lo:.6g} s"))
             break
+        kept = reduce_order(z, run.stored_order)
+        run.stored[0] += kept.dimension * (kept.order + 3)
         run.segments.append(ReachSegment(mode=work.mode, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps,
-                                         zonotope=reduce_order(z, run.stored_order), lo=box[0], hi=box[1]))
+                                         zonotope=kept, lo=box[0], hi=box[1]))
         _collect(collected, flowed_guards, z, box[0], box[1], t_lo, t_hi)
     return collected
 
@@ -353,10 +323,11 @@ def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope, n: int, t_lo
         return Termination(reason="blow_up", detail=(
             f"inconclusive: the over-approximation blew up at t = {t_lo:.6g} s in mode {work.mode!r} "
             f"(box radius {radius:.3g} > size_limit {run.size_limit:g})"), **where)
-    if len(run.segments) >= run.max_segments:
+    if len(run.segments) >= run.max_segments or run.stored[0] >= MAX_STORED_NUMBERS:
         return Termination(reason="segment_limit", detail=(
-            f"inconclusive: max_segments = {run.max_segments} stored segments reached at t = {t_lo:.6g} s in "
-            f"mode {work.mode!r}"), **where)
+            f"inconclusive: {len(run.segments)} segments ({run.stored[0]} numbers) stored by t = {t_lo:.6g} s in "
+            f"mode {work.mode!r}, the limit (max_segments = {run.max_segments}, {MAX_STORED_NUMBERS} numbers); "
+            "raise max_segments or time_step, or shorten the horizon"), **where)
     return None
 
 

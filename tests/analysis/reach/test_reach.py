@@ -135,3 +135,50 @@ def test_json_is_deterministic_and_complete():
     assert data["status"] == "complete" and data["distances"][0]["unsafe"] == "hot"
     assert data["distances"][0]["distance"] > 0.4  # the band ends at 21: 0.5 away, minus the bloating
     assert {"segments", "jumps", "terminations"} <= set(data)
+
+
+def test_crossing_guards_and_affine_jumps_cover_the_executor():
+    """A two-mode saw-tooth with a rising crossing guard and an offset jump map: executor runs inside."""
+    from hybrid import Transition
+    from hybrid.continuous import simulate_continuous
+    from hybrid.symbolic import jump_map
+
+    v = coordinates("x")
+    automaton = HybridAutomaton(
+        name="saw", variables=("x",), initial_mode="a",
+        modes=(Mode(name="a", invariant=v.x <= 2.0), Mode(name="b", invariant=v.x >= -1.0)),
+        transitions=(Transition(name="up", source="a", target="b", guard=v.x >= 1.0, direction=+1),
+                     Transition(name="down", source="b", target="a", guard=v.x <= -0.5)))
+    system = HybridSystem(automaton=automaton, state_names=("x",),
+                          flows={"a": flow_map(const(1.0) + 0.0 * X.x), "b": flow_map(-0.5 * X.x - 1.0)},
+                          jumps={"up": jump_map(X.x - 1.0), "down": jump_map(0.5 * X.x + 0.25)})
+    result = reach(system, {"x": (0.0, 0.5)}, horizon=5.0, time_step=0.01, max_jumps=8)
+    assert result.complete
+    rng = np.random.default_rng(4)
+    for x0 in rng.uniform(0.0, 0.5, size=60):
+        tr = simulate_continuous(system, (x0,), duration=5.0, rtol=1e-10, atol=1e-12, max_jumps=8)
+        for t, mode, x in zip(tr.times, tr.modes, tr.states):
+            assert result.contains(mode, float(t), x, tol=1e-6), (x0, t, mode, x)
+
+
+def test_polytope_initial_sets_by_halfspaces():
+    from fractions import Fraction
+
+    from analysis.reach import initial_zonotope
+    from analysis.reach.zonotope import interval_hull
+
+    x = coordinates("p", "q")
+    lo, hi = interval_hull(initial_zonotope((x.p + x.q <= 1.0) & (x.p >= 0.0) & (x.q >= 0.0), ("p", "q")))
+    assert np.all(lo <= 0.0) and np.all(hi >= 1.0) and np.all(hi - 1.0 < 1e-14) and np.all(lo > -1e-14)
+    # 3 p + q <= 0.3, p >= -0.1, q >= -0.2: vertices (-0.1, -0.2), (-0.1, 0.6), (1/6 + 1/60, -0.2) exactly
+    lo, hi = interval_hull(initial_zonotope((3.0 * x.p + x.q <= 0.3) & (x.p >= -0.1) & (x.q >= -0.2), ("p", "q")))
+    p_max = (Fraction(0.3) - Fraction(-0.2)) / 3
+    q_max = Fraction(0.3) + 3 * Fraction(0.1)
+    assert Fraction(float(hi[0])) >= p_max and Fraction(float(hi[1])) >= q_max
+    assert float(hi[0]) - float(p_max) < 1e-12 and float(hi[1]) - float(q_max) < 1e-12
+    for condition, words in (((x.p >= 0.0) & (x.q >= 0.0), "unbounded"),
+                             ((x.p >= 1.0) & (x.p <= 0.0) & (x.q >= 0.0) & (x.q <= 1.0), "empty")):
+        with pytest.raises(ReachError, match=words):
+            initial_zonotope(condition, ("p", "q"))
+    with pytest.raises(ReachError, match="one polytope"):
+        initial_zonotope((x.p <= 0.0) | (x.p >= 1.0), ("p", "q"))
