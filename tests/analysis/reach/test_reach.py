@@ -182,3 +182,22 @@ def test_polytope_initial_sets_by_halfspaces():
             initial_zonotope(condition, ("p", "q"))
     with pytest.raises(ReachError, match="one polytope"):
         initial_zonotope((x.p <= 0.0) | (x.p >= 1.0), ("p", "q"))
+
+
+def test_three_dimensional_affine_flow_covers_the_executor():
+    """A damped oscillator with a driven third state (n = 3: membership by linear programs)."""
+    from hybrid.continuous import simulate_continuous
+
+    x = coordinates("a", "b", "c")
+    system = _one_mode(flow_map(-0.1 * x.a + x.b, -x.a - 0.1 * x.b, -0.5 * x.c + 1.0 + 0.2 * x.a),
+                       names=("a", "b", "c"))
+    box = {"a": (0.9, 1.1), "b": (-0.1, 0.1), "c": (0.0, 0.2)}
+    result = reach(system, box, horizon=4.0, time_step=0.02)
+    assert result.complete
+    rng = np.random.default_rng(9)
+    for x0 in rng.uniform([0.9, -0.1, 0.0], [1.1, 0.1, 0.2], size=(30, 3)):
+        tr = simulate_continuous(system, tuple(x0), duration=4.0, rtol=1e-10, atol=1e-12)
+        for t, mode, state in list(zip(tr.times, tr.modes, tr.states))[::3]:
+            assert result.contains(mode, float(t), state, tol=1e-6), (x0, t, state)
+    # far outside: the third state stays below its driven equilibrium bound 2 + 0.4·max|a| + margin
+    assert result.distance_to(unsafe_set("c high", x.c >= 3.0, ("a", "b", "c"))) > 0
