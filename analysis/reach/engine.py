@@ -1,0 +1,367 @@
+"""Bounded reachability of an affine hybrid system: flowpipes per mode, guards, jumps, invariants.
+
+:func:`reach` reads the system exactly (:func:`analysis.reach.model.affine_model`), then
+processes *flowpipes* breadth first: a flowpipe is a mode entered with a set (the initial set, or
+the image of a jump) at a time interval.  Along it (:func:`analysis.reach.flowpipe.segments`)
+
+* every segment is clipped to the mode's invariant (a state reached by flowing satisfies it);
+  a segment proven outside the invariant ends the flowpipe (``"left_invariant"``);
+* every outgoing transition whose guard the segment may meet collects the segment's box clipped
+  to the guard; at the end the collected box (the hull over the flowpipe) is mapped by the jump
+  map and starts a flowpipe in the target mode, unless the jump bound is reached;
+* the flowpipe stops at the time horizon, or inconclusively when it blows up (a radius above
+  ``size_limit``, a NaN or inf) or exceeds ``max_segments``.
+
+Semantics (over-approximating the executor's urgent, priority-ordered semantics): a transition
+may fire wherever its guard (its level set ``g >= 0``, also for crossing guards, which fire where
+``g = 0``) meets the flowpipe, whatever the priorities; the flow may continue past an enabled
+guard while the invariant may hold.  Both only add behaviours.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+
+from .flowpipe import ModeDynamics, mode_dynamics, segments
+from .initial import ReachError, initial_zonotope
+from .model import AffineHybridModel, AffineTransition, affine_model
+from .result import ReachJump, ReachResult, ReachSegment, Termination
+from .series import MAX_NORM_STEP
+from .sets import UnsafeSet, clip_box, definitely_outside, polyhedra_to_float, tighten_box
+from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_order, round_down, round_up, with_error
+
+__all__ = ["ReachError", "ModeInput", "reach"]
+
+
+MAX_STORED_NUMBERS = 25_000_000
+"""The stored segments hold at most this many floats (200 MB): memory stays bounded whatever the options."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ModeInput:
+    """A bounded non-deterministic input of one mode: the flow becomes ``ẋ = A x + c + B u``, ``u(t) ∈ U``.
+
+    Attributes
+    ----------
+    matrix : array_like, shape (n, p)
+        ``B``.
+    bounds : Zonotope of dimension p, or pair of array_like of shape (p,)
+        ``U``: a zonotope, or a box ``(lo, hi)``.
+    """
+
+    matrix: Any
+    bounds: Any
+
+
+@dataclass(slots=True)
+class _Work:
+    mode: str
+    start: Zonotope  # state coordinates (n)
+    t_lo: float
+    t_hi: float
+    jumps: int
+
+
+@dataclass(slots=True)
+class _Run:
+    model: AffineHybridModel
+    step: float
+    horizon: float
+    max_jumps: int
+    order: int
+    stored_order: int
+    size_limit: float
+    max_segments: int
+    inputs: Mapping[str, tuple[list[list[Fraction]], Zonotope]]
+    dynamics: dict[str, tuple[ModeDynamics, float]]
+    segments: list[ReachSegment]
+    jumps: list[ReachJump]
+    terminations: list[Termination]
+    stored: list[int]  # numbers held by the stored segments (one cell, mutable)
+
+
+def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initial_mode: str | None = None,
+          max_jumps: int = 10, inputs: Mapping[str, ModeInput] | None = None, unsafe: Sequence[UnsafeSet] = (),
+          order: int = 20, stored_order: int = 10, size_limit: float = 1e6, max_segments: int = 200_000,
+          max_flowpipes: int = 1_000) -> ReachResult:
+    """An over-approximation of the states a symbolic affine hybrid system reaches.
+
+    Parameters
+    ----------
+    system : hybrid.system.HybridSystem
+        Symbolic and affine (flows, jump maps, guards, invariants, output).
+    initial : Zonotope, mapping {state name: (lo, hi)}, array_like of shape (k, n), or symbolic condition
+        The initial set: a zonotope, a box, a polytope given by its vertices, or a bounded polytope
+        written as a conjunction of affine comparisons over the state names (both polytopes are
+        enclosed in their bounding box, proven: :mod:`analysis.reach.initial`).
+    horizon : float
+        Time horizon ``T > 0`` [s].
+    time_step : float
+        ``0 < δ <= T`` [s].
+    initial_mode : str or None
+        Default: the automaton's initial mode.
+    max_jumps : int
+        Jump bound ``>= 0``.
+    inputs : mapping {mode: ModeInput} or None
+        Bounded non-deterministic inputs per mode (hybrid models have none; this adds them).
+    unsafe : sequence of UnsafeSet
+        Sets whose :meth:`~ReachResult.distance_to` is reported in the result.
+    order, stored_order : int
+        Zonotope order (generators per dimension) of the input sum and of the stored segments.
+    size_limit : float
+        A segment whose box radius exceeds this ends the run inconclusively (``"blow_up"``).
+    max_segments, max_flowpipes : int
+        Limits on the stored segments and on the flowpipes (memory and time are bounded).
+
+    Returns
+    -------
+    ReachResult
+
+    Raises
+    ------
+    ReachError
+        An invalid parameter (naming it, its value, what was expected and the fix).
+    analysis.reach.affine.AffineError
+        The system is not symbolic, or not affine (naming the part).
+    """
+    _check_number("horizon", horizon, lambda v: v > 0, "a finite time horizon > 0 [s]")
+    _check_number("time_step", time_step, lambda v: 0 < v <= horizon,
+                  f"a step 0 < time_step <= horizon = {horizon!r} [s]")
+    for name, value, low in (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
+                             ("max_segments", max_segments, 1), ("max_flowpipes", max_flowpipes, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ReachError(name, value, f"an int >= {low}", f"give {name} as a whole number >= {low}")
+    _check_number("size_limit", size_limit, lambda v: v > 0, "a finite radius > 0")
+    model = affine_model(system)
+    mode = model.initial_mode if initial_mode is None else initial_mode
+    if mode not in model.modes:
+        raise ReachError("initial_mode", initial_mode, f"one of {list(model.modes)}", "name a mode of the automaton")
+    start = initial_zonotope(initial, model.state_names)
+    run = _Run(model=model, step=float(time_step), horizon=float(horizon), max_jumps=max_jumps, order=order,
+               stored_order=stored_order, size_limit=float(size_limit), max_segments=max_segments,
+               inputs=_inputs(inputs, model), dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
+    _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes)
+    result = ReachResult(system=model.name, state_names=model.state_names, horizon=run.horizon,
+                         max_jumps=max_jumps, time_step=run.step, segments=tuple(run.segments),
+                         jumps=tuple(run.jumps), terminations=tuple(run.terminations))
+    distances = tuple((u.name, result.distance_to(u)) for u in _unsafe(unsafe))
+    return ReachResult(system=result.system, state_names=result.state_names, horizon=result.horizon,
+                       max_jumps=max_jumps, time_step=result.time_step, segments=result.segments,
+                       jumps=result.jumps, terminations=result.terminations, distances=distances)
+
+
+def _check_number(name: str, value: Any, ok: Any, expected: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(float(value)) or not ok(float(value)):
+        raise ReachError(name, value, expected, f"give {name} as {expected}")
+
+
+def _unsafe(unsafe: Sequence[UnsafeSet]) -> tuple[UnsafeSet, ...]:
+    items = (unsafe,) if isinstance(unsafe, UnsafeSet) else tuple(unsafe)
+    for u in items:
+        if not isinstance(u, UnsafeSet):
+            raise ReachError("unsafe", u, "UnsafeSet objects", "build them with analysis.reach.unsafe_set()")
+    return items
+
+
+def _inputs(inputs: Mapping[str, ModeInput] | None, model: AffineHybridModel
+            ) -> dict[str, tuple[list[list[Fraction]], Zonotope]]:
+    out = {}
+    n = len(model.state_names)
+    for mode, spec in dict(inputs or {}).items():
+        if mode not in model.modes or not isinstance(spec, ModeInput):
+            raise ReachError("inputs", {mode: spec}, f"{{mode: ModeInput}} with modes among {list(model.modes)}",
+                             "key each ModeInput by the name of its mode")
+        b = np.asarray(spec.matrix, dtype=float)
+        if b.ndim != 2 or b.shape[0] != n or not np.all(np.isfinite(b)):
+            raise ReachError(f"inputs[{mode!r}].matrix", spec.matrix, f"a finite array of shape ({n}, p)",
+                             "give one row per state")
+        u = spec.bounds
+        if not isinstance(u, Zonotope):
+            try:
+                lo, hi = (np.asarray(v, dtype=float).reshape(-1) for v in u)
+            except (TypeError, ValueError):
+                raise ReachError(f"inputs[{mode!r}].bounds", u, "a Zonotope or (lo, hi)", "give a box") from None
+            if lo.shape != hi.shape or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)) \
+                    or np.any(lo > hi):
+                raise ReachError(f"inputs[{mode!r}].bounds", u, "finite lo <= hi", "bound every input")
+            u = from_box(lo, hi)
+        if u.dimension != b.shape[1] or not u.is_finite():
+            raise ReachError(f"inputs[{mode!r}].bounds", u, f"a bounded set of dimension {b.shape[1]}",
+                             "match the columns of the matrix")
+        out[mode] = ([[Fraction(float(v)) for v in row] for row in b], u)
+    return out
+
+
+def _dynamics(run: _Run, mode: str) -> tuple[ModeDynamics, float]:
+    """The mode's discretised dynamics and the scale of its constant coordinate (a power of 2)."""
+    if mode not in run.dynamics:
+        m = run.model.modes[mode]
+        b, u = run.inputs.get(mode, (None, None))
+        c = list(m.c)
+        if b is not None:  # the input's centre B u_c joins the constant, exactly; U is then centred on 0
+            centre = [Fraction(float(v)) for v in u.center]
+            c = [ci + sum((b[i][j] * centre[j] for j in range(len(centre))), Fraction(0)) for i, ci in enumerate(c)]
+        biggest = max([abs(float(q)) for q in c] + [1.0])
+        scale = 2.0 ** math.ceil(math.log2(biggest)) if math.isfinite(biggest) else 1.0
+        c = [q / Fraction(scale) for q in c]
+        a = [list(row) for row in m.a]
+        norm = max([sum(abs(q) for q in row) + abs(ci) for row, ci in zip(a, c)] + [Fraction(0)])
+        if float(norm) * run.step > MAX_NORM_STEP:
+            limit = MAX_NORM_STEP / float(norm)
+            raise ReachError("time_step", run.step, f"a step with ‖A‖·time_step <= {MAX_NORM_STEP:g} in mode "
+                             f"{mode!r} (‖A‖ = {float(norm):.6g})", f"use time_step <= {limit:.3g}")
+        dyn = mode_dynamics(mode, a, c, run.step, b, u)
+        run.dynamics[mode] = (dyn, scale)
+    return run.dynamics[mode]
+
+
+def _augment(z: Zonotope, scale: float) -> Zonotope:
+    return Zonotope(center=np.append(z.center, scale),
+                    generators=np.vstack([z.generators, np.zeros((1, z.order))]))
+
+
+def _explore(run: _Run, first: _Work, max_flowpipes: int) -> None:
+    queue = deque([first])
+    count = 0
+    while queue:
+        work = queue.popleft()
+        if count >= max_flowpipes:
+            run.terminations.append(Termination(
+                reason="flowpipe_limit", mode=work.mode, time=work.t_lo, jumps=work.jumps,
+                detail=f"inconclusive: {max_flowpipes} flowpipes computed and {len(queue) + 1} left "
+                       f"(raise max_flowpipes); the first left starts in mode {work.mode!r} at t = {work.t_lo:.6g} s"))
+            return
+        count += 1
+        collected = _flow(run, work)
+        if collected and work.jumps >= run.max_jumps:
+            run.terminations.append(Termination(
+                reason="max_jumps", mode=work.mode, time=min(v[2] for v in collected.values()), jumps=work.jumps,
+                detail=f"jump bound {run.max_jumps} reached in mode {work.mode!r}: "
+                       f"{', '.join(sorted(collected))} may fire after it (not followed)"))
+            continue
+        for t in run.model.outgoing(work.mode):
+            if t.name in collected:
+                queue.append(_jump(run, work, t, *collected[t.name]))
+
+
+def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.ndarray, t_lo: float,
+          t_hi: float) -> _Work:
+    n = len(run.model.state_names)
+    rc = np.array([[float(q) for q in row] + [float(off)] for row, off in zip(t.r_matrix, t.r_offset)]
+                  + [[0.0] * n + [1.0]])
+    exact = [list(row) + [off] for row, off in zip(t.r_matrix, t.r_offset)]
+    rr = np.zeros_like(rc)
+    for i, row in enumerate(exact):
+        for j, q in enumerate(row):
+            rr[i, j] = float(round_up(float(abs(q - Fraction(rc[i, j])))))
+    image, err = linear_map(_augment(from_box(lo, hi), 1.0), rc, rr)
+    start = with_error(image, err).project(n)
+    after_lo, after_hi = interval_hull(start)
+    run.jumps.append(ReachJump(transition=t.name, source=t.source, target=t.target, jumps=work.jumps + 1,
+                               t_lo=t_lo, t_hi=t_hi, before_lo=lo, before_hi=hi, after_lo=after_lo,
+                               after_hi=after_hi))
+    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1)
+
+
+def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
+    """One flowpipe: stores its segments and termination; returns ``{transition: [lo, hi, t_lo, t_hi]}``."""
+    mode = run.model.modes[work.mode]
+    n = len(run.model.state_names)
+    guards = [(t.name, polyhedra_to_float(t.guard)) for t in run.model.outgoing(work.mode)]
+    invariant = polyhedra_to_float(mode.invariant)
+    # a jump from a state reached by flowing: that state is in the guard and (closed) in the invariant
+    flowed_guards = [(name, tuple(g + i for g in polys for i in invariant)) for name, polys in guards]
+    collected: dict[str, list[Any]] = {}
+    lo, hi = interval_hull(work.start)
+    run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
+                                     zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
+    _collect(collected, guards, work.start, lo, hi, work.t_lo, work.t_hi)
+    dyn, scale = _dynamics(run, work.mode)
+    for k, segment in enumerate(segments(dyn, _augment(work.start, scale), run.order)):
+        t_lo = float(round_down(round_down(work.t_lo + k * run.step)))
+        t_hi = float(round_up(round_up(work.t_hi + (k + 1) * run.step)))
+        stop = _stop_reason(run, work, k, segment, n, t_lo)
+        if stop is not None:
+            run.terminations.append(stop)
+            break
+        z = segment.project(n)
+        lo, hi = interval_hull(z)
+        box = _clip_union(z, lo, hi, invariant)
+        if box is None:
+            run.terminations.append(Termination(
+                reason="left_invariant", mode=work.mode, time=t_lo, jumps=work.jumps,
+                detail=f"the flowpipe left the invariant of mode {work.mode!r} by t = {t_lo:.6g} s"))
+            break
+        kept = reduce_order(z, run.stored_order)
+        run.stored[0] += kept.dimension * (kept.order + 3)
+        run.segments.append(ReachSegment(mode=work.mode, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps,
+                                         zonotope=kept, lo=box[0], hi=box[1]))
+        _collect(collected, flowed_guards, z, box[0], box[1], t_lo, t_hi)
+    return collected
+
+
+def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope, n: int, t_lo: float) -> Termination | None:
+    where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
+    if work.t_lo + k * run.step > run.horizon:
+        return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
+                                                    f"{work.mode!r}", **where)
+    if not segment.is_finite():
+        return Termination(reason="not_finite", detail=f"inconclusive: a NaN or inf appeared at t = {t_lo:.6g} s "
+                                                       f"in mode {work.mode!r}", **where)
+    lo, hi = interval_hull(segment.project(n))
+    radius = float(np.max(hi - lo)) / 2 if n else 0.0
+    if not math.isfinite(radius) or radius > run.size_limit:
+        return Termination(reason="blow_up", detail=(
+            f"inconclusive: the over-approximation blew up at t = {t_lo:.6g} s in mode {work.mode!r} "
+            f"(box radius {radius:.3g} > size_limit {run.size_limit:g})"), **where)
+    if len(run.segments) >= run.max_segments or run.stored[0] >= MAX_STORED_NUMBERS:
+        return Termination(reason="segment_limit", detail=(
+            f"inconclusive: {len(run.segments)} segments ({run.stored[0]} numbers) stored by t = {t_lo:.6g} s in "
+            f"mode {work.mode!r}, the limit (max_segments = {run.max_segments}, {MAX_STORED_NUMBERS} numbers); "
+            "raise max_segments or time_step, or shorten the horizon"), **where)
+    return None
+
+
+def _clip_union(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedra: Sequence[Sequence[Any]],
+                tight: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+    """The box hull of ``z ∩ [lo, hi]`` clipped to each polyhedron that ``z`` may meet; ``None`` if it meets none.
+
+    ``tight``: bound each polyhedron's part by linear programs with rigorous dual bounds
+    (:func:`~analysis.reach.sets.tighten_box`) rather than by interval propagation on the box.
+    """
+    boxes = []
+    for poly in polyhedra:
+        if any(definitely_outside(z, h) for h in poly):
+            continue
+        clipped = tighten_box(z, lo, hi, poly) if tight else clip_box(lo, hi, poly)
+        if clipped is not None:
+            boxes.append(clipped)
+    if not boxes:
+        return None
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
+def _collect(collected: dict[str, list[Any]], guards: Sequence[tuple[str, Any]], z: Zonotope, lo: np.ndarray,
+             hi: np.ndarray, t_lo: float, t_hi: float) -> None:
+    for name, polyhedra in guards:
+        box = _clip_union(z, lo, hi, polyhedra, tight=True)
+        if box is None:
+            continue
+        if name not in collected:
+            collected[name] = [box[0], box[1], t_lo, t_hi]
+        else:
+            entry = collected[name]
+            entry[0] = np.minimum(entry[0], box[0])
+            entry[1] = np.maximum(entry[1], box[1])
+            entry[2] = min(entry[2], t_lo)
+            entry[3] = max(entry[3], t_hi)
+

@@ -1,0 +1,155 @@
+"""The flowpipe of one mode's affine dynamics ``ẋ = A x + B u + c``, ``u(t) ∈ U``, with zonotopes.
+
+The state is augmented with a constant coordinate ``x_{n+1} = s`` (flow 0; ``s`` a power of two
+chosen by the engine, so the scaling is exact), so the affine flow becomes the linear flow of
+``A_aug = [[A, c/s], [0, 0]]`` exactly, and ``e^{A_aug δ}`` carries the constant's effect (no
+separate input term for ``c``).  The non-deterministic input enters as the
+zero-centred zonotope ``B U₀`` (the centre of ``U`` is moved into ``c``, exactly, in rationals).
+
+Algorithm (Girard, HSCC 2005, with the wrapping-free sum of Girard, Le Guernic and Maler, HSCC 2006):
+
+* first segment, over local time ``[0, δ]``:
+  ``Q₀ = CH(X, Φ X) ⊕ box(D |X|) ⊕ V`` with ``Φ = e^{A_aug δ}`` (an interval matrix,
+  :func:`analysis.reach.series.exp_enclosure`), the interpolation error bound ``D |X|``
+  (:func:`analysis.reach.series.bloating_matrices`) and the input zonotope
+  ``V = δ B U₀ ⊕ box(S |B U₀|)``;
+* segment ``k``: ``R_k = Φ^k Q₀ ⊕ Σ_{j<k} Φ^j V``.  ``Φ^k Q₀`` is mapped step by step and never
+  reduced (no wrapping); the input sum is accumulated and reduced but never mapped again;
+  the rounding errors of every map are collected in an error zonotope ``E`` that is mapped and
+  reduced (its wrapping only concerns numbers of the size of the rounding).
+
+Each segment holds every state reached from ``X`` at local times ``[kδ, (k+1)δ]`` under any
+measurable input with values in ``U``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from .series import MatrixEnclosure, bloating_matrices, exp_enclosure
+from .zonotope import (
+    UNIT_ROUNDOFF,
+    Zonotope,
+    box_generators,
+    linear_map,
+    magnitude,
+    reduce_order,
+    upper,
+    with_error,
+)
+
+__all__ = ["ModeDynamics", "mode_dynamics", "first_segment", "segments", "ERROR_ORDER"]
+
+ERROR_ORDER = 3
+"""Order (generators per dimension) kept in the rounding-error zonotope."""
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ModeDynamics:
+    """The discretised dynamics of one mode, in augmented coordinates (dimension ``n + 1``).
+
+    Attributes
+    ----------
+    mode : str
+    step : float
+        ``δ`` [s].
+    phi : MatrixEnclosure
+        Contains ``e^{A_aug δ}``.
+    deviation : ndarray, shape (n+1, n+1)
+        ``D >= 0`` (interpolation error of the first segment).
+    input_step : Zonotope or None
+        ``V``: every state change a full step of input can cause (zero centre); ``None`` without input.
+    """
+
+    mode: str
+    step: float
+    phi: MatrixEnclosure
+    deviation: np.ndarray
+    input_step: Zonotope | None
+
+
+def mode_dynamics(mode: str, a: list[list[Fraction]], c: list[Fraction], step: float,
+                  input_matrix: list[list[Fraction]] | None = None,
+                  input_set: Zonotope | None = None) -> ModeDynamics:
+    """The :class:`ModeDynamics` of ``ẋ = A x + B u + c``.
+
+    Parameters
+    ----------
+    a : n × n Fractions
+    c : n Fractions
+    step : float
+        ``δ > 0`` [s].
+    input_matrix : n × p Fractions, or None
+    input_set : Zonotope of dimension p, or None
+        ``U``; only its generators are used: the caller moves ``B`` times its centre into ``c``
+        (exactly) beforehand.  ``c`` is in the scaled augmented coordinates (see the engine).
+    """
+    n = len(c)
+    centred = None
+    if input_matrix is not None and input_set is not None:
+        centred = Zonotope(center=np.zeros(input_set.dimension), generators=input_set.generators)
+    aug = [list(row) + [c[i]] for i, row in enumerate(a)] + [[Fraction(0)] * (n + 1)]
+    delta = Fraction(step)
+    phi = exp_enclosure(aug, delta)
+    deviation, s_matrix = bloating_matrices(aug, delta)
+    input_step = None
+    if centred is not None:
+        bc = np.array([[float(q) for q in row] for row in input_matrix])
+        br = np.array([[float(upper(float(abs(q - Fraction(float(q)))), 1)) for q in row] for row in input_matrix])
+        bu, err = linear_map(centred, bc, br)
+        bu = with_error(bu, err)  # symmetric: still centred on 0
+        scaled = bu.generators * step
+        rounding = upper(UNIT_ROUNDOFF * np.abs(scaled).sum(axis=1), bu.order + 1)
+        extra = upper(s_matrix[:n, :n] @ magnitude(bu), n + 1) + rounding
+        top = np.hstack([scaled, box_generators(extra)])
+        gens = np.vstack([top, np.zeros((1, top.shape[1]))])
+        input_step = Zonotope(center=np.zeros(n + 1), generators=gens)
+    return ModeDynamics(mode=mode, step=step, phi=phi, deviation=deviation, input_step=input_step)
+
+
+def first_segment(dyn: ModeDynamics, start: Zonotope) -> Zonotope:
+    """``Q₀``: every state reached from ``start`` (augmented) at local times ``[0, δ]``."""
+    image, err_map = linear_map(start, dyn.phi.center, dyn.phi.radius)
+    mean_c = (start.center + image.center) * 0.5
+    half_c = (start.center - image.center) * 0.5
+    mean_g = (start.generators + image.generators) * 0.5
+    half_g = (start.generators - image.generators) * 0.5
+    rounding = 2.0 * UNIT_ROUNDOFF * (np.abs(mean_c) + np.abs(half_c) + np.abs(mean_g).sum(axis=1)
+                                      + np.abs(half_g).sum(axis=1))
+    dim = start.dimension
+    bloat = dyn.deviation @ magnitude(start)
+    error = upper(err_map + rounding + bloat, 2 * start.order + dim + 6)
+    parts = [mean_g, half_c.reshape(-1, 1), half_g, box_generators(error)]
+    if dyn.input_step is not None:
+        parts.append(dyn.input_step.generators)
+    return Zonotope(center=mean_c, generators=np.hstack(parts))
+
+
+def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotope]:
+    """``R_0, R_1, ...`` (augmented zonotopes), one per step of local time ``[kδ, (k+1)δ]``; endless.
+
+    The caller stops the iteration (horizon, invariant, size limits).
+    """
+    main = first_segment(dyn, start)
+    dim = start.dimension
+    error = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
+    mapped_input = dyn.input_step
+    input_error = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
+    input_sum = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
+    phi_c, phi_r = dyn.phi.center, dyn.phi.radius
+    while True:
+        yield Zonotope(center=main.center,
+                       generators=np.hstack([main.generators, error.generators, input_sum.generators]))
+        main, e_main = linear_map(main, phi_c, phi_r)
+        error, e_error = linear_map(error, phi_c, phi_r)
+        error = reduce_order(with_error(error, upper(e_main + e_error, 2)), ERROR_ORDER)
+        if mapped_input is not None:
+            input_sum = reduce_order(Zonotope(center=input_sum.center, generators=np.hstack(
+                [input_sum.generators, mapped_input.generators, input_error.generators])), order)
+            mapped_input, e_in = linear_map(mapped_input, phi_c, phi_r)
+            input_error, e_ie = linear_map(input_error, phi_c, phi_r)
+            input_error = reduce_order(with_error(input_error, upper(e_in + e_ie, 2)), ERROR_ORDER)

@@ -1,0 +1,233 @@
+"""Halfspaces and polyhedra in floating point with their exactness accounted for; unsafe sets.
+
+An exact rational halfspace ``a·x <= b`` (:class:`analysis.reach.affine.Halfspace`) becomes a
+:class:`FloatHalfspace`: the float normal ``a_f`` nearest to ``a``, a residual ``r >= |a − a_f|``
+(componentwise) and an offset ``b_hi >= b``.  Every test below is *conservative in the
+direction that keeps the reachability sound*: a set is declared outside a halfspace only when
+``min a·x > b`` is proven with rounding accounted for (:func:`definitely_outside`), and boxes are
+clipped only by bounds proven to hold (:func:`clip_box`).
+
+Examples
+--------
+>>> import numpy as np
+>>> from fractions import Fraction
+>>> from analysis.reach.affine import Halfspace
+>>> h = to_float(Halfspace(normal=(Fraction(1), Fraction(0)), offset=Fraction(1)))
+>>> lo, hi = clip_box(np.array([0.0, 0.0]), np.array([2.0, 2.0]), (h,))
+>>> float(hi[0]) >= 1.0 and float(hi[0]) - 1.0 < 1e-14
+True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from hybrid.errors import ParameterError
+
+from .affine import Halfspace, Polyhedron, condition_polyhedra
+from .zonotope import UNIT_ROUNDOFF, Zonotope, from_box, gamma, round_down, round_up, support_bounds, upper
+
+__all__ = [
+    "FloatHalfspace",
+    "to_float",
+    "polyhedra_to_float",
+    "definitely_outside",
+    "clip_box",
+    "tighten_box",
+    "UnsafeSet",
+    "unsafe_set",
+    "separation",
+]
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class FloatHalfspace:
+    """``a·x <= b`` with ``a ∈ [normal − residual, normal + residual]`` and ``b <= offset``."""
+
+    normal: np.ndarray
+    residual: np.ndarray
+    offset: float
+    text: str = ""
+
+
+def _float_up(q: Fraction) -> float:
+    f = float(q)
+    return f if Fraction(f) >= q else float(round_up(f))
+
+
+def to_float(h: Halfspace) -> FloatHalfspace:
+    """The float form of an exact halfspace (see the module docstring)."""
+    normal = np.array([float(q) for q in h.normal])
+    residual = np.array([_float_up(abs(q - Fraction(f))) for q, f in zip(h.normal, normal)])
+    normal.setflags(write=False)
+    residual.setflags(write=False)
+    return FloatHalfspace(normal=normal, residual=residual, offset=_float_up(h.offset), text=h.text)
+
+
+def polyhedra_to_float(polyhedra: Sequence[Polyhedron]) -> tuple[tuple[FloatHalfspace, ...], ...]:
+    """Each polyhedron as a tuple of :class:`FloatHalfspace` (a disjunction of conjunctions)."""
+    return tuple(tuple(to_float(h) for h in p.halfspaces) for p in polyhedra)
+
+
+def definitely_outside(z: Zonotope, h: FloatHalfspace) -> bool:
+    """Whether every point of ``z`` violates ``h`` (proven: ``min_z a·x > b``)."""
+    lo, _ = support_bounds(z, h.normal, h.residual)
+    return lo > h.offset
+
+
+def clip_box(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]
+             ) -> tuple[np.ndarray, np.ndarray] | None:
+    """A box containing ``[lo, hi] ∩ {a·x <= b for each halfspace}``; ``None`` when that is proven empty.
+
+    For each halfspace and each coordinate ``i`` with ``a_i != 0``:
+    ``a_i x_i <= b + r·|x| − Σ_{j≠i} min(a_j x_j)``, every term bounded with its rounding.
+    """
+    lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+    for h in halfspaces:
+        a = h.normal
+        n = a.size
+        mins = np.minimum(a * lo, a * hi)
+        mag = np.maximum(np.abs(lo), np.abs(hi))
+        slack = float(upper(gamma(n + 2) * (np.abs(mins).sum() + np.abs(h.offset)) + h.residual @ mag, n + 4))
+        total = float(mins.sum())
+        if total - slack > h.offset:
+            return None
+        for i in range(n):
+            if a[i] == 0.0:
+                continue
+            room = h.offset - (total - mins[i]) + slack  # >= a_i x_i for every feasible x
+            room = float(round_up(round_up(room)))
+            if a[i] > 0:
+                hi[i] = min(hi[i], float(round_up(round_up(room / a[i]))))
+            else:
+                lo[i] = max(lo[i], float(round_down(round_down(room / a[i]))))
+        if np.any(lo > hi):
+            return None
+    return lo, hi
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class UnsafeSet:
+    """A named unsafe set: a union of polyhedra ``{x : a_i·x >= … }`` written as ``a·x <= b`` rows.
+
+    Attributes
+    ----------
+    name : str
+    polyhedra : tuple of tuple of FloatHalfspace
+        The set is the union of the polyhedra (each the conjunction of its halfspaces).
+    modes : tuple of str or None
+        Modes in which the set is unsafe (``None``: all).
+    """
+
+    name: str
+    polyhedra: tuple[tuple[FloatHalfspace, ...], ...]
+    modes: tuple[str, ...] | None = None
+
+
+def unsafe_set(name: str, condition: object, state_names: Sequence[str], *,
+               modes: Sequence[str] | None = None) -> UnsafeSet:
+    """An :class:`UnsafeSet` from a symbolic condition over the state names (e.g. ``x.h >= 1.01``).
+
+    Raises
+    ------
+    ParameterError
+        ``name`` empty; :class:`~analysis.reach.affine.AffineError` when the condition is not affine.
+    """
+    if not isinstance(name, str) or not name:
+        raise ParameterError("name", name, "a non-empty string", "name the unsafe set")
+    polyhedra = condition_polyhedra(condition, tuple(state_names), role=f"unsafe set {name!r}")
+    return UnsafeSet(name=name, polyhedra=polyhedra_to_float(polyhedra),
+                     modes=None if modes is None else tuple(modes))
+
+
+def _norm_bounds(h: FloatHalfspace) -> tuple[float, float]:
+    low = np.maximum(np.abs(h.normal) - h.residual, 0.0)
+    high = np.abs(h.normal) + h.residual
+    return (float(round_down(math.sqrt(float(round_down(low @ low) * (1 - 4 * 2.0 ** -53))))),
+            float(round_up(math.sqrt(float(upper(high @ high, h.normal.size + 1))))))
+
+
+def separation(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedron: Sequence[FloatHalfspace]) -> float:
+    """A signed separation between ``z ∩ [lo, hi]`` and a polyhedron ``{a_i·x <= b_i}``.
+
+    Positive: a proven lower bound of the Euclidean distance (some halfspace ``i`` has
+    ``min a_i·x > b_i`` over the set, and the distance to the polyhedron is at least the distance to
+    that halfspace, ``(min a_i·x − b_i) / ‖a_i‖``).  Zero or negative: not separated by any single
+    constraint; no claim is made (the value is the largest such normalised gap).
+    """
+    box = from_box(lo, hi)
+    best = -math.inf
+    for h in polyhedron:
+        low_z, _ = support_bounds(z, h.normal, h.residual)
+        low_b, _ = support_bounds(box, h.normal, h.residual)
+        gap = float(round_down(max(low_z, low_b) - h.offset))
+        n_low, n_high = _norm_bounds(h)
+        if gap > 0:
+            value = float(round_down(gap / n_high)) if n_high > 0 else math.inf
+        else:
+            value = gap / n_low if n_low > 0 else -math.inf
+        best = max(best, value)
+    return best
+
+
+def _dual_bound(z: Zonotope, direction: np.ndarray, halfspaces: Sequence[FloatHalfspace],
+                multipliers: np.ndarray) -> float:
+    """A rigorous upper bound of ``max direction·x`` over ``z ∩ {a_k·x <= b_k}`` from any multipliers ``λ >= 0``.
+
+    Weak duality: ``e·x <= (e − Σ λ_k a_k)·x + Σ λ_k b_k`` on the intersection, and the first term is
+    bounded by the support of ``z`` in the direction ``e − Σ λ_k a_k`` (computed with its rounding).
+    """
+    lam = np.maximum(np.asarray(multipliers, dtype=float), 0.0)
+    normals = np.array([h.normal for h in halfspaces])
+    residuals = np.array([h.residual for h in halfspaces])
+    offsets = np.array([h.offset for h in halfspaces])
+    d = direction - normals.T @ lam
+    k = len(halfspaces) + 2
+    residual = upper(gamma(k) * (np.abs(direction) + np.abs(normals).T @ lam) + residuals.T @ lam, k + 2)
+    _, top = support_bounds(z, d, residual)
+    shift = float(lam @ offsets)
+    err = float(upper(gamma(k) * (lam @ np.abs(offsets)), k))
+    return float(round_up(round_up(top + shift + err + UNIT_ROUNDOFF * abs(top + shift))))
+
+
+def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """A box containing ``z ∩ [lo, hi] ∩ {a_k·x <= b_k}``, tighter than :func:`clip_box` (``None``: empty).
+
+    After :func:`clip_box`, each bound ``max/min x_i`` over ``z ∩ {halfspaces}`` is bounded by
+    :func:`_dual_bound` with the multipliers of a linear program (scipy's HiGHS): the program only
+    *suggests* the multipliers; the bound is valid for any of them, so an inaccurate or failed
+    program can only make it looser, never wrong.
+    """
+    box = clip_box(lo, hi, halfspaces)
+    if box is None or not halfspaces or z.order == 0:
+        return box
+    from scipy.optimize import linprog
+
+    lo, hi = box
+    g = z.generators
+    normals = np.array([h.normal for h in halfspaces])
+    offsets = np.array([h.offset for h in halfspaces])
+    a_ub = normals @ g
+    b_ub = offsets - normals @ z.center
+    n = z.dimension
+    for i in range(n):
+        for sign in (1.0, -1.0):
+            e = np.zeros(n)
+            e[i] = sign
+            res = linprog(-(e @ g), A_ub=a_ub, b_ub=b_ub, bounds=[(-1.0, 1.0)] * g.shape[1], method="highs")
+            if res.status != 0 or res.ineqlin is None:
+                continue
+            bound = _dual_bound(z, e, halfspaces, -np.asarray(res.ineqlin.marginals))
+            if sign > 0:
+                hi[i] = min(hi[i], bound)
+            else:
+                lo[i] = max(lo[i], -bound)
+    if np.any(lo > hi):
+        return None
+    return lo, hi
