@@ -141,6 +141,23 @@ def _build_problem_report(args: argparse.Namespace, options: Any, progress: Any)
     return report, shown, folder, problem.name
 
 
+def _scenario_report_folder(args: argparse.Namespace, scenario: Any) -> tuple[Path, Path]:
+    """The folder of ``visnav report --scenario``, as shown and as written (anchored), checked before the work:
+    the scenario's name (the default ``reports/NAME``) and its requirement names (file names) must be plain
+    names, and the report may replace the folder (:func:`~visnav.app.report_files.check_report_folder`)."""
+    from visnav.app.files import prepare_output_dir
+    from visnav.app.ownership import anchored, check_requirement_names, safe_name
+    from visnav.app.report_files import check_report_folder
+
+    check_requirement_names((r.name for r in scenario.requirements), f"scenario {scenario.name!r}")
+    shown = Path(args.out if args.out is not None else "reports/" + safe_name(
+        f"the scenario's name (name in {args.scenario or 'paper'})", scenario.name,
+        "rename the scenario (its name = ...), or give --out FOLDER"))
+    folder = prepare_output_dir(anchored(args, shown))
+    check_report_folder(folder, shown)  # the report replaces the folder whole: refused before the work
+    return shown, folder
+
+
 def _verdict_lines(rows: list[dict[str, Any]], folder: Any, most: int = 10) -> list[str]:
     """One line per requirement; beyond ``most`` the ones not falsified are counted, not listed."""
     shown = rows if len(rows) <= most else [r for r in rows if r["verdict"] != "not_falsified"]
@@ -159,8 +176,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from analysis.verdicts import EXIT_CODES
     from hybrid.errors import ParameterError
 
-    from visnav.app.files import prepare_output_dir
-    from visnav.app.ownership import anchored, check_requirement_names, safe_name
+    from visnav.app.ownership import anchored
     from visnav.app.report import ReportOptions, build_report
     from visnav.app.report_files import check_report_folder, write_report
     from visnav.app.verification_report import VERDICT_LABELS
@@ -179,12 +195,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
             report, shown, folder, subject = _build_problem_report(args, options, progress)
         else:
             scenario = load_scenario(args.scenario or "paper")
-            check_requirement_names((r.name for r in scenario.requirements), f"scenario {scenario.name!r}")
-            shown = Path(args.out if args.out is not None else "reports/" + safe_name(
-                f"the scenario's name (name in {args.scenario or 'paper'})", scenario.name,
-                "rename the scenario (its name = ...), or give --out FOLDER"))
-            folder = prepare_output_dir(anchored(args, shown))
-            check_report_folder(folder, shown)  # the report replaces the folder whole: refused before the work
+            shown, folder = _scenario_report_folder(args, scenario)
             report = build_report(scenario, options, progress=progress, source=args.scenario or "paper")
             subject = scenario.name
     except ProblemLoadError as error:
