@@ -149,9 +149,18 @@ def _matches(path: Path, entry: dict[str, Any]) -> bool:
 
 
 def _walk(folder: Path) -> tuple[list[str], list[str]]:
-    """Every file (and symbolic link, special file) and every folder under ``folder``, relative, sorted."""
+    """Every file (and symbolic link, special file) and every folder under ``folder``, relative, sorted.
+
+    Raises
+    ------
+    OSError
+        A folder under ``folder`` cannot be listed.
+    """
     files, folders = [], []
-    for here, dirs, names in os.walk(folder, followlinks=False):
+    def unreadable(err: OSError) -> None:
+        raise err  # a sub-folder that cannot be listed may hold anything: never judged visnav's
+
+    for here, dirs, names in os.walk(folder, onerror=unreadable, followlinks=False):
         base = Path(here).relative_to(folder)
         for d in list(dirs):
             if os.path.islink(os.path.join(here, d)):  # a link to a folder is an entry, not followed
@@ -170,6 +179,11 @@ def unowned_entries(folder: str | os.PathLike[str], *, marker: bool = False) -> 
     with its size and digest; a folder holding no listed file, a file browser's ``.DS_Store`` and (with
     ``marker``) a :data:`PARTIAL_MARKER` are tolerated.  Without a valid manifest, every file is
     unowned (the manifest itself included, when it is there).
+
+    Raises
+    ------
+    OSError
+        A folder under ``folder`` cannot be listed (what it holds cannot be judged).
     """
     root = Path(folder)
     files, _ = _walk(root)
