@@ -56,6 +56,8 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
+import numpy as np
+
 from hybrid.jsonable import float_from_json, to_jsonable
 
 from analysis.fuzzing import PropertyViolation
@@ -81,6 +83,9 @@ __all__ = [
     "Replay",
     "TraceRecorder",
     "replay_counterexample",
+    "TRACE_BYTES",
+    "TRACE_ROWS",
+    "stored_sample_indices",
 ]
 
 
@@ -103,6 +108,10 @@ class CounterexampleError(ValueError):
 
 MAX_FILE_BYTES = 50_000_000
 """Largest counterexample file read [bytes] (50 MB; the files written by the fuzzers are kilobytes)."""
+TRACE_BYTES = MAX_FILE_BYTES // 5
+"""Most bytes a written counterexample's stored trace may take (10 MB: a fifth of what a reader accepts)."""
+TRACE_ROWS = 100_000
+"""Most samples of a stored trace; a longer trace is decimated (:func:`stored_sample_indices`)."""
 MAX_DEPTH = 64
 """Deepest nesting of arrays and objects read (the files written are at most 6 levels deep)."""
 MAX_INT_DIGITS = 300
@@ -643,3 +652,64 @@ def replay_counterexample(counterexample: Any, rerun: Callable[[Any, TraceRecord
         return Replay(counterexample=counterexample, violated=True, message=f"{type(err).__name__}: {err}",
                       sample=None, trace=tuple(trace))
     return Replay(counterexample=counterexample, violated=False, message="holds", sample=None, trace=tuple(trace))
+
+
+# ---- bounded traces ---------------------------------------------------------------------------------
+
+
+def _change_indices(values: Any) -> np.ndarray:
+    """Both samples of every change of ``values`` (a jump count or a label), shape (2 * changes,), sorted."""
+    array = np.asarray(values)
+    if array.shape[0] < 2:
+        return np.zeros(0, dtype=np.int64)
+    after = np.flatnonzero(array[1:] != array[:-1]) + 1
+    return np.unique(np.concatenate([after - 1, after]))
+
+
+def stored_sample_indices(times: Any, *, instants: Sequence[float] = (), changes: Sequence[Any] = (),
+                          max_rows: int = TRACE_ROWS) -> tuple[np.ndarray, bool]:
+    """Which samples of a trace a counterexample file stores: all of them, or at most about ``max_rows``.
+
+    A trace of at most ``max_rows`` samples is kept whole.  A longer one keeps its first and last
+    samples, the two samples around each of ``instants`` (e.g. the violation's time), both samples
+    of every change of each array in ``changes`` (jump counts, mode labels) and evenly spaced samples
+    in between, up to ``max_rows`` in all.  Where the changes alone exceed that budget they are
+    thinned evenly (the second value then says so).
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Sample times [s], non-decreasing.
+    instants : sequence of float
+        Times [s] whose neighbouring samples are always kept.
+    changes : sequence of array_like, each shape (n,)
+        Arrays whose changes are kept.
+    max_rows : int
+        The budget of samples (>= 8).
+
+    Returns
+    -------
+    indices : numpy.ndarray of int, shape (m,)
+        Sorted, distinct indices into the trace.
+    all_changes_kept : bool
+        Whether both samples of every change are among them.
+    """
+    t = np.asarray(times, dtype=float)
+    n = t.shape[0]
+    if n <= max_rows:
+        return np.arange(n), True
+    must = [0, n - 1]
+    for instant in instants:
+        k = int(np.searchsorted(t, instant))
+        must += [min(max(k - 1, 0), n - 1), min(k, n - 1)]
+    must_set = np.unique(np.asarray(must, dtype=np.int64))
+    events = np.unique(np.concatenate([_change_indices(c) for c in changes] or [np.zeros(0, dtype=np.int64)]))
+    room = max(max_rows - must_set.size, 0)
+    all_kept = events.size <= room
+    if not all_kept:  # thinned evenly: every part of the run keeps some of its changes
+        events = events[np.linspace(0, events.size - 1, room).round().astype(np.int64)] if room else events[:0]
+    kept = np.union1d(must_set, events)
+    spread = max_rows - kept.size
+    if spread > 0:
+        kept = np.union1d(kept, np.linspace(0, n - 1, spread).round().astype(np.int64))
+    return kept, all_kept

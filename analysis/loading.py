@@ -189,12 +189,13 @@ def _file_digest(path: Path) -> str:
         return "unreadable"
 
 
-def source_digests(spec: str) -> dict[str, str]:
+def source_digests(spec: str, base: str | os.PathLike[str] | None = None) -> dict[str, str]:
     """What the results of problem ``spec`` depend on: SHA-256 (16 hex digits) of its code.
 
     The toolkit's packages (one digest each, over every ``.py`` and ``.toml`` file), and for a user's
     problem its module's file with every module loaded from the same folder (``FILE.py:OBJ``) or the
-    same top-level package (``pkg.mod:OBJ``), keyed by path.  Deterministic for a given tree: it does
+    same top-level package (``pkg.mod:OBJ``), keyed by path (a relative ``FILE.py`` is read from ``base``, the
+    folder the command started in, when given).  Deterministic for a given tree: it does
     not depend on what was imported before.  A journal records these and refuses to resume when one
     changed (``visnav verify``).  Installed third-party packages are left out (the pinned set).
     """
@@ -205,7 +206,8 @@ def source_digests(spec: str) -> dict[str, str]:
     where, _ = split_spec(spec)
     is_file = where.endswith(".py") or os.sep in where or "/" in where
     if is_file:
-        path = Path(where).expanduser().resolve()
+        path = Path(where).expanduser()
+        path = (Path(base) / path if base is not None and not path.is_absolute() else path).resolve()
         out[str(path)] = _file_digest(path)
         folder = path.parent
         for module in list(sys.modules.values()):

@@ -5,6 +5,7 @@ import math
 import os
 from dataclasses import dataclass, field
 
+import numpy as np
 import pytest
 
 from analysis.counterexamples import (
@@ -253,3 +254,47 @@ def test_show_value_bounds_what_a_message_repeats():
     assert show_value("x" * 10_000) == "'" + "x" * 79 + "... (a string of 10,000 characters)"
     assert show_value(list(range(5000))).endswith("... (an array of 5,000 entries)")
     assert len(show_value(10 ** 200)) == 83
+
+
+# ---- bounded traces (stored_sample_indices) ----------------------------------------------------------
+
+
+def test_a_short_trace_is_stored_whole():
+    from analysis.counterexamples import stored_sample_indices
+
+    indices, every_change = stored_sample_indices(np.linspace(0.0, 1.0, 50), instants=(0.5,),
+                                                  changes=[np.arange(50) % 3], max_rows=50)
+    assert indices.tolist() == list(range(50)) and every_change
+
+
+def test_a_long_trace_keeps_its_ends_the_instants_and_both_samples_of_every_change():
+    from analysis.counterexamples import stored_sample_indices
+
+    n, budget = 100_000, 1_000
+    t = np.linspace(0.0, 10.0, n)
+    jumps = np.searchsorted([1.0, 3.3, 3.30004, 9.99], t, side="right")  # 4 jumps, two of them 1 sample apart
+    mode = np.where(t < 5.0, "a", "b")
+    indices, every_change = stored_sample_indices(t, instants=(6.54321, 10.0), changes=[jumps, mode],
+                                                  max_rows=budget)
+    kept = set(indices.tolist())
+    assert every_change and len(indices) <= budget and indices.tolist() == sorted(kept)
+    assert {0, n - 1} <= kept
+    for instant in (6.54321,):  # the samples on both sides of the instant (found by a scan, not a bisection)
+        before = max(k for k in range(n) if t[k] < instant)
+        assert {before, before + 1} <= kept
+    for values in (jumps, mode):
+        for k in range(1, n):
+            if values[k] != values[k - 1]:
+                assert {k - 1, k} <= kept, k
+    gaps = np.diff(indices)
+    assert gaps.max() <= 2 * n / (budget - 20)  # the rest evenly spread: no stretch left without samples
+
+
+def test_more_changes_than_the_budget_are_thinned_and_said_so():
+    from analysis.counterexamples import stored_sample_indices
+
+    n = 10_000
+    chatter = np.arange(n) % 2  # a change at every sample
+    indices, every_change = stored_sample_indices(np.arange(n, dtype=float), instants=(4321.0,),
+                                                  changes=[chatter], max_rows=100)
+    assert not every_change and len(indices) <= 100 and {0, n - 1, 4320, 4321} <= set(indices.tolist())

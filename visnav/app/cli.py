@@ -15,6 +15,7 @@ import csv
 import io
 import json
 import sys
+from pathlib import Path
 from collections.abc import Sequence
 from typing import Any
 
@@ -121,17 +122,44 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _build_problem_report(args: argparse.Namespace, options: Any, progress: Any) -> Any:
-    """``visnav report --problem SPEC``: load the problem and build its generic report."""
+    """``visnav report --problem SPEC``: load the problem and build its generic report.
+
+    Returns the report, the folder as shown (``--out`` or ``reports/NAME``), the folder written
+    (anchored at the starting folder) and the problem's name."""
     from visnav.app.cli_verify import load_verification_problem
     from visnav.app.files import prepare_output_dir
+    from visnav.app.ownership import anchored, check_requirement_names, safe_name
+    from visnav.app.report_files import check_report_folder
     from visnav.app.verification_report import build_problem_report
 
     loading = {} if args.scenario is None else {"scenario": args.scenario}
     problem = load_verification_problem(args.problem, loading, None)
-    folder = prepare_output_dir(args.out or f"reports/{problem.name}")
+    check_requirement_names(problem.requirement_names, f"problem {problem.name!r}")
+    shown = Path(args.out if args.out is not None else "reports/" + safe_name(
+        "the problem's name (VerificationProblem.name)", problem.name,
+        "rename the problem, or give --out FOLDER"))
+    folder = prepare_output_dir(anchored(args, shown))
+    check_report_folder(folder, shown)  # the report replaces the folder whole: refused before the work
     report = build_problem_report(problem, spec=args.problem, options=loading, seed=options.seed,
                                   budget=options.verify_budget, quick=options.quick, progress=progress)
-    return report, folder, problem.name
+    return report, shown, folder, problem.name
+
+
+def _scenario_report_folder(args: argparse.Namespace, scenario: Any) -> tuple[Path, Path]:
+    """The folder of ``visnav report --scenario``, as shown and as written (anchored), checked before the work:
+    the scenario's name (the default ``reports/NAME``) and its requirement names (file names) must be plain
+    names, and the report may replace the folder (:func:`~visnav.app.report_files.check_report_folder`)."""
+    from visnav.app.files import prepare_output_dir
+    from visnav.app.ownership import anchored, check_requirement_names, safe_name
+    from visnav.app.report_files import check_report_folder
+
+    check_requirement_names((r.name for r in scenario.requirements), f"scenario {scenario.name!r}")
+    shown = Path(args.out if args.out is not None else "reports/" + safe_name(
+        f"the scenario's name (name in {args.scenario or 'paper'})", scenario.name,
+        "rename the scenario (its name = ...), or give --out FOLDER"))
+    folder = prepare_output_dir(anchored(args, shown))
+    check_report_folder(folder, shown)  # the report replaces the folder whole: refused before the work
+    return shown, folder
 
 
 def _verdict_lines(rows: list[dict[str, Any]], folder: Any, most: int = 10) -> list[str]:
@@ -152,7 +180,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from analysis.verdicts import EXIT_CODES
     from hybrid.errors import ParameterError
 
-    from visnav.app.files import prepare_output_dir
+    from visnav.app.ownership import anchored
     from visnav.app.report import ReportOptions, build_report
     from visnav.app.report_files import check_report_folder, write_report
     from visnav.app.verification_report import VERDICT_LABELS
@@ -167,12 +195,11 @@ def _cmd_report(args: argparse.Namespace) -> int:
     try:
         if args.problem is not None:
             if args.out is not None:  # refused before the work (the default folder needs the problem's name)
-                check_report_folder(args.out)
-            report, folder, subject = _build_problem_report(args, options, progress)
+                check_report_folder(anchored(args, args.out), args.out)
+            report, shown, folder, subject = _build_problem_report(args, options, progress)
         else:
             scenario = load_scenario(args.scenario or "paper")
-            folder = prepare_output_dir(args.out or f"reports/{scenario.name}")
-            check_report_folder(folder)  # the report replaces the folder whole: refused before the work
+            shown, folder = _scenario_report_folder(args, scenario)
             report = build_report(scenario, options, progress=progress, source=args.scenario or "paper")
             subject = scenario.name
     except ProblemLoadError as error:
@@ -189,7 +216,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
             raise  # the scenario's own studies: not the user's input
         print(f"visnav: error: {error.render()}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    written = write_report(report, folder)
+    written = [shown / path.relative_to(folder) for path in write_report(report, folder, shown)]
+    folder = shown
     elapsed = time.perf_counter() - start
     counts, verdict = report.data["claim_counts"], report.data["verdict"]
     code = EXIT_CODES[verdict]
@@ -531,6 +559,7 @@ def _stability_human(d: dict[str, Any]) -> str:
 def _cmd_analyse_problem(args: argparse.Namespace) -> int:
     from visnav.app.figures_verification import orbit_figure
     from visnav.app.files import prepare_output_dir, write_figures, write_text_atomic
+    from visnav.app.ownership import anchored
 
     problem = _user_problem(args.problem)
     if isinstance(problem, int):
@@ -540,15 +569,17 @@ def _cmd_analyse_problem(args: argparse.Namespace) -> int:
               "expected a problem built with hybrid_problem(..., stability=True) (or a stability callable); "
               "fix: add stability=True where the problem is built", file=sys.stderr)
         return EXIT_BAD_INPUT
-    folder = prepare_output_dir(args.out) if args.out else None
+    # anchored where the command started: the user's module (imported above) may have changed the folder
+    folder = prepare_output_dir(anchored(args, args.out)) if args.out else None
     analysis = problem.stability()
     out = analysis.as_dict()
     written = []
     if folder is not None:
         write_text_atomic(folder / "stability.json", json.dumps(out, indent=1, sort_keys=True) + "\n")
-        written.append(str(folder / "stability.json"))
+        written.append(str(Path(args.out) / "stability.json"))
         if analysis.orbit is not None:
-            written += [str(p) for p in write_figures(folder, {"stability_orbit": orbit_figure(analysis.orbit)}).values()]
+            figures = write_figures(folder, {"stability_orbit": orbit_figure(analysis.orbit)})
+            written += [str(Path(args.out) / p.name) for p in figures.values()]
     if args.json:
         print(json.dumps(out, sort_keys=True))
     else:
@@ -716,6 +747,9 @@ def _main(argv: Sequence[str] | None) -> int:
     _single_threaded_blas()  # before anything imports numpy (building the parser imports some of the toolkit)
     parser = build_parser()
     args = parser.parse_args(argv)
+    from visnav.app.ownership import start_folder
+
+    args.start_dir = start_folder()  # every output folder is anchored here, before any user code can chdir
 
     from hybrid import DivergenceError
 

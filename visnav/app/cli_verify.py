@@ -38,6 +38,8 @@ JOURNAL_VERSION = 2
 """2: every evaluation says how its run ended (``end``, ``end_time``) and decides each requirement or not
 (``satisfied`` may be ``null``); a journal of version 1 judged runs that ended early as complete, so it
 is not read back."""
+JOURNAL_FILE = "evaluations.jsonl"
+"""The search's journal in the ``--out`` folder (appended as the simulations finish)."""
 DEFAULT_BUDGET = 120
 """Default simulations per run (the paper's problem: about 40 s on one core)."""
 
@@ -112,7 +114,7 @@ def _spec_hash(spec: str, options: Mapping[str, Any], problem: Any, args: argpar
     identity = {"problem": spec, "options": dict(options), "method": args.method, "seed": args.seed,
                 "budget": args.budget, "requirements": [[r.name, r.formula] for r in problem.requirements],
                 "parameters": [[p.name, p.low, p.high, p.nominal] for p in problem.parameters],
-                "timeout_s": getattr(args, "sim_timeout", None), "model": source_digests(spec)}
+                "timeout_s": getattr(args, "sim_timeout", None), "model": source_digests(spec, getattr(args, "start_dir", None))}
     digest = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     return {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION, "spec_hash": digest, "spec": identity}
 
@@ -162,20 +164,35 @@ def _journal(folder: Path, header: dict[str, Any], budget: int, problem: Any):
                         index=lambda e: e.index)
     hints = StoreHints(writer="visnav verify", same_campaign="the same problem, --method, --seed, --budget and "
                        "requirements")
-    return open_store(folder / "evaluations.jsonl", header, codec, samples=budget, hints=hints)
+    return open_store(folder / JOURNAL_FILE, header, codec, samples=budget, hints=hints)
+
+
+def _trace_rows(trace: Any, labels: list[str], names: list[str], indices: Any) -> list[list[Any]]:
+    times, jumps = trace.times[indices], trace.jumps[indices]
+    label_values = [[trace.label(n)[k] for k in indices] for n in labels]
+    signal_values = [trace.signal(n)[indices] for n in names]
+    return [[float(times[i]), int(jumps[i]), *(v[i] for v in label_values), *(float(v[i]) for v in signal_values)]
+            for i in range(len(indices))]
 
 
 def counterexample_text(result: Any, verdict: Any, problem: Any, spec: str, options: Mapping[str, Any]) -> str:
-    """The counterexample file of a falsified requirement: where, how much, and the trace it reads."""
-    from analysis.counterexamples import CounterexampleFormat
+    """The counterexample file of a falsified requirement: where, how much, and the trace it reads.
+
+    The stored trace is bounded so that ``visnav replay`` can read the file back
+    (:data:`analysis.counterexamples.TRACE_ROWS` samples, :data:`~analysis.counterexamples.TRACE_BYTES`):
+    a longer trace is decimated (its first and last samples, the violation instant, every jump and
+    mode change kept, :func:`~analysis.counterexamples.stored_sample_indices`) and the file says so in
+    ``trace_decimated`` (the original sample count).  The point, the requirement and the robustness are
+    always written whole: replay re-simulates the point, it does not read the trace.
+    """
+    from analysis.counterexamples import (TRACE_BYTES, TRACE_ROWS, CounterexampleFormat, encode_value,
+                                          stored_sample_indices)
 
     cx = verdict.counterexample
     parsed = next(p for p in problem.parsed if p.name == verdict.name)
     trace = problem.trace(problem.point(cx.unit))
     names = sorted(parsed.formula.signals - {"time", "jumps"})
     labels = sorted(parsed.formula.labels)
-    rows = [[float(trace.times[k]), int(trace.jumps[k]), *(trace.label(n)[k] for n in labels),
-             *(float(trace.signal(n)[k]) for n in names)] for k in range(trace.n)]
     fmt = CounterexampleFormat(name=COUNTEREXAMPLE_FORMAT, version=1, reader="this visnav")
     fields = {
         "problem": spec, "options": dict(options), "requirement": verdict.name, "formula": verdict.formula,
@@ -184,7 +201,22 @@ def counterexample_text(result: Any, verdict: Any, problem: Any, spec: str, opti
         "columns": ["time", "jumps", *labels, *names],
         "replay": f"visnav replay <this file>",
     }
-    return fmt.dumps(fields, rows_key="trace", rows=rows)
+    n = trace.n
+    ends = _trace_rows(trace, labels, names, [0, n - 1] if n else [])
+    row_bytes = max((len(json.dumps(encode_value(row)).encode("utf-8")) for row in ends), default=0) + 8
+    budget = min(TRACE_ROWS, max(TRACE_BYTES // max(row_bytes, 1), 8))
+    while True:
+        changes = [trace.jumps, *(trace.label(name) for name in labels)]
+        indices, all_changes = stored_sample_indices(trace.times, instants=(cx.time,), changes=changes,
+                                                     max_rows=budget)
+        extra = {} if len(indices) == n else {"trace_decimated": {
+            "samples": n, "stored": len(indices), "every_change_kept": all_changes,
+            "kept": "the first and last samples, the two around the violation time, both samples of every jump "
+                    "and mode change, and evenly spaced samples between"}}
+        text = fmt.dumps({**fields, **extra}, rows_key="trace", rows=_trace_rows(trace, labels, names, indices))
+        if len(text.encode("utf-8")) <= TRACE_BYTES or budget <= 8:
+            return text
+        budget = max(budget // 2, 8)  # the rows were longer than the ends said
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
@@ -194,7 +226,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from hybrid.errors import ParameterError
 
     from visnav.app.campaign_store import CampaignStoreError
-    from visnav.app.files import prepare_output_dir, write_text_atomic
+    from visnav.app.files import prepare_output_dir
+    from visnav.app.ownership import anchored, check_requirement_names, safe_name, unowned_targets
 
     options = _options(args)
     quiet = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
@@ -205,7 +238,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         return _bad_input(error.render(), error.user_traceback)
     except ParameterError as error:
         return _bad_input(error.render())
-    folder = prepare_output_dir(args.out or _default_out(problem.name, args))
+    check_requirement_names(problem.requirement_names, f"problem {problem.name!r}")  # before the search
+    shown = Path(args.out if args.out is not None else _default_out(safe_name(
+        "the problem's name (VerificationProblem.name; for paper: the scenario's name)", problem.name,
+        "rename it (a scenario: its name = ... in the TOML), or give --out FOLDER"), args))
+    folder = prepare_output_dir(anchored(args, shown))  # anchored: the user's code may have changed the folder
+    targets = _result_files(problem)
+    foreign = unowned_targets(folder, targets)
+    if foreign:
+        return _bad_input(_foreign_message(shown, foreign, "already"))
     header = _spec_hash(args.problem, options, problem, args)
     try:
         store, found = _journal(folder, header, args.budget, problem)
@@ -237,11 +278,14 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     except BrokenExecutor as error:  # a worker process died (os._exit, a crash, the OOM killer)
         reason = " ".join(str(error).split())
         print(f"visnav: error: the search stopped: a worker process died ({type(error).__name__}"
-              f"{': ' + reason if reason else ''}); {len(done)} evaluation(s) are kept in {folder / 'evaluations.jsonl'}"
+              f"{': ' + reason if reason else ''}); {len(done)} evaluation(s) are kept in {shown / JOURNAL_FILE}"
               "; rerun the same command to resume (a model that kills its process: run without --workers to see "
               "its error)", file=sys.stderr)
         return EXIT_DIVERGED
-    written = _write_results(folder, result, problem, args.problem, options)
+    foreign = unowned_targets(folder, targets)
+    if foreign:  # saved while the search ran: the journal keeps the search, the next run resumes it
+        return _bad_input(_foreign_message(shown, foreign, "meanwhile"))
+    written = _write_results(folder, shown, result, problem, args.problem, options)
     if result.errors and result.errors[0].get("traceback"):
         print(str(result.errors[0]["traceback"]).rstrip() + "\nvisnav: the model's code raised during a simulation "
               f"({result.errors[0]['detail']}); its traceback is above", file=sys.stderr)
@@ -253,20 +297,48 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     return result.exit_code
 
 
-def _write_results(folder: Path, result: Any, problem: Any, spec: str, options: Mapping[str, Any]) -> dict[str, str]:
-    from visnav.app.files import write_text_atomic
+def _result_files(problem: Any) -> list[str]:
+    """The files ``verify`` (over)writes in its folder, relative to it (the journal has its own header check)."""
+    return ["verification.json", *(f"counterexamples/{name}.json" for name in problem.requirement_names)]
 
+
+def _foreign_message(shown: Path, foreign: list[str], when: str) -> str:
+    from visnav.app.ownership import MANIFEST_NAME, describe_entries
+
+    saved = "were saved there while the search ran" if when == "meanwhile" else "are there"
+    return (f"--out {str(shown)!r}: {len(foreign)} file(s) that verify would overwrite {saved} and were not written "
+            f"by visnav ({describe_entries(foreign)}; not listed with their bytes in its {MANIFEST_NAME}); nothing "
+            "was overwritten: move them away, or choose another --out"
+            + (" (the search is kept in evaluations.jsonl: the same command then resumes it)"
+               if when == "meanwhile" else ""))
+
+
+def _write_results(folder: Path, shown: Path, result: Any, problem: Any, spec: str,
+                   options: Mapping[str, Any]) -> dict[str, str]:
+    """Write the counterexamples, verification.json and (last) the folder's manifest; the files by requirement
+    (as shown: under ``shown``, the folder as the user gave it)."""
+    from visnav.app.files import write_text_atomic
+    from visnav.app.ownership import read_manifest, unowned_targets, write_manifest
+
+    earlier = read_manifest(folder) or {}
     written: dict[str, str] = {}
+    relatives = []
     for verdict in result.requirements:
         if verdict.counterexample is None:
             continue
-        path = folder / "counterexamples" / f"{verdict.name}.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(path, counterexample_text(result, verdict, problem, spec, options))
-        written[verdict.name] = str(path)
+        relative = f"counterexamples/{verdict.name}.json"
+        (folder / relative).parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(folder / relative, counterexample_text(result, verdict, problem, spec, options))
+        written[verdict.name] = str(shown / relative)
+        relatives.append(relative)
     data = result.as_dict(evaluations=True)
     data["counterexample_files"] = written
     write_text_atomic(folder / "verification.json", json.dumps(data, indent=1, sort_keys=True) + "\n")
+    relatives.append("verification.json")
+    kept = [r for r in earlier if r not in relatives and r != JOURNAL_FILE and (folder / r).is_file()
+            and not unowned_targets(folder, [r])]  # earlier files of visnav's still as written
+    journal = [JOURNAL_FILE] if (folder / JOURNAL_FILE).is_file() else []
+    write_manifest(folder, [*relatives, *kept, *journal], "verify")
     return written
 
 

@@ -2,9 +2,10 @@
 
 Every file is written to a hidden partial file beside it, ``.NAME.partial-PID-XXXXXXXX`` (PID: the
 writing process), fsynced and renamed over ``NAME``: a reader sees the old file or the new one,
-never a part.  The partial files that an interrupted write left behind are removed by the next
-write into that folder (:func:`clean_partial_files`: writer no longer running, older than this
-run).  A written file gets the mode a plain ``open()`` would give it under the current umask
+never a part.  The partial files that an interrupted write of ``NAME`` left behind are removed by
+the next write of that same ``NAME`` (:func:`clean_partial_files`: a file, not a folder; writer no
+longer running; older than this run); other names that merely look partial are never touched (the
+report's partial folders are deleted only with visnav's marker in them, :mod:`visnav.app.ownership`).  A written file gets the mode a plain ``open()`` would give it under the current umask
 (``0o666 & ~umask``), not :func:`tempfile.mkstemp`'s 0600.  Every :class:`OSError` of a write
 (disk full, permission denied, a path component that is a file) is raised as :class:`OutputError`
 naming the path and the fix.
@@ -17,7 +18,6 @@ import errno
 import io
 import os
 import re
-import shutil
 import signal
 import tempfile
 import threading
@@ -35,7 +35,7 @@ __all__ = [
 PARTIAL_MARK = ".partial-"
 """What the name of every partial file (or folder) of an unfinished write holds: ``.NAME.partial-PID-XXXXXXXX``."""
 
-_PARTIAL = re.compile(r"^\..+\.partial-(\d+)-[a-z0-9_]{8}$")
+_PARTIAL = re.compile(r"^\.(.+)\.partial-(\d+)-[a-z0-9_]{8}$")
 """A partial file or folder of ours: the writer's process id, then :mod:`tempfile`'s 8 random characters."""
 _LEGACY = re.compile(r"^\.(.+)\.[a-z0-9_]{8}$")
 """The temporary files of the writes of earlier versions (``.NAME.XXXXXXXX``): only for the ``NAME`` being written."""
@@ -127,25 +127,29 @@ def _writer_running(pid: int) -> bool:
 
 
 def _stale(entry: os.DirEntry[str], targets: frozenset[str] | set[str]) -> bool:
-    if not is_partial_name(entry.name, targets):
+    """A partial file of one of ``targets`` (never a folder, never another name) whose writer is gone."""
+    new = _PARTIAL.match(entry.name)
+    if new is None and not is_partial_name(entry.name, targets):
         return False
+    if new is not None and new.group(1) not in {t[:180] for t in targets}:
+        return False  # looks partial, but of no file being written: not ours to judge
     try:
-        if _PARTIAL.match(entry.name) is None and not entry.is_file(follow_symlinks=False):
-            return False  # an earlier version's temporary was always a file
+        if not entry.is_file(follow_symlinks=False):
+            return False  # partial folders carry a marker (visnav.app.ownership)
         if entry.stat(follow_symlinks=False).st_mtime >= _RUN_START:
             return False  # written during this run: maybe by a concurrent writer
     except OSError:
         return False
-    new = _PARTIAL.match(entry.name)
-    return new is None or not _writer_running(int(new.group(1)))
+    return new is None or not _writer_running(int(new.group(2)))
 
 
 def clean_partial_files(folder: str | os.PathLike[str], targets: tuple[str, ...] = (), *,
                         again: bool = False) -> list[Path]:
-    """Remove the partial files (and folders) that interrupted writes left in ``folder``; return them.
+    """Remove the partial files that interrupted writes of ``targets`` left in ``folder``; return them.
 
-    A partial entry is stale when it is older than this run and its writer no longer runs (an
-    earlier version's temporary file ``.NAME.XXXXXXXX``: for a ``NAME`` in ``targets``).  A folder
+    A partial file ``.NAME.partial-PID-XXXXXXXX`` (or an earlier version's ``.NAME.XXXXXXXX``) of a
+    ``NAME`` in ``targets`` is stale when it is a regular file older than this run and its writer no
+    longer runs; nothing else is removed (a folder, another name).  A folder
     is listed once per process and target unless ``again``.  Errors are ignored: a stale file that
     cannot be removed is harmless, its name says it is partial.
     """
@@ -166,10 +170,7 @@ def clean_partial_files(folder: str | os.PathLike[str], targets: tuple[str, ...]
             continue
         path = where / entry.name
         try:
-            if entry.is_dir(follow_symlinks=False):
-                shutil.rmtree(path)
-            else:
-                os.unlink(path)
+            os.unlink(path)
             removed.append(path)
         except OSError:
             pass

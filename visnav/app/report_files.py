@@ -4,25 +4,33 @@ A report replaces its folder whole (:func:`write_report`), so that the folder ne
 
 1. every document and figure is rendered in memory (nothing is touched yet);
 2. the files are written into a hidden sibling folder ``.NAME.partial-PID-XXXXXXXX`` (beside the
-   folder ``NAME``, on the same file system), each atomically;
-3. the two folders are exchanged in one atomic step (Linux ``renameat2(RENAME_EXCHANGE)``), and the
-   old report, now under the partial name, is deleted.
+   folder ``NAME``, on the same file system), whose first file is a marker proving that visnav
+   created it (:data:`~visnav.app.ownership.PARTIAL_MARKER`) and whose last is the manifest
+   (:data:`~visnav.app.ownership.MANIFEST_NAME`: every file with its size and SHA-256);
+3. the folder ``NAME`` is checked again (a file saved into it during the run refuses the swap), the
+   two folders are exchanged in one atomic step (Linux ``renameat2(RENAME_EXCHANGE)``), and the old
+   report, now under the partial name, is deleted if its manifest still proves every file in it
+   visnav's (else it is put back and the run refused).
+
+Only a folder visnav wrote may be replaced: ``NAME`` must be absent, empty, or hold a valid
+manifest whose files all still have their recorded bytes and nothing else (a file browser's
+``.DS_Store`` aside).  Anything else -- a user's own ``report.md``, an extra or a modified file, a
+folder an earlier visnav wrote without a manifest -- is refused with an
+:class:`~visnav.app.files.OutputError` naming the files (:func:`check_report_folder`, called before
+the report is built and again right before the swap); nothing is deleted.  So are ``--out`` being
+the current folder (or holding it), a mount point and a folder whose parent is not writable.
 
 An interruption at any point (Ctrl-C, an error, ``kill -9``) leaves ``NAME`` holding the complete
 old report or the complete new one; what remains of the other is a sibling whose name says
-``partial``, removed by the next write beside it.  Where the file system cannot exchange two
-folders, the old one is renamed to ``.NAME.previous-PID-XXXXXXXX`` and the new one renamed in
-(Ctrl-C is held back between the two renames; on an error the old one is put back); only a hard
-kill between those two renames leaves ``NAME`` missing, the old report then complete in
-``.NAME.previous-…`` (deleted by the next report that is swapped in).
-
-Since the folder is replaced whole, it must hold a report and nothing else: ``report.json``,
-``report.md``, ``report.html``, ``figures/*.png``, ``counterexamples/*.json`` (verification
-counterexamples), partial files of ours (and a file browser's ``.DS_Store``).  Anything else, ``--out`` being the current folder (or
-holding it), a mount point or a folder whose parent is not writable is refused with an
-:class:`~visnav.app.files.OutputError` (:func:`check_report_folder`, called before the report is
-built).  The counterexample files (``counterexamples/NAME.json``, re-run by ``visnav replay``) sit
-next to the report, where its links point; the new folder keeps the old folder's mode.
+``partial`` and which holds the marker or a complete manifest: the next report of ``NAME`` deletes
+it once its writer no longer runs (:func:`~visnav.app.ownership.remove_stale_partials`); a folder that
+only has such a name is never deleted.  Where the file system cannot exchange two folders, the old
+one is renamed to ``.NAME.previous-PID-XXXXXXXX`` and the new one renamed in (Ctrl-C is held back
+between the two renames; on an error the old one is put back); only a hard kill between those two
+renames leaves ``NAME`` missing, the old report then complete in ``.NAME.previous-…`` (deleted by the
+next report that is swapped in, its manifest proving it visnav's).  The counterexample files
+(``counterexamples/NAME.json``, re-run by ``visnav replay``) sit next to the report, where its links
+point; the new folder keeps the old folder's mode.
 """
 
 from __future__ import annotations
@@ -32,31 +40,35 @@ import ctypes
 import errno
 import json
 import os
-import re
 import secrets
 import shutil
 import stat
 import sys
 import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from visnav.app.files import (
     sigint_deferred,
     OutputError,
-    clean_partial_files,
     figures_png,
     folder_mode,
-    is_partial_name,
     output_error,
     partial_prefix,
     write_bytes_atomic,
     write_text_atomic,
 )
+from visnav.app.ownership import (
+    MANIFEST_NAME,
+    PARTIAL_MARKER,
+    describe_entries,
+    mark_partial,
+    remove_stale_partials,
+    unowned_entries,
+    write_manifest,
+)
 from visnav.app.report import Report
 from visnav.app.report_render import render_html, render_markdown
-from visnav.app.verification_report import COUNTEREXAMPLE_DIR
 
 __all__ = ["FIGURE_DIR", "REPORT_FILES", "report_json_text", "check_report_folder", "write_report"]
 
@@ -72,8 +84,6 @@ _PREVIOUS = ".previous-"
 _MOST_LISTED = 5
 """Foreign entries named in the refusal (the others counted)."""
 
-_DESKTOP_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
-"""What a file browser writes into a folder it shows: not data, not refused (the swap drops it)."""
 
 
 def report_json_text(report: Report) -> str:
@@ -84,51 +94,10 @@ def report_json_text(report: Report) -> str:
 # --------------------------------------------------------------------------- the folder
 
 
-def _legacy_partial(name: str, suffix: str) -> bool:
-    """An earlier version's temporary file ``.X<suffix>.XXXXXXXX`` of a file ``X<suffix>``."""
-    target = name[1:-9]
-    return len(name) > 10 and name[-9] == "." and target.endswith(suffix) and is_partial_name(name, {target})
-
-
-def _is_counterexample(path: str) -> bool:
-    from visnav.app.cli_verify import is_verification_counterexample
-
-    try:
-        with open(path, encoding="utf-8", errors="replace") as handle:
-            return is_verification_counterexample(handle.read(4096))
-    except OSError:
-        return False
-
-
-def _foreign_entries(real: Path) -> list[str]:
-    """What ``real`` holds that no report wrote (relative paths; a folder ends with ``/``)."""
-    foreign: list[str] = []
-    with os.scandir(real) as listing:
-        entries = sorted(listing, key=lambda e: e.name)
-    for entry in entries:
-        name, is_dir = entry.name, entry.is_dir(follow_symlinks=False)
-        if is_partial_name(name, set(REPORT_FILES)) or name in _DESKTOP_FILES:
-            continue
-        if name in REPORT_FILES and entry.is_file(follow_symlinks=False):
-            continue
-        if name in (FIGURE_DIR, COUNTEREXAMPLE_DIR) and is_dir:
-            suffix = ".png" if name == FIGURE_DIR else ".json"
-            with os.scandir(entry.path) as inner:
-                for item in sorted(inner, key=lambda e: e.name):
-                    if (is_partial_name(item.name) or _legacy_partial(item.name, suffix)
-                            or item.name in _DESKTOP_FILES):
-                        continue
-                    ours = item.is_file(follow_symlinks=False) and item.name.endswith(suffix) and (
-                        name == FIGURE_DIR or _is_counterexample(item.path))
-                    if not ours:
-                        foreign.append(f"{name}/{item.name}" + ("/" if item.is_dir(follow_symlinks=False) else ""))
-            continue
-        foreign.append(name + ("/" if is_dir else ""))
-    return foreign
-
-
-def check_report_folder(folder: str | os.PathLike[str]) -> Path:
+def check_report_folder(folder: str | os.PathLike[str], shown: str | os.PathLike[str] | None = None) -> Path:
     """Check that a report can replace ``folder`` (module docstring); return its real path.
+
+    ``shown``: the folder as the messages name it (the ``--out`` the user gave; default ``folder``).
 
     Raises
     ------
@@ -137,7 +106,7 @@ def check_report_folder(folder: str | os.PathLike[str]) -> Path:
         are not part of a report, or its parent is not writable: the message says what to change.
     """
     given = Path(folder)
-    label = f"--out {str(given)!r}"
+    label = f"--out {str(given if shown is None else shown)!r}"
     real = Path(os.path.realpath(given))
     parent = real.parent
     if os.path.lexists(real) and not real.is_dir():
@@ -151,16 +120,16 @@ def check_report_folder(folder: str | os.PathLike[str]) -> Path:
                           "run visnav from outside it, or choose another --out")
     if real.is_dir():
         try:
-            foreign = _foreign_entries(real)
+            foreign = unowned_entries(real)
             mount = real == parent or os.stat(real).st_dev != os.stat(parent).st_dev
         except OSError as err:
             raise output_error(real, err, "read the folder") from err
         if foreign:
-            listed = ", ".join(foreign[:_MOST_LISTED]) + (
-                f" and {len(foreign) - _MOST_LISTED} more" if len(foreign) > _MOST_LISTED else "")
-            raise OutputError(f"{label} holds {len(foreign)} file(s) that are not part of a visnav report ({listed}); "
-                              "the report replaces the whole folder, so that it never mixes two runs: move them "
-                              "away, or choose an empty or new folder")
+            listed = describe_entries(foreign, _MOST_LISTED)
+            raise OutputError(f"{label} holds {len(foreign)} file(s) that are not part of a visnav report ({listed}): "
+                              f"not listed with their bytes in a {MANIFEST_NAME} that visnav wrote; the report "
+                              "replaces the whole folder, and only a folder visnav wrote or an empty one: move them "
+                              "away, or choose another --out (a new or empty folder)")
         if mount:
             raise OutputError(f"{label} is a mount point; the report is written beside the folder and swapped in, "
                               f"which cannot cross file systems: give a folder inside it (e.g. {str(given / 'report')!r})")
@@ -237,21 +206,6 @@ def _remove(path: Path) -> None:
         raise
 
 
-def _remove_previous(parent: Path, name: str) -> None:
-    """Delete the old reports a hard kill left moved aside (``.NAME.previous-PID-X``) by writers no longer running."""
-    pattern = re.compile(rf"^\.{re.escape(name[:180])}{re.escape(_PREVIOUS)}(\d+)-[0-9a-f]{{8}}$")
-    with contextlib.suppress(OSError), os.scandir(parent) as listing:
-        for entry in list(listing):
-            found = pattern.match(entry.name)
-            if found and entry.is_dir(follow_symlinks=False) and int(found.group(1)) != os.getpid():
-                try:
-                    os.kill(int(found.group(1)), 0)
-                except ProcessLookupError:
-                    _remove(parent / entry.name)
-                except (OverflowError, OSError):
-                    pass
-
-
 # --------------------------------------------------------------------------- writing
 
 
@@ -262,7 +216,8 @@ def _documents(report: Report, png: dict[str, bytes]) -> dict[str, str]:
 
 
 def _write_into(staging: Path, report: Report, png: dict[str, bytes], documents: dict[str, str]) -> list[str]:
-    """Write every file under ``staging``: figures, counterexample files, then the documents; their relative paths."""
+    """Write every file under ``staging``: figures, counterexample files, the documents, then the manifest (last);
+    the relative paths of the files (not the manifest)."""
     written: list[str] = []
     (staging / FIGURE_DIR).mkdir()
     for stem in sorted(png):
@@ -270,6 +225,9 @@ def _write_into(staging: Path, report: Report, png: dict[str, bytes], documents:
         write_bytes_atomic(staging / relative, png[stem])
         written.append(relative)
     for relative in sorted(report.files):
+        parts = relative.split("/")
+        if relative.startswith("/") or any(p in ("", ".", "..") for p in parts) or "\\" in relative:
+            raise OutputError(f"the report's file {relative!r} would leave its folder; this is a defect of visnav")
         path = staging / relative
         path.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomic(path, report.files[relative])
@@ -277,31 +235,63 @@ def _write_into(staging: Path, report: Report, png: dict[str, bytes], documents:
     for name in REPORT_FILES:
         write_text_atomic(staging / name, documents[name])
         written.append(name)
+    write_manifest(staging, written, "report")
+    os.unlink(staging / PARTIAL_MARKER)  # complete: its manifest now proves it visnav's
     return written
 
 
-def write_report(report: Report, folder: str | os.PathLike[str]) -> list[Path]:
+def _refusal(label: str, entries: list[str], when: str) -> OutputError:
+    return OutputError(f"{label}: {len(entries)} file(s) were saved into the folder or changed {when} "
+                       f"({describe_entries(entries, _MOST_LISTED)}); nothing was deleted and the folder is left as "
+                       "it is (the new report was not written): move them away and run again, or choose another --out")
+
+
+def _put_back(staging: Path, real: Path, old: Path) -> None:
+    """Undo :func:`_swap_in`: the old folder back at ``real``, the new one (ours) deleted."""
+    if old == staging:
+        if not _exchange(staging, real):  # pragma: no cover - exchanged a moment ago
+            raise OSError(errno.EIO, "cannot exchange the folders back", str(real))
+    else:
+        os.rename(real, staging)
+        os.rename(old, real)
+    _remove(staging)
+
+
+def _remove_if_ours(path: Path) -> None:
+    """Delete the old report moved aside, unless it holds anything its manifest does not prove visnav's."""
+    try:
+        unowned = unowned_entries(path)
+    except OSError:
+        return
+    if not unowned:
+        _remove(path)
+
+
+def write_report(report: Report, folder: str | os.PathLike[str], shown: str | os.PathLike[str] | None = None
+                 ) -> list[Path]:
     """Write the report as the whole content of ``folder`` (module docstring); return the paths written.
 
-    The folder's earlier content (a report, :func:`check_report_folder`) is replaced in one atomic
-    step once every new file is written: counterexample or figure files the new report does not
-    have are gone with it.  ``folder`` is created if needed.
+    The folder's earlier content (a report visnav wrote, :func:`check_report_folder`) is replaced in one
+    atomic step once every new file and the manifest are written: counterexample or figure files the
+    new report does not have are gone with it.  The folder is checked again right before the swap
+    and once more on the old content after it (put back if a file appeared meanwhile).  ``folder`` is
+    created if needed; ``shown`` is how messages name it (default ``folder``).
 
     Raises
     ------
     OutputError
-        The folder cannot be replaced (:func:`check_report_folder`) or a file cannot be written
-        (disk full, permission denied): the message names the path and the fix; the folder is
-        left as it was.
+        The folder cannot be replaced (:func:`check_report_folder`; a file saved into it during the
+        run) or a file cannot be written (disk full, permission denied): the message names the path
+        and the fix; the folder is left as it was.
     """
     given = Path(folder)
-    real = check_report_folder(given)
+    real = check_report_folder(given, shown)
     parent = real.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise output_error(parent, err, "create the folder") from err
-    clean_partial_files(parent, again=True)  # what interrupted reports beside this one left
+    remove_stale_partials(parent, real.name, (".partial-", _PREVIOUS))  # only those proven visnav's
     png = figures_png(report.figures)
     documents = _documents(report, png)
     mode = stat.S_IMODE(os.stat(real).st_mode) if real.is_dir() else folder_mode()
@@ -311,19 +301,28 @@ def write_report(report: Report, folder: str | os.PathLike[str]) -> list[Path]:
         raise output_error(parent, err, "create a folder in") from err
     swapped, old = False, None
     try:
+        mark_partial(staging, real.name)  # first: a folder left by a hard kill is provably ours
         os.chmod(staging, mode)
         written = _write_into(staging, report, png, documents)
         _fsync_dir(staging)
         with sigint_deferred():
+            check_report_folder(given, shown)  # again: a file saved into it while the report ran
             old = _swap_in(staging, real)
             swapped = True
+            late = [] if old is None else unowned_entries(old)
+            if late:  # saved between the check and the swap: the old folder goes back, untouched
+                _put_back(staging, real, old)
+                swapped, old = False, None
+                raise _refusal(f"--out {str(given if shown is None else shown)!r}", late,
+                               "while the report was being swapped in")
     except BaseException as err:
         if not swapped:
             _remove(staging)
         elif old is not None:
-            _remove(old)
-        if isinstance(err, OSError):  # named by where the file was going (not the hidden partial folder)
-            wrapped = output_error(given, err, "write the report into")
+            _remove_if_ours(old)
+        if isinstance(err, OSError) and not isinstance(err, OutputError) or (
+                isinstance(err, OutputError) and str(staging) in str(err)):
+            wrapped = output_error(given, err, "write the report into")  # named by where the file was going
             kept = "the folder is left as it was" if not swapped else "the new report is in place"
             out = OutputError(f"{str(wrapped).replace(str(staging), str(given))}; {kept}")
             out.errno = wrapped.errno
@@ -331,6 +330,5 @@ def write_report(report: Report, folder: str | os.PathLike[str]) -> list[Path]:
         raise
     _fsync_dir(parent)
     if old is not None:
-        _remove(old)
-    _remove_previous(parent, real.name)
+        _remove_if_ours(old)
     return [given / relative for relative in written]

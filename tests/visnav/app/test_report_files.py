@@ -49,8 +49,9 @@ def _new() -> Report:
     return _report(2, ("a",), ("y",))
 
 
-NEW_FILES = ["counterexamples/y.json", "figures/a.png", "report.html", "report.json", "report.md"]
-WRITES = len(NEW_FILES)  # write_bytes_atomic / write_text_atomic calls of the new report
+NEW_FILES = [".visnav-manifest.json", "counterexamples/y.json", "figures/a.png", "report.html", "report.json",
+             "report.md"]
+WRITES = len(NEW_FILES) - 1  # write_bytes_atomic / write_text_atomic calls of the new report (the manifest: its own)
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
@@ -63,8 +64,8 @@ def old_folder(tmp_path):
     out = tmp_path / "out"
     write_report(_old(), out)
     before = _snapshot(out)
-    assert sorted(before) == ["counterexamples/x.json", "figures/a.png", "figures/b.png", "report.html",
-                              "report.json", "report.md"]
+    assert sorted(before) == [".visnav-manifest.json", "counterexamples/x.json", "figures/a.png", "figures/b.png",
+                              "report.html", "report.json", "report.md"]
     return out, before
 
 
@@ -77,7 +78,7 @@ def test_a_new_report_replaces_the_folder_with_exactly_its_files(old_folder):
     written = write_report(_new(), out)
     after = _snapshot(out)
     assert sorted(after) == NEW_FILES  # the old x.json and b.png are gone: a git-tracked folder ends exact
-    assert sorted(str(p.relative_to(out)) for p in written) == NEW_FILES
+    assert sorted(str(p.relative_to(out)) for p in written) == NEW_FILES[1:]  # the manifest lists them
     assert after["figures/a.png"] != before["figures/a.png"] and b'"run": 2' in after["counterexamples/y.json"]
     assert b"--seed 2" in after["report.md"]
     assert _siblings(out) == []  # nothing left beside it
@@ -208,14 +209,21 @@ def test_stale_partial_files_are_cleaned_and_new_ones_say_partial(tmp_path, monk
 
 def test_a_stale_partial_report_folder_beside_the_report_is_cleaned(old_folder):
     out, _ = old_folder
-    leftover = out.parent / f".out.partial-{_dead_pid()}-abcd1234"
+    dead = _dead_pid()
+    leftover = out.parent / f".out.partial-{dead}-abcd1234"  # a hard kill while writing: the marker came first
     (leftover / "figures").mkdir(parents=True)
+    (leftover / ".visnav-partial").write_text(f'{{"format": "visnav-partial-folder", "name": "out", "pid": {dead}}}\n')
     (leftover / "report.md").write_text("half")
     _age(leftover)
-    previous = out.parent / f".out.previous-{_dead_pid()}-0123abcd"  # a kill -9 between the fallback's renames
-    previous.mkdir()
+    previous = out.parent / f".out.previous-{dead}-0123abcd"  # a kill -9 between the fallback's renames
+    shutil.copytree(out, previous)  # the old report, its manifest with it
+    look_alike = out.parent / f".out.partial-{dead}-0000aaaa"  # the same kind of name, no marker: not ours
+    look_alike.mkdir()
+    (look_alike / "notes.txt").write_text("mine")
+    _age(look_alike)
     write_report(_new(), out)
     assert not leftover.exists() and not previous.exists() and sorted(_snapshot(out)) == NEW_FILES
+    assert (look_alike / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize("mask, file_mode, dir_mode", [(0o022, 0o644, 0o755), (0o027, 0o640, 0o750)])
@@ -248,7 +256,7 @@ def test_a_disk_full_is_an_output_error_with_the_path_and_the_folder_is_kept(old
 
     def fsync(fd):
         calls[0] += 1
-        if calls[0] == 3:
+        if calls[0] == 4:  # after the partial folder's marker, a.png and y.json
             raise OSError(errno.ENOSPC, "No space left on device")
         real_fsync(fd)
 
