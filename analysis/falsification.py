@@ -562,11 +562,11 @@ def _dual_annealing(search: Search, seed: int, falsified: Mapping[int, Any]) -> 
 
 def _check_options(budget: object, method: object, seed: object) -> None:
     if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
-        raise FalsificationError("budget", budget, "a positive number of simulations", "give --budget 200")
+        raise FalsificationError("budget", budget, "a positive number of simulations", "give budget=200")
     if method not in METHODS:
-        raise FalsificationError("method", method, f"one of {', '.join(METHODS)}", "use --method guided")
+        raise FalsificationError("method", method, f"one of {', '.join(METHODS)}", "use method='guided'")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise FalsificationError("seed", seed, "a non-negative integer", "give --seed 0")
+        raise FalsificationError("seed", seed, "a non-negative integer", "give seed=0")
 
 
 def falsify(

@@ -42,14 +42,13 @@ from hybrid.jsonable import to_jsonable
 from analysis.falsification import DEFAULT_TIMEOUT_S, Evaluation, Outcome, Runner, Search, falsify
 from analysis.verification import Proof, VerificationProblem
 
-__all__ = ["VERDICTS", "OVERALL", "PASSES", "EXIT_CODES", "Counterexample", "Coverage", "RequirementVerdict",
+__all__ = ["VERDICTS", "OVERALL", "PASSES", "Counterexample", "Coverage", "RequirementVerdict",
            "VerificationResult", "verify", "coverage_of"]
 
 VERDICTS = ("proven", "falsified", "not_falsified", "incomplete")
 OVERALL = ("proven", "not_falsified", "falsified", "diverged", "incomplete", "error")
 PASSES = ("proven", "not_falsified")
 """The overall verdicts that pass; every other one fails a test (:func:`analysis.testing.assert_verified`)."""
-EXIT_CODES = {"proven": 0, "not_falsified": 0, "falsified": 1, "diverged": 3, "incomplete": 5, "error": 6}
 COVERAGE_BINS = 10
 
 
@@ -161,10 +160,6 @@ class VerificationResult:
     def passed(self) -> bool:
         """Whether the overall verdict is a pass (:data:`PASSES`)."""
         return self.verdict in PASSES
-
-    @property
-    def exit_code(self) -> int:
-        return EXIT_CODES[self.verdict]
 
     def requirement(self, name: str) -> RequirementVerdict:
         for r in self.requirements:

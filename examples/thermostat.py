@@ -29,11 +29,8 @@ that instant.
 
 from __future__ import annotations
 
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement, min_dwell
-from analysis.verification import Parameter, VerificationProblem
-from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition
-from hybrid.symbolic import coordinates, flow_map
+from analysis.verify import Parameter, Requirement, VerificationProblem, hybrid_problem, min_dwell
+from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition, coordinates, flow_map
 
 OUTSIDE_C = 10.0
 HEATER_C = 30.0

@@ -14,8 +14,8 @@ SciPy's integrators) are imported on first use of one of their names, so that
 a structural check does not pay for them.
 """
 
-import importlib
-from typing import Any
+import importlib as _importlib
+from typing import Any as _Any
 
 from .check import CheckReport, Finding, Witness, check
 from .decide import Claim, Decision, ParameterSpace, decide, exclusive_for_all
@@ -35,6 +35,7 @@ from .graph import mode_graph
 from .model import Conjunction, HybridAutomaton, MemoryVariable, Mode, Transition, all_of, transition_fires
 from .region import Box
 from .system import HybridSystem
+from .symbolic import coordinates, flow_map, jump_map, memory, output_map, param, reset
 
 _LAZY = {
     **dict.fromkeys(("FlowSegment", "HybridEvent", "HybridTrajectory", "simulate_continuous", "GuardResolutionWarning",
@@ -43,11 +44,11 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> _Any:
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'hybrid' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    value = getattr(_importlib.import_module(f".{module}", __name__), name)
     globals()[name] = value
     return value
 
@@ -56,6 +57,13 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
 
 __all__ = [
+    "coordinates",
+    "memory",
+    "param",
+    "flow_map",
+    "jump_map",
+    "output_map",
+    "reset",
     "check",
     "decide",
     "exclusive_for_all",

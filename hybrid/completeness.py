@@ -61,7 +61,7 @@ CHECK_KINDS: Mapping[str, tuple[str, ...]] = {
 }
 """The finding kinds each check reports."""
 
-SMT_CANNOT_DECIDE = "plain callables cannot be decided by SMT, use --method auto or sampled"
+SMT_CANNOT_DECIDE = "plain callables cannot be decided by SMT, use method 'auto' or 'sampled'"
 """Why a check is skipped under ``method="smt"`` on modes whose functions are not :mod:`hybrid.symbolic`."""
 
 _FROM_CLAIM = {"proven": "decided", "found": "finding", "sampled": "sampled", "undecided": "undecided",

@@ -169,3 +169,60 @@ def test_import_does_not_pull_upper_layers(package, forbidden):
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert proc.returncode == 0, f"{package} imported {proc.stdout.strip()} {proc.stderr[-500:]}"
+
+
+FACES = ("hybrid", "analysis.verify", "analysis.stl", "analysis.reach")
+"""Packages whose ``__init__`` is a face: the names a user needs, and exactly those."""
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_each_face_exports_exactly_its_public_names(face):
+    import importlib
+    from types import ModuleType
+
+    module = importlib.import_module(face)
+    public = {n for n, v in vars(module).items() if not n.startswith("_") and not isinstance(v, ModuleType)}
+    lazy = set(getattr(module, "_LAZY", {}))  # names loaded on first use (hybrid's executors)
+    assert len(module.__all__) == len(set(module.__all__)), f"{face}.__all__ repeats a name"
+    assert set(module.__all__) - lazy == public - lazy, (
+        f"{face}: public but not in __all__: {sorted(public - set(module.__all__))}; in __all__ but not defined: "
+        f"{sorted(set(module.__all__) - public - lazy)}")
+    for name in lazy & set(module.__all__):
+        getattr(module, name)
+
+
+def test_a_users_verification_needs_two_modules_the_worked_example_imports_from_hybrid_and_the_face():
+    tree = ast.parse((ROOT / "examples" / "thermostat.py").read_text())
+    modules = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module}
+    modules |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    assert modules - {"__future__"} == {"hybrid", "analysis.verify"}
+
+
+CLI_VOCABULARY = ("EXIT_", "--budget", "--seed", "--method", "--out", "--json", "--workers", "--variant", "--scenario",
+                  "--requirement", "exit code")
+"""Words of the command line: flags and exit codes belong to ``visnav.app`` alone."""
+CLI_ALLOWED = {"analysis.testing"}
+"""The pytest entry point's failure message says how to reproduce the search and replay its counterexample
+with the command line (``visnav verify ... --seed ...``): a user-facing instruction, not a behaviour."""
+
+
+def test_no_cli_vocabulary_below_the_application():
+    offenders = []
+    for module, path in MODULES.items():
+        if module.startswith("visnav.app") or module in CLI_ALLOWED:
+            continue
+        tree = ast.parse(path.read_text(), filename=str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Name) and node.id.startswith("EXIT_") or (
+                    isinstance(node, ast.Constant) and isinstance(node.value, str)
+                    and any(w in node.value for w in CLI_VOCABULARY[1:]) and not _is_docstring(tree, node)):
+                offenders.append(f"{module}:{node.lineno}: {getattr(node, 'id', None) or node.value[:60]!r}")
+    assert not offenders, "CLI words below visnav.app:\n" + "\n".join(offenders[:40])
+
+
+def _is_docstring(tree: ast.AST, node: ast.Constant) -> bool:
+    for parent in ast.walk(tree):
+        body = getattr(parent, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr) and body[0].value is node:
+            return True
+    return False

@@ -91,8 +91,8 @@ def loop_variant(name: str) -> tuple[str, bool]:
             return option, False
         if plus and option == SATURATED and supervisor in VARIANTS:
             return supervisor, True
-    raise ProblemError("--variant", name, f"one of {', '.join(variant_names())} (NAME a supervisor)",
-                       f"use --variant {RESOLVED}, or --variant {SATURATED} for the loop that clips its command")
+    raise ProblemError("variant", name, f"one of {', '.join(variant_names())} (NAME a supervisor)",
+                       f"use the variant {RESOLVED!r}, or {SATURATED!r} for the loop that clips its command")
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -155,16 +155,16 @@ def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved")
     if left_out and not requirements:
         from analysis.verification import ProblemError
 
-        raise ProblemError("--variant", variant, f"a loop that clips ({SATURATED}): every requirement of scenario "
+        raise ProblemError("variant", variant, f"a loop that clips ({SATURATED}): every requirement of scenario "
                            f"{base.name!r} reads the demand, which a loop that does not clip applies as it is",
-                           f"use --variant {SATURATED}, or add a requirement on the applied command (v_mps, ...)")
+                           f"use the variant {SATURATED!r}, or add a requirement on the applied command (v_mps, ...)")
     suffix = "" if variant == "resolved" else f"~{variant}"
     description = f"Folio & Cadenat closed loop, scenario {base.name}, supervisor {supervisor}"
     if saturate:
         description += ", applied commands clipped to the actuator limits (saturated loop)"
     if left_out:
         description += (f"; not verified here: {', '.join(left_out)} (they read the demand of (19), which this "
-                        f"loop applies unclipped: --variant {SATURATED} verifies them)")
+                        f"loop applies unclipped: the variant {SATURATED!r} verifies them)")
     return VerificationProblem(
         name=f"{base.name}{suffix}",
         simulate=PaperSimulation(scenario=base, perturbation=perturbation, labels=tuple(p.name for p in params),

@@ -63,7 +63,7 @@ def test_a_violation_is_found_shrunk_and_its_robustness_is_the_closed_form():
     never = result.requirement("never")
     assert never.verdict == "not_falsified"
     assert never.robustness == pytest.approx(-1.0 - 1.0 + 3.0, abs=1e-9)  # the polish reaches the corner a=b=-1
-    assert result.verdict == "falsified" and result.exit_code == 1
+    assert result.verdict == "falsified"
 
 
 def test_hypothesis_finds_a_corner_violation_the_nominal_point_does_not_show_and_shrinks_it():
@@ -124,7 +124,7 @@ def test_invalid_and_diverged_points_are_counted_never_counterexamples():
     assert result.invalid > 0 and "invalid > 0.5" in result.invalid_reasons[0]
     assert result.diverged and result.diverged[0]["status"] == "diverged"
     assert "blew up" in result.diverged[0]["detail"]
-    assert result.verdict == "diverged" and result.exit_code == 3
+    assert result.verdict == "diverged"
     # the diverged runs did not decide p: never passed on them (issue 24)
     p = result.requirement("p")
     assert p.verdict == "incomplete" and p.undecided == len(result.diverged) and not result.passed
@@ -139,7 +139,7 @@ def test_a_crash_in_the_users_simulator_is_reported_with_their_traceback():
     assert outcome.status == "error" and outcome.detail.startswith("KeyError")
     assert "KeyError" in outcome.traceback and "broken" in outcome.traceback
     result = verify(problem, budget=3, seed=0, method="monte-carlo")
-    assert result.verdict == "error" and result.exit_code == 6 and not result.passed
+    assert result.verdict == "error" and not result.passed
     assert result.requirement("p").verdict == "incomplete" and "broken" in result.errors[0]["traceback"]
 
 
@@ -153,7 +153,7 @@ def test_proofs_give_proven_only_when_rechecked_and_a_counterexample_overrides_t
     result = verify(problem, budget=10, seed=0)
     assert [r.verdict for r in result.requirements] == ["proven", "not_falsified", "falsified"]
     only_a = verify(problem.with_requirements(problem.requirements[:1]), budget=3, seed=0)
-    assert only_a.verdict == "proven" and only_a.exit_code == 0
+    assert only_a.verdict == "proven"
 
 
 @pytest.mark.parametrize("kwargs, parameter", [({"budget": 0}, "budget"), ({"budget": 2.5}, "budget"),

@@ -177,7 +177,7 @@ def test_a_scenario_with_requirements_on_the_demand_only_needs_the_saturated_loo
     with pytest.raises(ProblemError) as caught:
         paper_problem(only)
     assert "every requirement of scenario 'paper' reads the demand" in caught.value.render()
-    assert "--variant saturated" in caught.value.render()
+    assert "variant 'saturated'" in caught.value.render()
     assert paper_problem(only, SATURATED).requirement_names == ("demand_within_limits",)
 
 
@@ -187,7 +187,7 @@ def test_an_unknown_variant_is_refused_naming_the_known_ones(name):
     with pytest.raises(ProblemError) as caught:
         loop_variant(name)
     text = caught.value.render()
-    assert "--variant" in text and "saturated" in text and "paper" in text and repr(name) in text
+    assert "variant" in text and "saturated" in text and "paper" in text and repr(name) in text
 
 
 def test_the_cli_refuses_an_unknown_variant_with_exit_2(tmp_path, capsys):

@@ -177,7 +177,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     from analysis.falsification import FalsificationError, SimulationFailed
     from analysis.loading import ProblemLoadError
-    from analysis.verdicts import EXIT_CODES
+    from visnav.app.cli_types import VERDICT_EXIT_CODES as EXIT_CODES
     from hybrid.errors import ParameterError
 
     from visnav.app.ownership import anchored
@@ -372,6 +372,13 @@ _CHECK_EXIT = {"clean": EXIT_OK, "finding": EXIT_TASK_FAILED, "incomplete": EXIT
 """``check-model``'s exit code per :func:`visnav.app.structural.verdict_line` verdict: 0 only when complete and clean."""
 _MOST_FINDINGS = 20
 """Errors and warnings written out one per line in the human summary (``--json`` has them all)."""
+
+
+def cli_words(text: str) -> str:
+    """A library message in the command line's words (:func:`visnav.app.cli_verify.cli_words`)."""
+    from visnav.app.cli_verify import cli_words as words
+
+    return words(text)
 
 
 def _check_human(report: Any, source: str, elapsed: float, *, method: str, timeout_s: float | None,
@@ -652,9 +659,9 @@ def _check_problem(args: argparse.Namespace) -> int:
         out["clean"] = verdict_line(report)[0] == "clean"
         if timeout_s is not None:
             out.update(method=method, timeout_s=timeout_s)
-        print(json.dumps(out, sort_keys=True))
+        print(cli_words(json.dumps(out, sort_keys=True)))
     else:
-        print(_check_human(report, f"problem {problem.name}", elapsed, method=method, timeout_s=timeout_s))
+        print(cli_words(_check_human(report, f"problem {problem.name}", elapsed, method=method, timeout_s=timeout_s)))
     return _CHECK_EXIT[verdict_line(report)[0]]
 
 
@@ -685,10 +692,10 @@ def _cmd_check_model(args: argparse.Namespace) -> int:
         out.update(report.as_dict(), **completeness_data(report))
         if parametric is not None:
             out["parametric"] = parametric
-        print(json.dumps(out, sort_keys=True))
+        print(cli_words(json.dumps(out, sort_keys=True)))
     else:
-        print(_check_human(report, f"scenario {scenario.name}", elapsed, method=method, timeout_s=timeout_s,
-                           box="declared measurement box"))
+        print(cli_words(_check_human(report, f"scenario {scenario.name}", elapsed, method=method,
+                                     timeout_s=timeout_s, box="declared measurement box")))
         if parametric is not None:
             print(_parametric_human(parametric))
     return _CHECK_EXIT[verdict_line(report)[0]]

@@ -18,7 +18,7 @@ import argparse
 import math
 
 __all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
-           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
+           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "VERDICT_EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
@@ -33,6 +33,9 @@ EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
               EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "a check or run did not decide",
               EXIT_MODEL_ERROR: "the model's code raised", EXIT_INTERRUPTED: "interrupted"}
 """What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
+VERDICT_EXIT_CODES = {"proven": EXIT_OK, "not_falsified": EXIT_OK, "falsified": EXIT_TASK_FAILED,
+                      "diverged": EXIT_DIVERGED, "incomplete": EXIT_INCOMPLETE, "error": EXIT_MODEL_ERROR}
+"""The exit code of each overall verdict of a verification (:data:`analysis.verdicts.OVERALL`)."""
 
 
 def _whole(text: str, minimum: int, wanted: str) -> int:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import re
 from concurrent.futures import BrokenExecutor
 import hashlib
 import json
@@ -27,9 +28,9 @@ from typing import Any
 
 from analysis.falsification import DEFAULT_TIMEOUT_S
 
-from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_DIVERGED, non_negative_int, positive_int, positive_seconds
+from visnav.app.cli_types import VERDICT_EXIT_CODES, EXIT_BAD_INPUT, EXIT_DIVERGED, non_negative_int, positive_int, positive_seconds
 
-__all__ = ["add_parser", "load_verification_problem", "counterexample_text", "JOURNAL_FORMAT",
+__all__ = ["cli_words", "add_parser", "load_verification_problem", "counterexample_text", "JOURNAL_FORMAT",
            "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET"]
 
 JOURNAL_FORMAT = "visnav-verification-journal"
@@ -237,7 +238,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     except ProblemLoadError as error:
         return _bad_input(error.render(), error.user_traceback)
     except ParameterError as error:
-        return _bad_input(error.render())
+        return _bad_input(cli_words(error.render()))
     check_requirement_names(problem.requirement_names, f"problem {problem.name!r}")  # before the search
     shown = Path(args.out if args.out is not None else _default_out(safe_name(
         "the problem's name (VerificationProblem.name; for paper: the scenario's name)", problem.name,
@@ -294,7 +295,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(json.dumps(out, sort_keys=True))
     else:
         print(_human(result, written, resumed=len(cache)))
-    return result.exit_code
+    return VERDICT_EXIT_CODES[result.verdict]
 
 
 def _result_files(problem: Any) -> list[str]:
@@ -388,6 +389,19 @@ def _human(result: Any, written: Mapping[str, str], resumed: int) -> str:
         share = min(cov.bins_hit)
         lines.append(f"  coverage: {cov.points} points; every parameter hit >= {share:.0%} of its {10} bins")
     return "\n".join(lines)
+
+
+_CLI_WORDS = ((re.compile(r"^variant = "), "--variant = "), (re.compile(r"use the variant '([^']+)'"), r"use --variant \1"),
+              (re.compile(r", or '(saturated)' for"), r", or --variant \1 for"),
+              (re.compile(r"method '(auto)' or '(sampled)'"), r"--method \1 or \2"))
+"""The library's words for an option, in the command line's (``variant`` is ``--variant`` there)."""
+
+
+def cli_words(message: str) -> str:
+    """``message`` (a library error) with its option names as the command line spells them."""
+    for pattern, replacement in _CLI_WORDS:
+        message = pattern.sub(replacement, message)
+    return message
 
 
 def _bad_input(message: str, user_traceback: str = "") -> int:

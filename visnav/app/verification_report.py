@@ -45,6 +45,8 @@ from typing import Any
 
 from hybrid.jsonable import to_jsonable
 
+from visnav.app.cli_types import VERDICT_EXIT_CODES
+
 __all__ = [
     "CLAIM_STATUSES",
     "DEPENDENCIES",
@@ -357,7 +359,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
     summary = result.as_dict()
     data = {
         "problem": problem.name, "source": spec, "options": options, "description": problem.description,
-        "horizon_s": problem.horizon, "verdict": result.verdict, "exit_code": result.exit_code,
+        "horizon_s": problem.horizon, "verdict": result.verdict, "exit_code": VERDICT_EXIT_CODES[result.verdict],
         "method": result.method, "seed": result.seed, "budget": result.budget, "simulations": result.simulations,
         "invalid": result.invalid, "invalid_reasons": summary["invalid_reasons"], "diverged": summary["diverged"],
         "coverage": summary["coverage"], "parameters": _parameters(problem, result), "requirements": rows,

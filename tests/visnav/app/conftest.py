@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from analysis.verdicts import EXIT_CODES
+from visnav.app.cli_types import VERDICT_EXIT_CODES as EXIT_CODES
 
 ROOT = Path(__file__).resolve().parents[3]
 COMMITTED = ROOT / "reports" / "paper"
