@@ -130,10 +130,12 @@ def _build_problem_report(args: argparse.Namespace, options: Any, progress: Any)
     return report, folder, problem.name
 
 
-def _verdict_lines(rows: list[dict[str, Any]], folder: Any, most: int = 10) -> list[str]:
+def _verdict_lines(rows: list[dict[str, Any]], folder: Any, spec: str, most: int = 10) -> list[str]:
     """One line per requirement; beyond ``most`` the ones not falsified are counted, not listed."""
+    from visnav.app.cli_verify import replay_command
+
     shown = rows if len(rows) <= most else [r for r in rows if r["verdict"] != "not_falsified"]
-    lines = [f"  {r['verdict']:<14} {r['name']}" + (f"  replay: visnav replay {folder / r['counterexample_file']}"
+    lines = [f"  {r['verdict']:<14} {r['name']}" + (f"  replay: {replay_command(folder / r['counterexample_file'], spec)}"
                                                    if r["counterexample_file"] else "") for r in shown]
     if len(shown) < len(rows):
         lines.append(f"  not_falsified  {len(rows) - len(shown)} other requirement(s) (report.md has the table)")
@@ -205,7 +207,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         lines = [f"visnav report {subject}{' (quick)' if args.quick else ''}: {VERDICT_LABELS[verdict]}{task}; "
                  f"{counts['proven']} proven, {counts['measured']} measured, {counts['sampled']} sampled claims in "
                  f"{elapsed:.1f} s"]
-        lines += _verdict_lines(report.data["verification"]["requirements"], folder)
+        lines += _verdict_lines(report.data["verification"]["requirements"], folder,
+                                report.data["verification"].get("source") or "paper")
         lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
         lines += [f"  wrote {p}" for p in written]
         print("\n".join(lines))

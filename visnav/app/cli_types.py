@@ -15,16 +15,20 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
-           "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
+__all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INCOMPLETE",
+           "EXIT_MODEL_ERROR", "EXIT_INTERRUPTED", "EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
+EXIT_INCOMPLETE, EXIT_MODEL_ERROR = 5, 6
+"""A check or run that did not decide (skipped, undecided, ended early, timed out); the user's own model code
+raised during a run."""
 EXIT_INTERRUPTED = 130
 """Interrupted by SIGINT (128 + 2, the shells' convention)."""
 EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
               EXIT_BAD_INPUT: "bad input", EXIT_DIVERGED: "the run could not complete",
-              EXIT_INTERNAL: "internal error", EXIT_INTERRUPTED: "interrupted"}
+              EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "incomplete", EXIT_MODEL_ERROR: "model error",
+              EXIT_INTERRUPTED: "interrupted"}
 """What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
 
 

@@ -214,7 +214,9 @@ def _evidence(verdict: Any, result: Any, problem: Any) -> str:
     return text
 
 
-def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None) -> Claim:
+def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None, spec: str) -> Claim:
+    from visnav.app.cli_verify import replay_command
+
     label = VERDICT_LABELS[verdict.verdict]
     if verdict.verdict == "proven":
         return Claim(section="verification", status="proven",
@@ -225,7 +227,7 @@ def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None
         return Claim(section="verification", status="measured",
                      text=(f"requirement {verdict.name} {label}: robustness {_number(cx.robustness)} at "
                            f"{_point_text(cx.point, problem)}, violated at t = {cx.time:.4g} s by "
-                           f"`{cx.atom.strip()}`; replay with `visnav replay {file}`"))
+                           f"`{cx.atom.strip()}`; replay with `{replay_command(file, spec)}`"))
     share = _coverage_share(result)
     return Claim(section="verification", status="sampled",
                  text=(f"requirement {verdict.name} {label} in {verdict.simulations} simulations (method "
@@ -339,7 +341,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
             files[file] = counterexample_text(result, r, problem, spec, options)
         rows.append({**r.as_dict(), "history": list(r.history), "evidence": _evidence(r, result, problem),
                      "counterexample_file": file, "figure": stems[r.name]})
-    claims = [_requirement_claim(r, result, problem, row["counterexample_file"])
+    claims = [_requirement_claim(r, result, problem, row["counterexample_file"], spec)
               for r, row in zip(result.requirements, rows)]
     if result.diverged:
         claims.append(Claim(section="verification", status="measured",
