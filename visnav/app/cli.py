@@ -135,8 +135,9 @@ def _verdict_lines(rows: list[dict[str, Any]], folder: Any, spec: str, most: int
     from visnav.app.cli_verify import replay_command
 
     shown = rows if len(rows) <= most else [r for r in rows if r["verdict"] != "not_falsified"]
-    lines = [f"  {r['verdict']:<14} {r['name']}" + (f"  replay: {replay_command(folder / r['counterexample_file'], spec)}"
-                                                   if r["counterexample_file"] else "") for r in shown]
+    lines = [f"  {r['verdict']:<14} {r['name']}"
+             + (f"  replay: {replay_command(folder / r['counterexample_file'], spec)}" if r["counterexample_file"]
+                else "") for r in shown]
     if len(shown) < len(rows):
         lines.append(f"  not_falsified  {len(rows) - len(shown)} other requirement(s) (report.md has the table)")
     return lines
