@@ -118,7 +118,7 @@ def test_a_file_naming_os_abort_does_not_kill_the_process(tmp_path):
     assert "Traceback" not in done.stderr
 
 
-def test_the_problem_confirmed_on_the_command_line_is_replayed_twice_alike(tmp_path, capsys):
+def test_the_problem_confirmed_on_the_command_line_is_replayed_twice_alike(tmp_path, capsys, monkeypatch):
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "big", (-1.0,))  # x0 = 0.5: min 0.5 e^-2 = 0.068 < 0.2, violated
     first = _run(capsys, "replay", str(path), "--problem", spec, "--json")
@@ -128,12 +128,9 @@ def test_the_problem_confirmed_on_the_command_line_is_replayed_twice_alike(tmp_p
     assert data["robustness"] == pytest.approx(0.5 * 2.718281828459045 ** -2 - 0.2, rel=1e-12)
     assert _run(capsys, "replay", str(path), "--problem", spec, "--json") == first
     # the same file given by another path is the same problem (paths resolved, nothing imported to compare)
-    os.chdir(tmp_path)
-    try:
-        assert same_problem(spec, "./decay_problem.py:problem")
-        assert _run(capsys, "replay", str(path), "--problem", "decay_problem.py:problem")[0] == EXIT_TASK_FAILED
-    finally:
-        os.chdir(ROOT)
+    monkeypatch.chdir(tmp_path)
+    assert same_problem(spec, "./decay_problem.py:problem")
+    assert _run(capsys, "replay", str(path), "--problem", "decay_problem.py:problem")[0] == EXIT_TASK_FAILED
     assert not same_problem(spec, "decay_problem.py:other") and not same_problem("a.b:problem", "a.c:problem")
 
 
