@@ -56,7 +56,8 @@ def _message(problem: VerificationProblem, result: VerificationResult, budget: i
             f"    counterexample ({cx.how}): {point}",
             f"    reproduce: visnav verify {source} --seed {seed} --budget {budget} "
             f"--method {result.method} --out out/verify/{problem.name}   (then: visnav replay "
-            f"out/verify/{problem.name}/counterexamples/{r.name}.json)",
+            f"out/verify/{problem.name}/counterexamples/{r.name}.json"
+            f"{'' if source == 'paper' else f' --problem {source}'})",
         ]
     for d in (*result.errors[:1], *result.diverged[:3], *result.ended_early[:3]):
         lines.append(f"  {d['status']} at {dict(d['point'])}: {d['detail']}")

@@ -73,7 +73,7 @@ except ImportError:  # pragma: no cover - private names moved: fall back to inte
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError, format_time
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import _BOOL_TYPES, Transition, crossed
+from .model import Transition, crossed, not_a_number
 from .system import HybridSystem, call_user, real_value
 from .system import format_state as _fmt
 
@@ -571,17 +571,20 @@ class _Run:
                 if w.role == "guard":
                     tr = w.transition
                     raw = tr.guard(v, memory)  # type: ignore[union-attr]
-                    if isinstance(raw, _BOOL_TYPES):
+                    if raw.__class__ is not float and not_a_number(raw) is not None:
                         raise ValueError  # the careful pass names it
                     g = float(raw)
                     out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
                 elif w.role == "invariant":
                     raw = self.invariants[mode](v, memory)  # type: ignore[misc]
-                    if isinstance(raw, _BOOL_TYPES):
+                    if raw.__class__ is not float and not_a_number(raw) is not None:
                         raise ValueError
                     out.append(-float(raw))
                 else:
-                    out.append(float(self.stops[w.name](t, x, mode, memory)))
+                    raw = self.stops[w.name](t, x, mode, memory)
+                    if raw.__class__ is not float and not_a_number(raw) is not None:
+                        raise ValueError
+                    out.append(float(raw))
             self.guard_evaluations += len(watches)
             for value in out:
                 if value != value:

@@ -19,7 +19,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .errors import ExecutionError, ModelDefinitionError, UserFunctionError
-from .model import HybridAutomaton, Transition, refuse_bool
+from .model import HybridAutomaton, Transition, real_number
 from .region import Box
 from .system import HybridSystem
 
@@ -199,14 +199,7 @@ class _Oracle:
         )
 
     def _real(self, value: Any, what: str, x: Sequence[float], m: Mapping[str, float]) -> float:
-        if value.__class__ is not float:
-            refuse_bool(value, f"check of {self.what}: {what}")
-        try:
-            r = float(value)
-        except (TypeError, ValueError) as err:
-            raise ExecutionError(
-                f"check of {self.what}: {what} returned {value!r} at {self.where(x, m)}; expected a real number"
-            ) from err
+        r = real_number(value, f"check of {self.what}: {what}", f"at {self.where(x, m)}")
         if r != r:
             raise ExecutionError(
                 f"check of {self.what}: {what} returned NaN at {self.where(x, m)}; "

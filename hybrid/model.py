@@ -61,6 +61,8 @@ __all__ = [
     "all_of",
     "BOOL_GUARD_HINT",
     "refuse_bool",
+    "not_a_number",
+    "real_number",
 ]
 
 BOOL_GUARD_HINT = (
@@ -71,6 +73,59 @@ BOOL_GUARD_HINT = (
 
 
 _BOOL_TYPES = (bool, np.bool_)
+
+
+_TEXT_TYPES = (str, bytes, bytearray)
+
+
+def not_a_number(value: Any) -> str | None:
+    """Why ``value`` is not one real number as a guard, an invariant, a stop or a reset must return, or ``None``.
+
+    The one rule of those values, shared by the executors and the structural checks: a bool (it would read
+    as 0.0 or 1.0), text (``float("1")`` would silently read ``"1"`` as 1.0), a complex number, or anything
+    ``float()`` does not take is not one; ints, floats and numpy's real scalars are.  NaN is a number: each
+    caller refuses it with its own context.
+    """
+    if value.__class__ is float:
+        return None
+    if isinstance(value, _BOOL_TYPES):
+        return "a bool"
+    if isinstance(value, _TEXT_TYPES):
+        return f"text ({type(value).__name__}), not a number: return the number itself, e.g. 1.0 rather than '1'"
+    if isinstance(value, complex) or np.iscomplexobj(value):
+        return "a complex number"
+    try:
+        float(value)
+    except (TypeError, ValueError, OverflowError):
+        return "not a number"
+    return None
+
+
+def real_number(value: Any, what: str, where: str, *, bool_what: str | None = None) -> float:
+    """``float(value)`` for one real number (:func:`not_a_number`), else an :class:`ExecutionError`.
+
+    Parameters
+    ----------
+    value : object
+        What the user's guard, invariant, stop function or reset returned.
+    what : str
+        Names the function (``"guard of transition 'go'"``).
+    where : str
+        The context after the value (``"in mode 'a' at t = 1 s, x = (0)"``).
+    bool_what : str, optional
+        ``what`` for the bool message (:func:`refuse_bool`); ``what`` by default.
+
+    Returns
+    -------
+    float
+        The value, possibly NaN (the caller refuses it with its own message).
+    """
+    reason = not_a_number(value)
+    if reason is None:
+        return value if value.__class__ is float else float(value)
+    if reason == "a bool":
+        refuse_bool(value, bool_what or what)
+    raise ExecutionError(f"{what} returned {value!r} {where}; expected one real number ({reason})")
 
 
 def refuse_bool(value: Any, what: str) -> None:
@@ -390,6 +445,9 @@ class HybridAutomaton:
             if isinstance(value, _BOOL_TYPES):
                 raise ModelDefinitionError(f"automaton {self.name!r}: {what} returns a bool ({value!r}); "
                                            f"{BOOL_GUARD_HINT}")
+            if isinstance(value, _TEXT_TYPES):
+                raise ModelDefinitionError(f"automaton {self.name!r}: {what} returns {value!r}; "
+                                           f"expected one real number ({not_a_number(value)})")
 
     # ------------------------------------------------------------------ queries
     @property
@@ -485,7 +543,7 @@ def guard_value(t: Transition, v: Sequence[float], memory: Mapping[str, float]) 
     """
     g = t.guard(v, memory)
     if g.__class__ is not float:
-        refuse_bool(g, f"guard of transition {t.name!r} (from mode {t.source!r})")
+        g = real_number(g, f"guard of transition {t.name!r} (from mode {t.source!r})", f"at signals {tuple(v)!r}")
     if g != g:
         raise ExecutionError(
             f"guard of transition {t.name!r} (from mode {t.source!r}) is NaN at signals {tuple(v)!r}; "

@@ -63,7 +63,7 @@ from .errors import (
     UserFunctionError,
     format_time,
 )
-from .model import _BOOL_TYPES, HybridAutomaton, Transition, refuse_bool
+from .model import _BOOL_TYPES, HybridAutomaton, Transition, real_number
 
 __all__ = ["FlowMap", "JumpMap", "OutputMap", "HybridSystem", "call_user", "real_value", "format_state", "state_vector"]
 
@@ -449,7 +449,8 @@ def state_vector(name: str, value: Any, state_names: Sequence[str], *,
 
 
 def real_value(value: Any, what: str, mode: str | None, t: float, x: Sequence[float]) -> float:
-    """``float(value)`` of a guard, invariant, stop or reset value; a bool, non-number or NaN is refused.
+    """``float(value)`` of a guard, invariant, stop or reset value; a bool, text, non-number or NaN is refused
+    (:func:`hybrid.model.real_number`, the rule the structural checks apply too).
 
     Raises
     ------
@@ -458,15 +459,8 @@ def real_value(value: Any, what: str, mode: str | None, t: float, x: Sequence[fl
     """
     if value.__class__ is float and value == value:
         return value
-    if isinstance(value, _BOOL_TYPES):
-        refuse_bool(value, f"{what} (mode {mode!r}, t = {t:.17g} s)")
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise ExecutionError(
-            f"{what} returned {value!r} in mode {mode!r} at t = {t:.17g} s, x = {format_state(x)}; "
-            "expected one real number"
-        ) from None
+    out = real_number(value, what, f"in mode {mode!r} at t = {t:.17g} s, x = {format_state(x)}",
+                      bool_what=f"{what} (mode {mode!r}, t = {t:.17g} s)")
     if out != out:
         raise ExecutionError(f"{what} is NaN in mode {mode!r} at t = {t:.17g} s, x = {format_state(x)}")
     return out

@@ -14,7 +14,7 @@ Examples
 0.5
 """
 
-from analysis.stl.semantics import TIME_RESOLUTION, Explanation, Formula, parse_formula
+from analysis.stl.semantics import TIME_RESOLUTION, Explanation, Formula, FormulaValueError, parse_formula
 from analysis.stl.syntax import FormulaError
 from analysis.stl.trace import SignalTrace, TraceError
 
@@ -23,6 +23,7 @@ __all__ = [
     "Explanation",
     "Formula",
     "FormulaError",
+    "FormulaValueError",
     "SignalTrace",
     "TraceError",
     "parse_formula",

@@ -15,9 +15,11 @@ At sample ``i`` (``t_i``; index order breaks ties between the two sides of a jum
 
 A window is truncated to the samples present; an empty window gives ``+inf``
 for always/historically and ``-inf`` for eventually/once/until/since.  Window
-bounds are compared with a slack of :data:`TIME_RESOLUTION` times
-``max(1, |t|)`` seconds, so that sampled times with rounding drift (``k * 0.05``
-accumulated) land in the windows their bounds mean.  This matches rtamt's
+bounds are compared with the slack of :func:`time_slack`, relative to the
+window and the sample period (never to the absolute times: a trace stamped
+around 1.7e9 s gets the same windows as one starting at 0), so that sampled
+times with rounding drift (``k * 0.05`` accumulated) land in the windows their
+bounds mean.  This matches rtamt's
 discrete-time offline monitor sample for sample on uniformly sampled traces
 (``tests/analysis/stl/test_rtamt_oracle.py``); ``docs/stl.md`` has the full
 statement.
@@ -80,16 +82,58 @@ from analysis.stl.trace import SignalTrace, TraceError
 
 __all__ = [
     "TIME_RESOLUTION",
+    "STAMP_ULPS",
+    "FormulaValueError",
     "Explanation",
     "Formula",
     "parse_formula",
+    "time_slack",
     "window_bounds",
     "window_reduce",
     "until_values",
 ]
 
 TIME_RESOLUTION = 1e-9
-"""Relative slack of window bounds: instants closer than ``TIME_RESOLUTION * max(1, |t|)`` s compare equal."""
+"""Relative slack of window bounds, per second of the window's extent (``max(1 s, a, b)``; :func:`time_slack`)."""
+STAMP_ULPS = 4
+"""Rounding units of the largest time stamp allowed per sample step a window spans (:func:`time_slack`)."""
+
+class FormulaValueError(TraceError):
+    """A formula's arithmetic is not finite at a sample (a division by zero, an overflow): the formula's fault.
+
+    A :class:`TraceError` (the trace's values are finite: :class:`SignalTrace` refuses others), so code
+    catching trace errors still catches it; catch this one first to blame the formula, not the simulator.
+
+    Attributes
+    ----------
+    formula : str
+        The formula's text (as written).
+    expression : str
+        Canonical text of the expression that is not finite.
+    index : int
+        First sample where it is not finite.
+    time : float
+        That sample's time [s].
+    value : float
+        The value there (``inf``, ``-inf`` or ``nan``).
+    count : int
+        Samples where it is not finite.
+    """
+
+    def __init__(self, formula: str, expression: str, index: int, time: float, value: float, count: int,
+                 samples: int) -> None:
+        self.formula, self.expression, self.index, self.time = formula, expression, index, time
+        self.count, self.samples = count, samples
+        super().__init__(
+            f"formula {' '.join(formula.split())!r}: expression {expression} at sample {index} "
+            f"(t = {time:.9g} s)", value, "a finite number",
+            "avoid divisions by zero and overflows in the formula, e.g. guard a denominator with max(abs(d), 1e-9) "
+            f"({count} of {samples} samples are not finite)")
+
+    def __reduce__(self):
+        return (type(self), (self.formula, self.expression, self.index, self.time, self.value, self.count,
+                             self.samples))
+
 
 _FORMULA_NODES = (Const, Compare, LabelIs, Not, And, Or, Implies, Temporal, Until, Edge)
 _MIN_OPS = ("always", "historically")
@@ -97,6 +141,38 @@ _PAST_OPS = ("historically", "once", "since")
 
 
 # --------------------------------------------------------------------------- windows
+
+
+def time_slack(times: np.ndarray, interval: tuple[float, float] | None) -> float:
+    """Slack [s] with which the bounds of the window ``interval`` are compared on ``times``.
+
+    ``min(TIME_RESOLUTION * max(1, a, b) + STAMP_ULPS * ulp(T) * (1 + m), h / 4)``: the rounding of the
+    window's decimal bounds (``0.1 + 0.2`` vs ``0.3``), plus the rounding of the time stamps themselves
+    (``T = max(|t_0|, |t_n-1|)``, accumulated over the ``m = min(n, b / h)`` sample steps the window spans),
+    but never more than a quarter of the smallest positive sample step ``h``, so a bound never reaches a
+    neighbouring sample.  It depends on the window and the sampling, not on where the times start.
+
+    Parameters
+    ----------
+    times : ndarray, shape (n,)
+        Non-decreasing sample times [s].
+    interval : (a, b) or None
+        The window [s]; ``None`` is ``[0, inf)``.
+
+    Returns
+    -------
+    float
+        The slack [s], >= 0.
+    """
+    a, b = (0.0, math.inf) if interval is None else interval
+    extent = b if math.isfinite(b) else a
+    steps = np.diff(times)
+    steps = steps[steps > 0]
+    h = float(steps.min()) if steps.size else math.inf
+    spanned = min(float(times.size), extent / h)
+    magnitude = max(abs(float(times[0])), abs(float(times[-1])))
+    slack = TIME_RESOLUTION * max(1.0, a, extent) + STAMP_ULPS * math.ulp(magnitude) * (1.0 + spanned)
+    return min(slack, h / 4)
 
 
 def window_bounds(times: np.ndarray, interval: tuple[float, float] | None, *, past: bool) -> tuple[np.ndarray,
@@ -108,7 +184,7 @@ def window_bounds(times: np.ndarray, interval: tuple[float, float] | None, *, pa
     times : ndarray, shape (n,)
         Non-decreasing sample times [s].
     interval : (a, b) or None
-        Window [s]; ``None`` is ``[0, inf)`` (the whole past).
+        Window [s]; ``None`` is ``[0, inf)`` (the whole past). Bounds compared with :func:`time_slack`.
     past : bool
         ``False``: samples ``k >= i`` with ``t_k - t_i`` in ``[a, b]``; ``True``: ``k <= i`` with
         ``t_i - t_k`` in ``[a, b]``.
@@ -119,7 +195,7 @@ def window_bounds(times: np.ndarray, interval: tuple[float, float] | None, *, pa
         The window of sample ``i`` is ``lo[i] .. hi[i]`` (inclusive), empty when ``lo[i] > hi[i]``.
     """
     a, b = (0.0, math.inf) if interval is None else interval
-    eps = TIME_RESOLUTION * max(1.0, abs(float(times[0])), abs(float(times[-1])))
+    eps = time_slack(times, interval)
     index = np.arange(times.size)
     if past:
         lo = np.searchsorted(times, times - b - eps, side="left")
@@ -199,18 +275,15 @@ def _since_values(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarr
 # --------------------------------------------------------------------------- evaluators
 
 
-def _where(trace: SignalTrace, k: int) -> str:
-    return f"sample {k} (t = {float(trace.times[k]):.9g} s)"
-
-
 class _Evaluator:
     """Values of every subformula at every sample, memoised per node; subclasses give the atoms' meaning."""
 
     top: object
     bottom: object
 
-    def __init__(self, trace: SignalTrace) -> None:
+    def __init__(self, trace: SignalTrace, text: str = "") -> None:
         self.trace = trace
+        self.text = text
         self.values: dict[int, np.ndarray] = {}
         self.nodes: list[object] = []  # keeps the ids of self.values alive
         self.windows: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
@@ -265,15 +338,14 @@ class _Evaluator:
         raise TypeError(f"not a formula node: {node!r}")
 
     def expression(self, expr: object) -> np.ndarray:
-        """Float values of an arithmetic expression, shape (n,); a non-finite value is a :class:`TraceError`."""
+        """Float values of an arithmetic expression, shape (n,); a non-finite value is a :class:`FormulaValueError`."""
         with np.errstate(all="ignore"):
             x = self._arithmetic(expr)
         bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
             k = int(bad[0])
-            raise TraceError(f"expression {canonical(expr)} at {_where(self.trace, k)}", float(x[k]),
-                             "a finite number", "avoid divisions by zero and overflows in the formula "
-                             f"({bad.size} of {x.size} samples are not finite)")
+            raise FormulaValueError(self.text or canonical(expr), canonical(expr), k, float(self.trace.times[k]),
+                                    float(x[k]), int(bad.size), int(x.size))
         return x
 
     def _arithmetic(self, expr: object) -> np.ndarray:
@@ -301,7 +373,7 @@ class _Evaluator:
         values = self.trace.label(label)
         distinct, inverse = np.unique(np.array(values, dtype=object).astype(str), return_inverse=True)
         regex = label_pattern(pattern)
-        hit = np.array([regex.fullmatch(str(v)) is not None for v in distinct], dtype=bool)
+        hit = np.array([regex.fullmatch(str(v)) for v in distinct], dtype=bool)
         return hit[inverse.reshape(-1)]
 
     def compare(self, op: str, left: np.ndarray, right: np.ndarray, node: object) -> np.ndarray:
@@ -622,7 +694,7 @@ class Formula:
     def robustness_signal(self, trace: SignalTrace) -> np.ndarray:
         """Robustness at every sample, shape (n,), in the units of the atoms (``+-inf`` allowed)."""
         self.check_trace(trace)
-        return _Robustness(trace).value(self.tree).astype(float, copy=True)
+        return _Robustness(trace, self.text).value(self.tree).astype(float, copy=True)
 
     def robustness(self, trace: SignalTrace) -> float:
         """Robustness at the first sample."""
@@ -631,7 +703,7 @@ class Formula:
     def satisfied_signal(self, trace: SignalTrace) -> np.ndarray:
         """Boolean semantics at every sample, shape (n,), bool."""
         self.check_trace(trace)
-        return _Boolean(trace).value(self.tree).astype(bool, copy=True)
+        return _Boolean(trace, self.text).value(self.tree).astype(bool, copy=True)
 
     def satisfied(self, trace: SignalTrace) -> bool:
         """Boolean semantics at the first sample (a separate evaluation, not ``robustness > 0``)."""
@@ -679,7 +751,7 @@ class Formula:
         self.check_trace(trace)
         if not 0 <= index < trace.n:
             raise TraceError("index", index, f"a sample index in [0, {trace.n - 1}]", "explain an existing sample")
-        ev = _Robustness(trace)
+        ev = _Robustness(trace, self.text)
         node, i = self.tree, int(index)
         ev.value(node)
         while (step := _step(ev, node, i)) is not None:

@@ -38,6 +38,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple, Union
 
+from analysis.stl.patterns import LabelPattern
+
 __all__ = [
     "BUILTIN_SIGNALS",
     "KEYWORDS",
@@ -853,7 +855,7 @@ def _is_expr(node: object) -> bool:
 
 
 @lru_cache(maxsize=256)
-def label_pattern(pattern: str) -> re.Pattern[str]:
-    """The compiled pattern of a label atom: ``*`` is any string, ``?`` any one character, the rest literal."""
-    body = "".join(".*" if c == "*" else "." if c == "?" else re.escape(c) for c in pattern)
-    return re.compile(body, re.DOTALL)
+def label_pattern(pattern: str) -> LabelPattern:
+    """The compiled pattern of a label atom (:class:`~analysis.stl.patterns.LabelPattern`: ``*`` is any string,
+    ``?`` any one character, the rest literal; ``.fullmatch(value)`` in linear time, no backtracking)."""
+    return LabelPattern(pattern)

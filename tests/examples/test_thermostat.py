@@ -59,7 +59,9 @@ def test_cli_verify_and_replay_exit_codes(tmp_path):
     data = json.loads(bad.stdout)
     cx = data["requirements"][1]["counterexample"]
     assert data["verdict"] == "falsified" and Path(cx["file"]).is_file()
-    replay = _visnav("replay", cx["file"], "--json", cwd=tmp_path)
+    refused = _visnav("replay", cx["file"], "--json", cwd=tmp_path)  # the file's problem is not run unconfirmed
+    assert refused.returncode == 2 and "re-run with --problem" in refused.stderr and refused.stdout == ""
+    replay = _visnav("replay", cx["file"], "--problem", f"{EXAMPLE}:zero_band", "--json", cwd=tmp_path)
     assert replay.returncode == 1, replay.stderr
     assert json.loads(replay.stdout)["violated"] is True
 

@@ -162,11 +162,14 @@ def _scenario_report_folder(args: argparse.Namespace, scenario: Any) -> tuple[Pa
     return shown, folder
 
 
-def _verdict_lines(rows: list[dict[str, Any]], folder: Any, most: int = 10) -> list[str]:
+def _verdict_lines(rows: list[dict[str, Any]], folder: Any, spec: str, most: int = 10) -> list[str]:
     """One line per requirement; beyond ``most`` the ones not falsified are counted, not listed."""
+    from visnav.app.cli_verify import replay_command
+
     shown = rows if len(rows) <= most else [r for r in rows if r["verdict"] != "not_falsified"]
-    lines = [f"  {r['verdict']:<14} {r['name']}" + (f"  replay: visnav replay {folder / r['counterexample_file']}"
-                                                   if r["counterexample_file"] else "") for r in shown]
+    lines = [f"  {r['verdict']:<14} {r['name']}"
+             + (f"  replay: {replay_command(folder / r['counterexample_file'], spec)}" if r["counterexample_file"]
+                else "") for r in shown]
     if len(shown) < len(rows):
         lines.append(f"  not_falsified  {len(rows) - len(shown)} other requirement(s) (report.md has the table)")
     return lines
@@ -237,11 +240,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
         lines = [f"visnav report {subject}{' (quick)' if args.quick else ''}: {VERDICT_LABELS[verdict]}{task}; "
                  f"{counts['proven']} proven, {counts['measured']} measured, {counts['sampled']} sampled claims in "
                  f"{elapsed:.1f} s"]
-        lines += _verdict_lines(report.data["verification"]["requirements"], folder)
+        lines += _verdict_lines(report.data["verification"]["requirements"], folder,
+                                report.data["verification"].get("source") or "paper")
         if "saturated" in report.data:  # the loop clipping its commands: its own verdict, not the report's
             saturated = report.data["saturated"]
             lines.append(f"  saturated loop ({saturated['problem']}): {VERDICT_LABELS[saturated['verdict']]}")
-            lines += _verdict_lines(saturated["requirements"], folder)
+            lines += _verdict_lines(saturated["requirements"], folder, saturated.get("source") or "paper")
         lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
         lines += [f"  wrote {p}" for p in written]
         print("\n".join(lines))

@@ -8,12 +8,17 @@ property failed, 0 if all held.  A progress bar goes to standard error when
 it is a terminal (or with ``--progress``).  With ``--json`` it prints one
 JSON object, byte-identical for the same arguments (no timings in it).
 
-``visnav replay FILE [--all] [--json]`` runs a counterexample again and shows
+``visnav replay FILE [--problem SPEC] [--all] [--json]`` runs a counterexample again and shows
 the trace and the violated property; exit 1 if the property still fails, 0
 if it now holds, 2 if the file cannot be read (missing, a folder, not a
 regular file, over :data:`analysis.counterexamples.MAX_FILE_BYTES`, not UTF-8)
 or is malformed (not strict JSON, another format or version, a missing,
-unknown or ill-typed key, a scenario the scenario validator refuses).
+unknown or ill-typed key, a scenario the scenario validator refuses).  A file
+never chooses code to run: a fuzz counterexample names a property and a variant
+of visnav's registries (looked up, never imported); a ``visnav verify``
+counterexample of a user's problem is replayed only with ``--problem SPEC``
+naming the same problem (:mod:`visnav.app.cli_replay`), ``--problem`` is refused
+for a fuzz counterexample.
 """
 
 from __future__ import annotations
@@ -86,7 +91,11 @@ def add_parser(sub: Any) -> None:
     fz.add_argument("--no-shrink", action="store_true", help="keep the first failing example (faster, longer)")
     fz.set_defaults(func=cmd_fuzz)
     rp = sub.add_parser("replay", help="replay a saved counterexample: its trace and the violated property")
-    rp.add_argument("file", help="a counterexample written by visnav fuzz")
+    rp.add_argument("file", help="a counterexample written by visnav fuzz or visnav verify")
+    rp.add_argument("--problem", default=None, metavar="SPEC",
+                    help="the problem a visnav verify counterexample was found on, to confirm it (the file's own "
+                         "is never imported): package.module:OBJECT or path/to/file.py:OBJECT; not needed for "
+                         "paper")
     rp.add_argument("--all", action="store_true", help="show every sample of the trace")
     rp.add_argument("--json", action="store_true", help="print one JSON object")
     rp.set_defaults(func=cmd_replay)
@@ -263,14 +272,20 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"visnav: error: replay {args.file!r}: {err.problem}; give a counterexample file written by "
               "visnav fuzz or visnav verify", file=sys.stderr)
         return exit_bad
-    from visnav.app.cli_verify import is_verification_counterexample, replay_verification
+    from visnav.app.cli_replay import replay_verification
+    from visnav.app.cli_verify import is_verification_counterexample
 
     if is_verification_counterexample(text):
-        return replay_verification(text, args.file, args.json)
+        return replay_verification(text, args.file, args.json, args.problem)
     try:
         cx = counterexample_from_json(text, args.file)
     except CounterexampleError as err:
         print(f"visnav: error: replay: {err}", file=sys.stderr)
+        return exit_bad
+    if args.problem is not None:
+        print(f"visnav: error: replay {args.file!r}: --problem {args.problem!r} given for a visnav fuzz "
+              f"counterexample, which names property {cx.property!r} of visnav fuzz, not a problem; drop --problem",
+              file=sys.stderr)
         return exit_bad
     result = replay(cx)
     if args.json:

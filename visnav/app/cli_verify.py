@@ -21,6 +21,7 @@ import re
 from concurrent.futures import BrokenExecutor
 import hashlib
 import json
+import shlex
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -30,8 +31,8 @@ from analysis.falsification import DEFAULT_TIMEOUT_S
 
 from visnav.app.cli_types import VERDICT_EXIT_CODES, EXIT_BAD_INPUT, EXIT_DIVERGED, non_negative_int, positive_int, positive_seconds
 
-__all__ = ["cli_words", "add_parser", "load_verification_problem", "counterexample_text", "JOURNAL_FORMAT",
-           "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET"]
+__all__ = ["cli_words", "add_parser", "load_verification_problem", "counterexample_text", "replay_command",
+           "JOURNAL_FORMAT", "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET", "PAPER"]
 
 JOURNAL_FORMAT = "visnav-verification-journal"
 COUNTEREXAMPLE_FORMAT = "visnav-verification-counterexample"
@@ -43,6 +44,15 @@ JOURNAL_FILE = "evaluations.jsonl"
 """The search's journal in the ``--out`` folder (appended as the simulations finish)."""
 DEFAULT_BUDGET = 120
 """Default simulations per run (the paper's problem: about 40 s on one core)."""
+PAPER = "paper"
+"""The built-in problem (the case study): it names no user code, so ``visnav replay`` needs no ``--problem``."""
+
+
+def replay_command(path: Any, spec: str) -> str:
+    """The command replaying the counterexample file ``path`` of problem ``spec`` (``--problem`` unless paper:
+    ``visnav replay`` runs only a problem the command line names, :mod:`visnav.app.cli_replay`)."""
+    command = f"visnav replay {shlex.quote(str(path))}"
+    return command if spec == PAPER else f"{command} --problem {shlex.quote(spec)}"
 
 
 def add_parser(sub: Any) -> None:
@@ -200,7 +210,7 @@ def counterexample_text(result: Any, verdict: Any, problem: Any, spec: str, opti
         "unit": list(cx.unit), "point": dict(cx.point), "robustness": cx.robustness, "time": cx.time,
         "atom": cx.atom, "how": cx.how, "seed": result.seed, "method": result.method,
         "columns": ["time", "jumps", *labels, *names],
-        "replay": f"visnav replay <this file>",
+        "replay": replay_command("<this file>", spec).replace("'<this file>'", "<this file>"),
     }
     n = trace.n
     ends = _trace_rows(trace, labels, names, [0, n - 1] if n else [])
@@ -290,11 +300,11 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if result.errors and result.errors[0].get("traceback"):
         print(str(result.errors[0]["traceback"]).rstrip() + "\nvisnav: the model's code raised during a simulation "
               f"({result.errors[0]['detail']}); its traceback is above", file=sys.stderr)
-    out = _json_summary(result, written)
+    out = _json_summary(result, written, args.problem)
     if args.json:
         print(json.dumps(out, sort_keys=True))
     else:
-        print(_human(result, written, resumed=len(cache)))
+        print(_human(result, written, resumed=len(cache), spec=args.problem))
     return VERDICT_EXIT_CODES[result.verdict]
 
 
@@ -343,13 +353,13 @@ def _write_results(folder: Path, shown: Path, result: Any, problem: Any, spec: s
     return written
 
 
-def _json_summary(result: Any, written: Mapping[str, str]) -> dict[str, Any]:
+def _json_summary(result: Any, written: Mapping[str, str], spec: str) -> dict[str, Any]:
     data = result.as_dict()
     for entry in data["requirements"]:
         cx = entry["counterexample"]
         if cx is not None:
             cx["file"] = written.get(entry["name"])
-            cx["replay"] = f"visnav replay {written.get(entry['name'])}"
+            cx["replay"] = replay_command(written.get(entry["name"]), spec)
     return data
 
 
@@ -357,7 +367,7 @@ def _fmt(value: float | None) -> str:
     return "-" if value is None else f"{value:.4g}"
 
 
-def _human(result: Any, written: Mapping[str, str], resumed: int) -> str:
+def _human(result: Any, written: Mapping[str, str], resumed: int, spec: str) -> str:
     lines = [f"verify {result.problem}: {result.verdict.upper()} ({result.simulations} simulations, method "
              f"{result.method}, seed {result.seed}{f', {resumed} read back from the journal' if resumed else ''})"]
     width = max(len(r.name) for r in result.requirements)
@@ -366,8 +376,8 @@ def _human(result: Any, written: Mapping[str, str], resumed: int) -> str:
         if r.counterexample is not None:
             cx = r.counterexample
             first = "" if cx.first_time is None else f"first violated at t = {cx.first_time:.4g} s, "
-            line += (f"  {first}lowest at t = {cx.time:.4g} s ({cx.atom}); replay: visnav replay "
-                     f"{written.get(r.name)}")
+            line += (f"  {first}lowest at t = {cx.time:.4g} s ({cx.atom}); replay: "
+                     f"{replay_command(written.get(r.name), spec)}")
         elif r.proof is not None and r.verdict == "proven":
             line += f"  {r.proof.method}"
         elif r.lowest_at:
@@ -450,54 +460,3 @@ def _runner(args: argparse.Namespace, problem: Any, options: Mapping[str, Any], 
 def is_verification_counterexample(text: str) -> bool:
     """Whether ``text`` looks like a counterexample file of ``visnav verify`` (its format key)."""
     return f'"format": "{COUNTEREXAMPLE_FORMAT}"' in text[:4096]
-
-
-def replay_verification(text: str, path: str, as_json: bool) -> int:
-    """``visnav replay`` of a ``visnav verify`` counterexample: re-simulate the point, evaluate the formula.
-
-    Exit 1 when the requirement is still violated, 0 when it now holds, 2 for a malformed file.
-    """
-    from analysis.counterexamples import CounterexampleError, CounterexampleFormat, decode_float, decode_str
-    from analysis.loading import ProblemLoadError
-    from hybrid.errors import ParameterError
-
-    fmt = CounterexampleFormat(name=COUNTEREXAMPLE_FORMAT, version=1, reader="this visnav")
-    try:
-        data = fmt.loads(text, path)
-        spec = decode_str(data.get("problem"), "problem", path)
-        name = decode_str(data.get("requirement"), "requirement", path)
-        options = data.get("options", {})
-        if not isinstance(options, Mapping):
-            raise CounterexampleError(path, "options: expected an object")
-        units = data.get("unit")
-        if not isinstance(units, list):
-            raise CounterexampleError(path, "unit: expected a list of numbers")
-        unit = tuple(decode_float(u, f"unit[{i}]", path) for i, u in enumerate(units))
-        recorded = decode_float(data.get("robustness"), "robustness", path)
-    except CounterexampleError as error:
-        return _bad_input(f"replay: {error}")
-    try:
-        problem = load_verification_problem(spec, dict(options), [name])
-        point = problem.point(unit)
-    except ProblemLoadError as error:
-        return _bad_input(f"replay {path}: {error.render()}", error.user_traceback)
-    except ParameterError as error:
-        return _bad_input(f"replay {path}: {error.render()}")
-    formula = problem.parsed[0].formula
-    trace = problem.trace(point)
-    rho = float(formula.robustness(trace))
-    violated = not formula.satisfied(trace)
-    why = formula.explain(trace)
-    out = {"file": path, "problem": spec, "requirement": name, "formula": formula.text, "point": point,
-           "robustness": rho, "recorded_robustness": recorded, "violated": violated, "time": float(why.time),
-           "atom": str(why.atom), "atom_value": float(why.value)}
-    if as_json:
-        from hybrid.jsonable import to_jsonable
-
-        print(json.dumps(to_jsonable(out, nonfinite="string"), sort_keys=True))
-    else:
-        state = "VIOLATED" if violated else "holds now"
-        print(f"replay {path}: requirement {name} of {spec}: {state}, robustness {rho:.6g} "
-              f"(recorded {recorded:.6g})\n  formula: {formula.text.strip()}\n  decided at t = {why.time:.6g} s "
-              f"by {why.atom} = {why.value:.6g}\n  point: " + ", ".join(f"{k}={v:.6g}" for k, v in point.items()))
-    return 1 if violated else 0

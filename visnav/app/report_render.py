@@ -248,8 +248,10 @@ def _verification_blocks(data: dict[str, Any]) -> list[Block]:
               _verification_table(ver)]
     replay = [r["counterexample_file"] for r in ver["requirements"] if r["counterexample_file"]]
     if replay:
-        blocks.append(Block("p", "Re-run a counterexample with `visnav replay FILE` (files next to this report: "
-                                 + ", ".join(f"[{f}]({f})" for f in replay) + ")."))
+        source = ver.get("source") or "paper"
+        confirm = "" if source == "paper" else f" --problem {source}"
+        blocks.append(Block("p", f"Re-run a counterexample with `visnav replay FILE{confirm}` (files next to this "
+                                 "report: " + ", ".join(f"[{f}]({f})" for f in replay) + ")."))
     blocks.append(Block("table", (["requirement", "formula", "meaning"],
                                   [[r["name"], f"`{' '.join(r['formula'].split())}`", bounded_text(r["description"])]
                                    for r in ver["requirements"]])))

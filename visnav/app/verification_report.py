@@ -216,8 +216,10 @@ def _evidence(verdict: Any, result: Any, problem: Any) -> str:
     return text
 
 
-def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None,
+def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None, spec: str,
                        section: str = "verification") -> Claim:
+    from visnav.app.cli_verify import replay_command
+
     label = VERDICT_LABELS[verdict.verdict]
     if verdict.verdict == "proven":
         return Claim(section=section, status="proven",
@@ -228,13 +230,16 @@ def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None
         return Claim(section=section, status="measured",
                      text=(f"requirement {verdict.name} {label}: robustness {_number(cx.robustness)} at "
                            f"{_point_text(cx.point, problem)}, violated at t = {cx.time:.4g} s by "
-                           f"`{cx.atom.strip()}`; replay with `visnav replay {file}`"))
+                           f"`{cx.atom.strip()}`; replay with `{replay_command(file, spec)}`"))
     share = _coverage_share(result)
     return Claim(section=section, status="sampled",
                  text=(f"requirement {verdict.name} {label} in {verdict.simulations} simulations (method "
                        f"{result.method}, seed {result.seed}): lowest robustness {_number(verdict.robustness)}, "
                        f"nominal {_number(verdict.nominal_robustness)}"
-                       + ("" if share is None else f"; every parameter covered >= {share:.0%} of its bins")))
+                       + ("" if share is None else f"; every parameter covered >= {share:.0%} of its bins")
+                       + ("" if verdict.verdict != "incomplete" else
+                          f"; {verdict.undecided} run(s) ended before deciding it, first: "
+                          f"{verdict.undecided_reasons[0] if verdict.undecided_reasons else 'ended early'}")))
 
 
 def _explained(formula: Any, trace: Any) -> dict[str, Any]:
@@ -349,7 +354,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
             files[file] = counterexample_text(result, r, problem, spec, options)
         rows.append({**r.as_dict(), "history": list(r.history), "evidence": _evidence(r, result, problem),
                      "counterexample_file": file, "figure": stems[r.name]})
-    claims = [_requirement_claim(r, result, problem, row["counterexample_file"], name)
+    claims = [_requirement_claim(r, result, problem, row["counterexample_file"], spec, name)
               for r, row in zip(result.requirements, rows)]
     if result.diverged:
         claims.append(Claim(section=name, status="measured",

@@ -164,7 +164,8 @@ def test_cli_report_problem_exits_1_when_falsified(tmp_path, capsys, monkeypatch
     assert (out / "figures" / "verification_counterexample_min_dwell.png").is_file()
     assert "visnav report --problem examples/thermostat.py:zero_band --quick --seed 0 --budget 12" in (
         out / "report.md").read_text()
-    assert main(["replay", str(out / "counterexamples" / "min_dwell.json")]) == 1
+    assert main(["replay", str(out / "counterexamples" / "min_dwell.json"), "--problem",
+                 f"{THERMOSTAT}:zero_band"]) == 1
 
 
 def test_user_problem_outside_the_repository_end_to_end(tmp_path, capsys):
@@ -184,7 +185,7 @@ def test_user_problem_outside_the_repository_end_to_end(tmp_path, capsys):
     assert [c["status"] for c in data["claims"] if c["section"] == "structure"] == ["measured"]
     md = (out / "report.md").read_text()
     assert "## Structural checks of `decay`" in md and "| bounded | FALSIFIED |" in md
-    assert main(["replay", str(out / rows["bounded"]["counterexample_file"])]) == 1
+    assert main(["replay", str(out / rows["bounded"]["counterexample_file"]), "--problem", spec]) == 1
     # a second report into the same folder without the counterexample removes the stale file
     (tmp_path / "fixed_problem.py").write_text(USER_PROBLEM.replace("x <= 1.5", "x <= 2.5"))
     assert main(["report", "--problem", f"{tmp_path / 'fixed_problem.py'}:problem", "--out", str(out),
