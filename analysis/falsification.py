@@ -47,7 +47,7 @@ from hybrid.jsonable import float_from_json, to_jsonable
 from hybrid.errors import (DivergenceError, ExecutionError, NumericalFailure, ParameterError, UserFunctionError,
                            ZenoError)
 
-from analysis.stl import SignalTrace, TraceError
+from analysis.stl import FormulaValueError, SignalTrace, TraceError
 from analysis.timelimit import TimeLimitExceeded, time_limit
 from analysis.verification import InvalidPoint, VerificationProblem
 
@@ -248,6 +248,11 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: flo
         raise SimulationFailed(point, error)
     try:
         return _judge(problem, trace)
+    except FormulaValueError as error:  # the formula's own arithmetic (the trace's values are finite)
+        raise FalsificationError(f"requirement formula {error.formula!r}", error.value,
+                                 "a formula whose arithmetic is finite on every run",
+                                 f"{error} at the point {dict(point)}; guard the division or the overflow in the "
+                                 "formula") from None
     except TraceError as error:
         raise SimulationFailed(point, error) from error
 

@@ -153,3 +153,10 @@ def test_a_forking_simulator_does_not_multiply_the_search(tmp_path, capsys):
     time.sleep(0.5)
     lines = (out / "evaluations.jsonl").read_text().splitlines()
     assert len(lines) == 1 + 6  # the header and one line per simulation of the budget
+
+
+def test_a_formula_that_divides_by_zero_is_bad_input_naming_the_formula_not_the_simulator(tmp_path, capsys):
+    path = _module(tmp_path)
+    path.write_text(path.read_text().replace('formula="always[0, 2] (x > 0)"', 'formula="always[0, 2] (x / (x - x) > 0)"'))
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    assert code == 2 and "x / (x - x)" in err and "your simulator raised" not in err and "Traceback" not in err
