@@ -372,7 +372,7 @@ def test_a_long_trace_is_decimated_to_what_replay_reads_keeping_the_point(tmp_pa
         assert k * dt in times and (k - 1) * dt in times
     assert [r[1] for r in rows] == sorted(r[1] for r in rows) and {r[1] for r in rows} == {0, 1, 2}
     assert data["point"] == {"x0": pytest.approx(data["point"]["x0"])} and data["requirement"] == "above"
-    code, text, err = _run(capsys, "replay", str(file))
+    code, text, err = _run(capsys, "replay", str(file), "--problem", f"{path}:problem")
     assert code == 1 and "VIOLATED" in text, err
 
 
