@@ -5,7 +5,8 @@ ODE solvers (explicit or stiff, chosen by ``method``), one step at a time.
 After every accepted step it watches, on the step's dense output,
 
 * the guard of every outgoing transition (level-triggered: ``g >= 0``;
-  ``direction = +1``: ``g`` crosses zero upwards; ``-1``: downwards),
+  ``direction = +1``: ``g`` crosses zero upwards; ``-1``: downwards; one
+  event per crossing, see :mod:`hybrid.instant`),
 * the mode's invariant (the flow leaving ``inv >= 0``),
 * the user's stop functions (``s >= 0`` ends the run),
 
@@ -17,7 +18,8 @@ run).  Shorter windows are searched where the samples leave room for one: two
 samples of a function that is off, on one side of zero, closer to it than the
 function can move between them (1.5 × the largest rate seen in the segment)
 or than the samples bend, are refined on the dense output, 4 sub-intervals
-per level, down to ``refine_depth`` levels (:class:`Refiner`); what is still
+per level, down to ``refine_depth`` levels, with a search of the extremum at
+the finest (:class:`hybrid.events.Refiner`); what is still
 undecided there is listed in :attr:`HybridTrajectory.unresolved` and reported
 by a :class:`~hybrid.errors.GuardResolutionWarning`, never dropped silently.
 The first change (in time order, hidden windows first) is located by a
@@ -28,12 +30,14 @@ instant (and at the initial time) is decided by
 :func:`hybrid.instant.settle_instant`, the rule shared by every executor and
 check: priorities, ties (an error here), jump maps and resets, further
 level-triggered jumps of the new mode at the same instant, crossing guards
-against the state at the bracket's left end, and the jump limit.
+against the state at the bracket's left end (those disarmed by their own
+crossing excepted), and the jump limit.
 
 The driver :func:`simulate_continuous` only keeps the books; the work is done
 by small functions in the manner of scipy's ``_ivp``: :func:`_flow_segment`
-(one mode's integration), :func:`find_switch` (watches along a step),
-:func:`locate_event` (the bracket search) and :func:`_resolve` (the instant).
+(one mode's integration) and :func:`_resolve` (the instant); the event search,
+:func:`hybrid.events.find_switch` (watches along a step) and
+:func:`hybrid.events.locate_event` (the bracket search), is in :mod:`hybrid.events`.
 
 Termination causes (``HybridTrajectory.termination``): ``"end_time"``,
 ``"jump_limit"``, ``"zeno"``, ``"chatter"``, ``"invariant_violated"`` (the flow
@@ -200,7 +204,7 @@ class ExecutionStats:
     guard_evaluations : int
         Evaluations of the watched functions (all of a mode's watches count one each).
     refinement_evaluations : int
-        Evaluations of all the watches at once made by the refinement (:class:`Refiner`);
+        Evaluations of all the watches at once made by the refinement (:class:`hybrid.events.Refiner`);
         each is also counted in ``guard_evaluations``, once per watch.
     """
 
@@ -931,9 +935,11 @@ def simulate_continuous(
         interval between them is split into 4 at points of the dense output,
         recursively, down to ``refine_depth`` levels (spacing
         ``step / (sign_checks + 1) / 4**refine_depth``; at most
-        :data:`REFINE_BUDGET` evaluations per step).  Bends still unresolved
-        there are listed in :attr:`HybridTrajectory.unresolved` and reported by
-        one :class:`~hybrid.errors.GuardResolutionWarning`.  ``0`` disables it.
+        :data:`~hybrid.events.REFINE_BUDGET` evaluations per step), where the
+        extremum is searched (a touch of zero is found).  Bends still
+        unresolved there are listed in :attr:`HybridTrajectory.unresolved` and
+        reported by one :class:`~hybrid.errors.GuardResolutionWarning`.  ``0``
+        disables it.
     max_jumps : int
         Total jumps before termination ``"jump_limit"``.
     max_jumps_per_instant : int
