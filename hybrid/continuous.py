@@ -737,6 +737,8 @@ def _disarmed_after(run: _Run, instant: Instant, located: _SegmentResult) -> fro
     must first go strictly below zero (:func:`hybrid.events.arm_watches`).
     One disarmed before and not yet strictly below stays disarmed.
     """
+    if not run.crossing_names:
+        return frozenset()
     crossed_now = (n for n in instant.jumps[0].enabled if n in run.crossing_names) if instant.jumps else ()
     assert located.event is not None
     return still_disarmed(located.watches, located.event.left_values, located.disarmed).union(crossed_now)

@@ -179,13 +179,14 @@ def arm_watches(watches: Sequence[Watch], phi: Sequence[float], disarmed: Collec
     disarmed : collection of str
         Transition names disarmed by the instant before the flow.
     """
-    out = list(watches)
+    out = None
     for k, w in enumerate(watches):
         if w.kind in CROSSING_KINDS:
             kind = "from_zero" if phi[k] == 0.0 and w.name not in disarmed else "crossing"
             if kind != w.kind:
+                out = list(watches) if out is None else out
                 out[k] = replace(w, kind=kind)
-    return tuple(out)
+    return tuple(watches) if out is None else tuple(out)
 
 
 def still_disarmed(watches: Sequence[Watch], left: Sequence[float], disarmed: Collection[str]) -> frozenset[str]:
@@ -196,6 +197,8 @@ def still_disarmed(watches: Sequence[Watch], left: Sequence[float], disarmed: Co
     began (else it would have switched on, and been located, before), so a
     guard disarmed at the flow's start (:func:`arm_watches`) is still disarmed.
     """
+    if not disarmed:
+        return frozenset()
     return frozenset(w.name for k, w in enumerate(watches)
                      if w.kind == "crossing" and w.name in disarmed and left[k] >= 0.0)
 
@@ -424,7 +427,8 @@ class Refiner:
         ``rates`` are the rates the bound is built on: the segment's largest
         at the step's own samples (``level = 0``), those of :meth:`bounds`
         below.  ``test`` is ``"rate"``,
-        ``"bend"`` or ``"switch"`` (an interval that switches on, refined at
+        ``"bend"`` or ``"switch"`` (an interval that switches on, or where a
+        crossing guard goes from above zero to below it, refined at
         ``level <= 1`` when the function had time to go to zero and back: rate
         bound × spacing > :data:`SWITCH_SLACK` × ``(|a| + |b|)``; such
         intervals are never recorded as unresolved).
@@ -442,7 +446,10 @@ class Refiner:
             if a < 0.0 and b < 0.0:
                 a, b = -a, -b
             elif not (a > 0.0 and b > 0.0 and self.crossing[k]):
-                if level <= 1 and switches_on(self.kinds[k], a, b) and math.isfinite(a) and math.isfinite(b):
+                # an interval that switches on, or where a crossing guard goes below zero: both may hide an
+                # earlier switch-on (zero and back, or below, back up and below again)
+                turns = switches_on(self.kinds[k], a, b) or (self.crossing[k] and a >= 0.0 > b)
+                if level <= 1 and turns and math.isfinite(a) and math.isfinite(b):
                     reach = bound * h
                     if reach > SWITCH_SLACK * (abs(a) + abs(b)):
                         out.append((k, min(abs(a), abs(b)), reach, "switch"))

@@ -321,3 +321,29 @@ def test_random_sinusoids_fire_exactly_at_their_closed_form_crossings(a, w, p, c
     expected = sinusoid_crossings(a, w, p, threshold - c, direction, horizon)
     trajectory = run(clock_loop([("cross", lambda v: g(v[0]), direction, 0)]), (0.0,), horizon, max_step, *pair)
     assert_crossings(trajectory.event_times, expected, TOL, complete=True)
+
+
+def test_a_cycle_back_to_the_crossing_mode_at_the_same_instant_does_not_refire():
+    """``A -(x - 1 rising, x := 1)-> B -(level, true)-> A``: back in A on the zero it crossed: disarmed.
+
+    Before: up/back at every step (1e-12 s apart) to the jump limit.  A guard
+    that another transition's jump puts on its zero keeps the start-on-zero
+    rule: ``A -(x := 0)-> B`` with B's rising guard ``x`` fires as it leaves zero.
+    """
+    flows = {q: (lambda t, x, m: (1.0,)) for q in "ABC"}
+    cycle = HybridAutomaton(name="cycle", modes=(Mode(name="A"), Mode(name="B")), variables=("x",), transitions=(
+        Transition(name="up", source="A", target="B", guard=lambda v, m: v[0] - 1.0, direction=1),
+        Transition(name="back", source="B", target="A", guard=lambda v, m: 1.0)))
+    system = HybridSystem(automaton=cycle, state_names=("x",), flows={q: flows[q] for q in "AB"},
+                          jumps={"up": lambda x, m: (1.0,)})
+    trajectory = simulate_continuous(system, (0.0,), duration=3.0)
+    assert [(e.transition, e.time) for e in trajectory.events] == [("up", 1.0), ("back", 1.0)]
+    assert trajectory.termination == "end_time" and trajectory.final_state == pytest.approx((3.0,), abs=1e-9)
+    chain = HybridAutomaton(name="chain", modes=(Mode(name="A"), Mode(name="B"), Mode(name="C")), variables=("x",),
+                            transitions=(Transition(name="up", source="A", target="B",
+                                                    guard=lambda v, m: v[0] - 1.0, direction=1),
+                                         Transition(name="zero", source="B", target="C", guard=lambda v, m: v[0],
+                                                    direction=1)))
+    system = HybridSystem(automaton=chain, state_names=("x",), flows=flows, jumps={"up": lambda x, m: (0.0,)})
+    events = simulate_continuous(system, (0.0,), duration=3.0).events
+    assert [e.transition for e in events] == ["up", "zero"] and 0.0 < events[1].time - 1.0 <= 1e-11
