@@ -34,7 +34,9 @@ the signals are ``v = h(x)`` (the state itself when there is no output map).
    history, passes the disarmed transitions (``disarmed``); for them the
    crossing test is ``g0 < 0 <= g1``.  The continuous executor tracks them
    along each flow (:mod:`hybrid.events`: the guard's samples must go strictly
-   below zero to re-arm it).
+   below zero to re-arm it); the sampled executor and the fuzz runner do not
+   pass them yet (a sample exactly on zero followed by one above it fires
+   twice there).
 2. **Priority.**  The enabled transition with the smallest priority number
    fires; the others are reported as ``enabled``.  Equal priorities among the
    enabled set are non-determinism: ``ties="raise"`` raises

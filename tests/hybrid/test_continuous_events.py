@@ -298,7 +298,7 @@ def sinusoid_crossings(a, w, p, level, direction, horizon):
         k += 1
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=120, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(
     a=st.floats(0.2, 3.0) | st.floats(-3.0, -0.2),
     w=st.floats(0.2, 4.0),
