@@ -95,7 +95,7 @@ SIN_FORMS = {
 @pytest.mark.parametrize("max_step", MAX_STEPS)
 @pytest.mark.parametrize("form", sorted(SIN_FORMS))
 def test_sin_t_falling_through_one_half_fires_once_per_crossing(form, max_step, pair):
-    """The issue's first case: two events at 5*pi/6 before; one per crossing, at 5*pi/6 + 2*pi*k, now."""
+    """The issue's first case (two events at one crossing before): one per crossing, at 5*pi/6 + 2*pi*k."""
     make, x0, tol = SIN_FORMS[form]
     trajectory = run(make(), x0, 20.0, max_step, *pair)
     # on (sin <= 0.5) for 4*pi/3, off for 2*pi/3: the shortest window
@@ -180,7 +180,7 @@ def window_exits(horizon):
 @pytest.mark.parametrize("pair", SETTINGS, ids=[f"sc{a}-depth{b}" for a, b in SETTINGS])
 @pytest.mark.parametrize("max_step", MAX_STEPS + (0.005,))
 def test_cos_50t_windows_one_rising_crossing_each(max_step, pair):
-    """The issue's third case (10 events for 7 windows before): over [0, 1] s, 7 windows entered from below."""
+    """The issue's third case (10 events for 7 windows there, 8 here before): 7 windows entered from below."""
     system = clock_loop([("enter", lambda v: math.cos(50.0 * v[0]) - 0.99, +1, 0)])
     trajectory = run(system, (0.0,), 1.0, max_step, *pair)
     expected = window_entries(1.0)
