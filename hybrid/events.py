@@ -51,6 +51,7 @@ __all__ = [
     "SWITCH_SLACK",
     "UNRESOLVED_KEPT",
     "EXTREMUM_ITERATIONS",
+    "CROSSING_KINDS",
     "Watch",
     "Bracket",
     "LocatedEvent",
