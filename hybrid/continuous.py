@@ -5,7 +5,8 @@ ODE solvers (explicit or stiff, chosen by ``method``), one step at a time.
 After every accepted step it watches, on the step's dense output,
 
 * the guard of every outgoing transition (level-triggered: ``g >= 0``;
-  ``direction = +1``: ``g`` crosses zero upwards; ``-1``: downwards),
+  ``direction = +1``: ``g`` crosses zero upwards; ``-1``: downwards; one
+  event per crossing, see :mod:`hybrid.instant`),
 * the mode's invariant (the flow leaving ``inv >= 0``),
 * the user's stop functions (``s >= 0`` ends the run),
 
@@ -17,7 +18,8 @@ run).  Shorter windows are searched where the samples leave room for one: two
 samples of a function that is off, on one side of zero, closer to it than the
 function can move between them (1.5 × the largest rate seen in the segment)
 or than the samples bend, are refined on the dense output, 4 sub-intervals
-per level, down to ``refine_depth`` levels (:class:`_Refiner`); what is still
+per level, down to ``refine_depth`` levels, with a search of the extremum at
+the finest (:class:`hybrid.events.Refiner`); what is still
 undecided there is listed in :attr:`HybridTrajectory.unresolved` and reported
 by a :class:`~hybrid.errors.GuardResolutionWarning`, never dropped silently.
 The first change (in time order, hidden windows first) is located by a
@@ -28,12 +30,14 @@ instant (and at the initial time) is decided by
 :func:`hybrid.instant.settle_instant`, the rule shared by every executor and
 check: priorities, ties (an error here), jump maps and resets, further
 level-triggered jumps of the new mode at the same instant, crossing guards
-against the state at the bracket's left end, and the jump limit.
+against the state at the bracket's left end (those disarmed by their own
+crossing excepted), and the jump limit.
 
 The driver :func:`simulate_continuous` only keeps the books; the work is done
 by small functions in the manner of scipy's ``_ivp``: :func:`_flow_segment`
-(one mode's integration), :func:`_find_switch` (watches along a step),
-:func:`_locate` (the bracket search) and :func:`_resolve` (the instant).
+(one mode's integration) and :func:`_resolve` (the instant); the event search,
+:func:`hybrid.events.find_switch` (watches along a step) and
+:func:`hybrid.events.locate_event` (the bracket search), is in :mod:`hybrid.events`.
 
 Termination causes (``HybridTrajectory.termination``): ``"end_time"``,
 ``"jump_limit"``, ``"zeno"``, ``"chatter"``, ``"invariant_violated"`` (the flow
@@ -71,9 +75,23 @@ except ImportError:  # pragma: no cover - private names moved: fall back to inte
     _Dop853DenseOutput = _RkDenseOutput = type("_Unavailable", (), {})
 
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
-from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError, format_time
+from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError
+from .events import (
+    LocatedEvent,
+    Refiner,
+    UnresolvedLog,
+    UnresolvedWindow,
+    Watch,
+    arm_watches,
+    find_switch,
+    is_on,
+    locate_crossing,
+    locate_event,
+    still_disarmed,
+    unresolved_message,
+)
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import Transition, crossed, not_a_number
+from .model import Transition, not_a_number
 from .system import HybridSystem, call_user, real_value
 from .system import format_state as _fmt
 
@@ -186,7 +204,7 @@ class ExecutionStats:
     guard_evaluations : int
         Evaluations of the watched functions (all of a mode's watches count one each).
     refinement_evaluations : int
-        Evaluations of all the watches at once made by the refinement (:class:`_Refiner`);
+        Evaluations of all the watches at once made by the refinement (:class:`hybrid.events.Refiner`);
         each is also counted in ``guard_evaluations``, once per watch.
     """
 
@@ -377,88 +395,7 @@ class _LazySolution:
         return self.solution(t)
 
 
-# ---------------------------------------------------------------------- root finding
-def locate_crossing(
-    phi: Callable[[float], float],
-    lo: float,
-    hi: float,
-    phi_lo: float,
-    phi_hi: float,
-    *,
-    strict: bool = False,
-    tol: float = 1e-12,
-    max_iterations: int = 200,
-    holds: Callable[[float], bool] | None = None,
-) -> tuple[float, float, float, float, int]:
-    """Shrink a bracket ``[lo, hi]`` around the first time the condition becomes true.
-
-    The condition is ``phi >= 0`` (``phi > 0`` when ``strict``); it is false at
-    ``lo`` and true at ``hi``; ``holds(t)``, when given, decides it instead
-    (several watched functions searched at once: ``phi`` is then their
-    maximum, used only for the secant steps).  Anderson–Björck regula falsi steps are tried first;
-    bisection takes over when a step is not finite (``phi`` may be ``±inf``,
-    e.g. a distance to an obstacle that is not in view) or the bracket shrinks
-    too slowly (the bracket must halve every four evaluations); trial points
-    keep ``tol / 2`` away from the ends, so a secant point on the root pins it.
-
-    Returns
-    -------
-    lo, hi, phi_lo, phi_hi, iterations
-        ``hi - lo <= tol`` (or ``lo`` and ``hi`` adjacent doubles), condition
-        false at ``lo`` and true at ``hi``.
-    """
-    tol = max(tol, 4.0 * math.ulp(max(abs(lo), abs(hi))))
-    iterations = 0
-    side = 0
-    f_lo, f_hi = phi_lo, phi_hi  # Anderson-Bjorck-weighted copies
-    widths = [hi - lo]
-    while hi - lo > tol and iterations < max_iterations:
-        width = hi - lo
-        t = math.nan
-        slow = len(widths) >= 4 and width > 0.5 * widths[-4]
-        if not slow and math.isfinite(f_lo) and math.isfinite(f_hi) and f_hi != f_lo:
-            t = hi - f_hi * width / (f_hi - f_lo)
-        if not math.isfinite(t):
-            t = lo + 0.5 * width
-        # never closer than tol/2 to an end: a secant point on the root then pins it
-        t = min(max(t, lo + 0.5 * tol), hi - 0.5 * tol)
-        value = phi(t)
-        iterations += 1
-        if value != value:
-            raise ExecutionError(f"event function is NaN at t = {t:.17g} s during event location")
-        if holds(t) if holds is not None else ((value > 0.0) if strict else (value >= 0.0)):
-            if side == 1 and math.isfinite(f_hi) and f_hi != 0.0:
-                m = 1.0 - value / f_hi
-                f_lo *= m if m > 0.0 else 0.5
-            hi, phi_hi, f_hi = t, value, value
-            side = 1
-        else:
-            if side == -1 and math.isfinite(f_lo) and f_lo != 0.0:
-                m = 1.0 - value / f_lo
-                f_hi *= m if m > 0.0 else 0.5
-            lo, phi_lo, f_lo = t, value, value
-            side = -1
-        widths.append(hi - lo)
-    return lo, hi, phi_lo, phi_hi, iterations
-
-
 # ---------------------------------------------------------------------- access to the user's functions
-@dataclass(frozen=True, slots=True)
-class _Watch:
-    """One watched function of the current mode: a guard, the invariant, or a stop.
-
-    Its value ``phi`` switches the watch on by ``phi >= 0`` (``kind="level"``:
-    level guards and stops), ``phi > 0`` (``kind="strict"``: the invariant's
-    ``-inv``) or by a rising crossing of ``phi`` (``kind="crossing"``: a
-    crossing guard, ``phi = ±g``), the rule of :func:`hybrid.model.crossed`.
-    """
-
-    role: str  # "guard" | "invariant" | "stop"
-    name: str
-    kind: str  # "level" | "strict" | "crossing"
-    transition: Transition | None = None
-
-
 class _Run:
     """Calls into the user's model for one execution: counted, checked, errors named (private)."""
 
@@ -469,11 +406,12 @@ class _Run:
         self.invariant_tol = invariant_tol
         self.outgoing = {name: self.automaton.outgoing(name) for name in self.automaton.mode_names}
         self.invariants = {m.name: m.invariant for m in self.automaton.modes}
+        self.crossing_names = frozenset(t.name for t in self.automaton.transitions if t.direction != 0)
         self.n_signals = len(self.automaton.variables)
         self.shape = (system.dimension,)
         self.guard_evaluations = 0
         self.refinement_evaluations = 0
-        self.unresolved = _UnresolvedLog()
+        self.unresolved = UnresolvedLog()
         self.last_point: tuple[float, tuple[float, ...]] | None = None  # last accepted (t, x), for DivergenceError
 
     def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
@@ -544,19 +482,19 @@ class _Run:
 
         return fun
 
-    def watches(self, mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]) -> tuple[_Watch, ...]:
+    def watches(self, mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]) -> tuple[Watch, ...]:
         """The watches of a segment starting at ``(t, x)``."""
-        out = [_Watch(role="guard", name=tr.name, kind="level" if tr.direction == 0 else "crossing", transition=tr)
+        out = [Watch(role="guard", name=tr.name, kind="level" if tr.direction == 0 else "crossing", transition=tr)
                for tr in self.outgoing[mode]]
         if self.invariants[mode] is not None:
-            out.append(_Watch(role="invariant", name=mode, kind="strict"))
-        out += [_Watch(role="stop", name=name, kind="level") for name in self.stops]
+            out.append(Watch(role="invariant", name=mode, kind="strict"))
+        out += [Watch(role="stop", name=name, kind="level") for name in self.stops]
         return tuple(out)
 
     def values(
-        self, watches: Sequence[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
+        self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
     ) -> list[float]:
-        """``phi`` of every watch (see :class:`_Watch`).
+        """``phi`` of every watch (see :class:`Watch`).
 
         A fast pass calls the user functions directly; if anything raises or
         is not a real number, a careful pass re-evaluates them one by one and
@@ -597,7 +535,7 @@ class _Run:
             return self.values_checked(watches, mode, memory, t, x)
 
     def values_checked(
-        self, watches: Sequence[_Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
+        self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
     ) -> list[float]:
         """:meth:`values` with every call wrapped: raises the precise error."""
         v = self.signals(mode, t, x)
@@ -630,461 +568,6 @@ class _Run:
         return fire
 
 
-# ---------------------------------------------------------------------- finding, locating, resolving events
-def _is_on(kind: str, phi: float) -> bool:
-    return phi > 0.0 if kind == "strict" else phi >= 0.0
-
-
-def _switched_on(watches: Sequence[_Watch], before: Sequence[float], after: Sequence[float]) -> list[int]:
-    """Watches that switch on between two evaluations (a crossing watch: :func:`hybrid.model.crossed`)."""
-    out = []
-    for k, w in enumerate(watches):
-        b, a = before[k], after[k]
-        kind = w.kind
-        if kind == "level":
-            if a >= 0.0 > b:
-                out.append(k)
-        elif kind == "strict":
-            if a > 0.0 >= b:
-                out.append(k)
-        elif b <= 0.0 <= a and b < a:  # crossing, the rule of hybrid.model.crossed
-            out.append(k)
-    return out
-
-
-@dataclass(frozen=True, slots=True)
-class _Bracket:
-    """An interval of one step where watches ``candidates`` switch on (found by :func:`_find_switch`)."""
-
-    lo: float
-    hi: float
-    phi_lo: list[float]
-    phi_hi: list[float]
-    candidates: list[int]
-
-
-REFINE_SUBDIVISIONS = 4
-"""A refined sample interval is split into this many (three new evaluations)."""
-
-REFINE_BUDGET = 256
-"""Evaluations of the watches spent on refinement per solver step, at most."""
-
-RATE_SAFETY = 1.5
-"""The rate bound of a watched function is this times the largest rate seen between its samples."""
-
-COHERENCE = 0.5
-"""Samples resolve a function when their second differences are at most this times their first ones."""
-
-SWITCH_SLACK = 2.0
-"""An interval that switches on is refined (levels 0 and 1) when rate bound × spacing exceeds this × its rise."""
-
-UNRESOLVED_KEPT = 1000
-"""Places kept in :attr:`HybridTrajectory.unresolved` (the warning gives the total)."""
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class UnresolvedWindow:
-    """A place where a watched function may switch on and off again unseen (see :func:`simulate_continuous`).
-
-    At the finest refinement the function's samples on ``[t_start, t_end]`` are
-    still close enough to zero, for the rate at which it changes or for the
-    way they bend, that a window narrower than ``t_end - t_start`` cannot be
-    ruled out there (the tests of :class:`_Refiner`).
-
-    Attributes
-    ----------
-    mode : str
-        Mode of the segment.
-    role : str
-        ``"guard"``, ``"invariant"`` or ``"stop"``.
-    name : str
-        Transition, mode or stop-function name.
-    t_start, t_end : float
-        The interval between the two samples [s].
-    distance : float
-        Distance from zero of the nearer sample (in the function's units).
-    reach : float
-        How far the function may move between the samples by the test that
-        flagged them (rate bound × spacing, or the second difference of the
-        samples), at least ``distance``.
-    reason : str
-        ``"depth"`` (the finest spacing was reached) or ``"budget"``
-        (:data:`REFINE_BUDGET` evaluations were spent in the step).
-    """
-
-    mode: str
-    role: str
-    name: str
-    t_start: float
-    t_end: float
-    distance: float
-    reach: float
-    reason: str
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {"mode": self.mode, "role": self.role, "name": self.name, "t_start": self.t_start,
-                "t_end": self.t_end, "distance": self.distance, "reach": self.reach, "reason": self.reason}
-
-
-class _Refiner:
-    """Searches the sample intervals of a segment where a watch may switch on unseen (private).
-
-    Between two samples ``a``, ``b`` of a watched function that are off and on
-    the same side of zero (strictly below it; for a crossing watch also
-    strictly above it, where a dip to zero and back is a rising crossing),
-    the function can reach zero only if
-
-    * its rate of change exceeds ``(|a| + |b|) / h`` somewhere (``h`` the
-      spacing): the interval is flagged when that is at most the rate bound,
-      :data:`RATE_SAFETY` times the largest rate seen between samples of this
-      function so far in the segment (a mode's time scale is its own: the
-      bouncing ball's flights shrink a thousandfold); or
-    * the samples bend towards it: a second difference of the samples around
-      the interval at least the distance of the nearer sample from zero (a
-      parabola through three samples rises above their chord by an eighth of
-      its second difference).
-
-    Inside a refinement the rate bound is built on the rates of the
-    sub-intervals themselves where their samples resolve the function
-    (:meth:`bounds`), on the segment's largest otherwise.  Samples within
-    ``rate bound × event_tol`` of zero count as on zero (the event resolution:
-    the point a segment starts from after an event), and intervals with a
-    sample on zero or non-finite values are decided by their end values.  An
-    interval that switches on is refined too (at the step's level and the
-    first below) when the function had time to go to zero and back before
-    (:data:`SWITCH_SLACK`), so a window hidden before the visible crossing is
-    not passed over.  A flagged interval is split into
-    :data:`REFINE_SUBDIVISIONS` at points of the step's dense output and the
-    flagged sub-intervals again, in time order, down to ``depth`` levels; the
-    first switch-on found is the bracket.  What is still flagged at the finest
-    level (or when the step's :data:`REFINE_BUDGET` is spent) is recorded as an
-    :class:`UnresolvedWindow`, except the approach to a crossing found right
-    after it (a window there would only move that event by less than the
-    finest spacing).
-    """
-
-    __slots__ = ("values", "watches", "point", "depth", "mode", "budget", "evaluations", "unresolved", "rates",
-                 "event_tol", "crossing", "kinds")
-
-    def __init__(self, values: Callable[[float, tuple[float, ...]], list[float]], watches: Sequence[_Watch],
-                 point: Callable[[float], tuple[float, ...]], depth: int, mode: str, unresolved: _UnresolvedLog,
-                 rates: list[float], event_tol: float) -> None:
-        self.values, self.watches, self.point, self.depth, self.mode = values, watches, point, depth, mode
-        self.budget = REFINE_BUDGET
-        self.evaluations = 0
-        self.unresolved = unresolved
-        self.rates = rates  # largest |d phi / dt| seen per watch in the segment
-        self.event_tol = event_tol
-        self.crossing = [w.kind == "crossing" for w in watches]
-        self.kinds = [w.kind for w in watches]
-
-    def bounds(self, ts: Sequence[float], ps: Sequence[Sequence[float]]) -> list[float]:
-        """Rates for the bound inside a refinement, per watch; the segment's maxima updated.
-
-        A watch's samples resolve it when every second difference is at most
-        :data:`COHERENCE` times the largest first difference (its curvature is
-        seen); then its largest rate among these samples is used (a function
-        that is slow here is slow here: the ball's guard near an impact).
-        Otherwise (a kink, an extremum, samples that alias a faster variation)
-        the segment's largest rate is kept.
-        """
-        rates = self.rates
-        out = []
-        for k in range(len(rates)):
-            col = [row[k] for row in ps]
-            local = first = second = 0.0
-            for m in range(len(col) - 1):
-                d = abs(col[m + 1] - col[m])
-                h = ts[m + 1] - ts[m]
-                if d > first:
-                    first = d
-                if h > 0.0 and local * h < d < math.inf:
-                    local = d / h
-                if m + 2 < len(col):
-                    d2 = abs(col[m + 2] - 2.0 * col[m + 1] + col[m])
-                    if d2 > second:
-                        second = d2
-            if local > rates[k]:
-                rates[k] = local
-            out.append(local if second <= COHERENCE * first < math.inf else rates[k])
-        return out
-
-    def scan(self, ts: Sequence[float], ps: Sequence[Sequence[float]]) -> list[int]:
-        """The step's own samples: learn the rates; the watches some interval may need refining for.
-
-        A watch whose samples all sit strictly on one side of zero, farther
-        from it than the rate bound lets it move in a spacing and than they
-        bend, is clear everywhere in the step (the tests of :meth:`flags`,
-        all intervals at once); the others are returned.
-        """
-        n = len(ts) - 1
-        h = (ts[-1] - ts[0]) / n  # the step's samples are evenly spaced
-        if not h > 0.0:
-            return list(range(len(self.rates)))
-        rates = self.rates
-        band = RATE_SAFETY * self.event_tol
-        out = []
-        for k, col in enumerate(zip(*ps)):
-            move = max([abs(b - a) for a, b in zip(col, col[1:])])
-            if rates[k] * h < move < math.inf:
-                rates[k] = move / h
-            high = max(col)
-            if high < 0.0:
-                distance = -high
-            elif self.crossing[k] and min(col) > 0.0:
-                distance = min(col)
-            else:
-                out.append(k)
-                continue
-            bound = RATE_SAFETY * rates[k]
-            if not (2.0 * distance > bound * h and distance > band * rates[k]):
-                out.append(k)
-            elif n > 1 and not max([abs(a - 2.0 * b + c) for a, b, c in zip(col, col[1:], col[2:])]) < distance:
-                out.append(k)
-        return out
-
-    def flags(self, ts: Sequence[float], ps: Sequence[Sequence[float]], i: int, level: int,
-              rates: Sequence[float], only: Sequence[int] | None = None) -> list[tuple[int, float, float, str]]:
-        """Watches whose samples ``i``, ``i + 1`` may hide a switch-on: ``(k, distance, reach, test)``.
-
-        ``rates`` are the rates the bound is built on: the segment's largest
-        at the step's own samples (``level = 0``), those of :meth:`bounds`
-        below.  ``test`` is ``"rate"``,
-        ``"bend"`` or ``"switch"`` (an interval that switches on, refined at
-        ``level <= 1`` when the function had time to go to zero and back: rate
-        bound × spacing > :data:`SWITCH_SLACK` × ``(|a| + |b|)``; such
-        intervals are never recorded as unresolved).
-        """
-        a_row, b_row = ps[i], ps[i + 1]
-        h = ts[i + 1] - ts[i]
-        if not h > 0.0:
-            return []
-        left = ps[i - 1] if i >= 1 else None
-        right = ps[i + 2] if i + 2 < len(ps) else None
-        out = []
-        for k in (range(len(a_row)) if only is None else only):
-            a, b = a_row[k], b_row[k]
-            bound = RATE_SAFETY * rates[k]
-            if a < 0.0 and b < 0.0:
-                a, b = -a, -b
-            elif not (a > 0.0 and b > 0.0 and self.crossing[k]):
-                if level <= 1 and _switches_on(self.kinds[k], a, b) and math.isfinite(a) and math.isfinite(b):
-                    reach = bound * h
-                    if reach > SWITCH_SLACK * (abs(a) + abs(b)):
-                        out.append((k, min(abs(a), abs(b)), reach, "switch"))
-                continue
-            reach = bound * h  # how far the function can move between the samples
-            near = a if a < b else b
-            if near <= bound * self.event_tol or not (a + b < math.inf):
-                continue  # on zero at the event resolution, or no evidence
-            if a + b <= reach:
-                out.append((k, near, reach, "rate"))
-                continue
-            bend = 0.0
-            if left is not None:
-                d = abs(left[k] - 2.0 * a_row[k] + b_row[k])
-                if d < math.inf:
-                    bend = d
-            if right is not None:
-                d = abs(a_row[k] - 2.0 * b_row[k] + right[k])
-                if bend < d < math.inf:
-                    bend = d
-            if bend >= near:
-                out.append((k, near, bend, "bend"))
-        return out
-
-    def search(self, lo: float, hi: float, p_lo: list[float], p_hi: list[float],
-               flagged: list[tuple[int, float, float, str]], level: int, approach: Sequence[int] = ()
-               ) -> _Bracket | None:
-        """First switch-on inside ``[lo, hi]`` (sub-interval ``level`` of a step's sample interval), or ``None``.
-
-        ``approach``: watches that switch on right after ``hi`` (an interval still
-        flagged for them at the finest level is their approach to that
-        crossing, not recorded).
-        """
-        n = REFINE_SUBDIVISIONS
-        if level > self.depth or self.budget < n - 1 or hi - lo <= 8.0 * math.ulp(max(abs(lo), abs(hi))):
-            self._record(lo, hi, flagged, approach, "depth" if self.budget >= n - 1 else "budget")
-            return None
-        self.budget -= n - 1
-        self.evaluations += n - 1
-        ts = [lo] + [lo + (hi - lo) * j / n for j in range(1, n)] + [hi]
-        ps = [p_lo] + [self.values(tt, self.point(tt)) for tt in ts[1:-1]] + [p_hi]
-        bounds = self.bounds(ts, ps)
-        for m in range(n):
-            inner = self.flags(ts, ps, m, level, bounds)
-            if inner:
-                after = approach if m == n - 1 else _switched_on(self.watches, ps[m + 1], ps[m + 2])
-                found = self.search(ts[m], ts[m + 1], ps[m], ps[m + 1], inner, level + 1, after)
-                if found is not None:
-                    return found
-            candidates = _switched_on(self.watches, ps[m], ps[m + 1])
-            if candidates:
-                return _Bracket(ts[m], ts[m + 1], ps[m], ps[m + 1], candidates)
-        return None
-
-    def _record(self, lo: float, hi: float, flagged: list[tuple[int, float, float, str]], approach: Sequence[int],
-                reason: str) -> None:
-        for k, distance, reach, test in flagged:
-            if test == "switch" or k in approach:
-                continue
-            w = self.watches[k]
-            self.unresolved.add(UnresolvedWindow(mode=self.mode, role=w.role, name=w.name, t_start=lo, t_end=hi,
-                                                 distance=distance, reach=reach, reason=reason))
-
-
-def _switches_on(kind: str, before: float, after: float) -> bool:
-    """One watch of :func:`_switched_on`."""
-    if kind == "level":
-        return after >= 0.0 > before
-    if kind == "strict":
-        return after > 0.0 >= before
-    return before <= 0.0 <= after and before < after
-
-
-class _UnresolvedLog:
-    """The run's :class:`UnresolvedWindow` records: adjacent ones of one watch merged, the first kept (private)."""
-
-    __slots__ = ("items", "total")
-
-    def __init__(self) -> None:
-        self.items: list[UnresolvedWindow] = []
-        self.total = 0
-
-    def add(self, record: UnresolvedWindow) -> None:
-        for n in range(len(self.items) - 1, max(len(self.items) - 4, -1), -1):  # the last few: one per watch
-            last = self.items[n]
-            if (last.t_end == record.t_start and last.name == record.name and last.role == record.role
-                    and last.mode == record.mode):
-                self.items[n] = UnresolvedWindow(
-                    mode=last.mode, role=last.role, name=last.name, t_start=last.t_start, t_end=record.t_end,
-                    distance=min(last.distance, record.distance), reach=max(last.reach, record.reach),
-                    reason=last.reason)
-                return
-        self.total += 1
-        if len(self.items) < UNRESOLVED_KEPT:
-            self.items.append(record)
-
-
-def _find_switch(
-    values: Callable[[float, tuple[float, ...]], list[float]],
-    watches: Sequence[_Watch],
-    t_old: float,
-    t_new: float,
-    y_new: tuple[float, ...],
-    phi_old: list[float],
-    point: Callable[[float], tuple[float, ...]] | None,
-    sign_checks: int,
-    refiner: _Refiner | None = None,
-) -> tuple[_Bracket | None, list[float]]:
-    """Evaluate the watches at ``sign_checks`` interior points of a step and at its end; refine where they bend.
-
-    The samples are evaluated in time order up to the first interval where a
-    watch switches on.  The intervals up to that one are then examined by
-    ``refiner`` (when given) in time order, so a window hidden between two
-    samples before the first visible switch-on wins.
-
-    Returns
-    -------
-    bracket, phi_end
-        The first (sub-)interval where a watch switches on, or ``None``; the
-        watch values at the step's end (when nothing switched on).
-    """
-    if point is None or sign_checks == 0:
-        phi_new = values(t_new, y_new)
-        candidates = _switched_on(watches, phi_old, phi_new)
-        return (_Bracket(t_old, t_new, phi_old, phi_new, candidates) if candidates else None), phi_new
-    n = sign_checks + 1
-    ts, ps = [t_old], [phi_old]
-    first_on: list[int] | None = None
-    for i in range(1, n + 1):
-        if i < n:
-            hi = t_old + (t_new - t_old) * i / n
-            phi = values(hi, point(hi))
-        else:
-            hi, phi = t_new, values(t_new, y_new)
-        ts.append(hi)
-        ps.append(phi)
-        first_on = _switched_on(watches, ps[-2], phi) or None
-        if first_on is not None:
-            break
-    pairs = len(ts) - 1
-    if refiner is not None and refiner.depth > 0:
-        refiner.budget = REFINE_BUDGET
-        suspects = refiner.scan(ts, ps)
-        for i in range(pairs if suspects else 0):
-            flagged = refiner.flags(ts, ps, i, 0, refiner.rates, suspects)
-            if flagged:
-                approach = first_on if (first_on is not None and i == pairs - 2) else ()
-                found = refiner.search(ts[i], ts[i + 1], ps[i], ps[i + 1], flagged, 1, approach or ())
-                if found is not None:
-                    return found, ps[-1]
-    if first_on is not None:
-        return _Bracket(ts[-2], ts[-1], ps[-2], ps[-1], first_on), ps[-1]
-    return None, ps[-1]
-
-
-def _locate(
-    values: Callable[[float, tuple[float, ...]], list[float]],
-    watches: Sequence[_Watch],
-    bracket: _Bracket,
-    point: Callable[[float], tuple[float, ...]],
-    event_tol: float,
-) -> tuple[_Event, int]:
-    """First time in ``bracket`` where one of its candidates is on, to ``event_tol``.
-
-    A crossing candidate is on where ``phi >= 0`` (``> 0`` if it started the
-    bracket on zero), so the located time is the right end of the final
-    bracket, where the condition holds.
-
-    Returns
-    -------
-    event, iterations
-        The event time, state and watch values, and the same at the final
-        bracket's left end (where no candidate is on yet: the kernel's
-        "previous" evaluation).
-    """
-    cands = bracket.candidates
-    kinds = {k: ("strict" if watches[k].kind == "strict"
-                 or (watches[k].kind == "crossing" and bracket.phi_lo[k] == 0.0) else "level") for k in cands}
-    cache: dict[float, list[float]] = {bracket.lo: bracket.phi_lo}  # phi_lo was evaluated at point(lo)
-
-    def values_at(tt: float) -> list[float]:
-        if tt not in cache:
-            cache[tt] = values(tt, point(tt))
-        return cache[tt]
-
-    stricts = [(k, kinds[k] == "strict") for k in cands]
-
-    def any_on(tt: float) -> bool:
-        vals = values_at(tt)
-        for k, strict in stricts:
-            if (vals[k] > 0.0) if strict else (vals[k] >= 0.0):
-                return True
-        return False
-
-    t_left, t_star, _, _, iterations = locate_crossing(
-        lambda tt: max(values_at(tt)[k] for k in cands),
-        bracket.lo, bracket.hi, max(bracket.phi_lo[k] for k in cands), max(bracket.phi_hi[k] for k in cands),
-        tol=event_tol, holds=any_on,
-    )
-    return _Event(time=float(t_star), state=point(t_star), values=values_at(t_star), left_time=t_left,
-                  left_state=point(t_left), left_values=values_at(t_left)), iterations
-
-
-@dataclass(frozen=True, slots=True)
-class _Event:
-    """A located event of one segment: time, state and watch values there and at the bracket's left end."""
-
-    time: float
-    state: tuple[float, ...]
-    values: list[float]
-    left_time: float
-    left_state: tuple[float, ...]
-    left_values: list[float]
-
-
 @dataclass(frozen=True, slots=True)
 class _Options:
     """The solver and event settings of one execution (validated by :func:`_validated`)."""
@@ -1104,39 +587,45 @@ class _Options:
 @dataclass(slots=True)
 class _SegmentResult:
     segment: FlowSegment
-    event: _Event | None
+    event: LocatedEvent | None
     on: tuple[int, ...]  # invariant and stop watches on at the event
-    watches: tuple[_Watch, ...]
+    watches: tuple[Watch, ...]
     steps: int
     rhs: int
     roots: int
     failure: str | None
     resolution: float = 0.0  # largest spacing of the uniform samples of the watches in a step [s]
+    disarmed: frozenset[str] = frozenset()  # crossing guards disarmed at the segment's start
 
 
 def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: tuple[float, ...],
-                  memory: Mapping[str, float], steps_before: int) -> _SegmentResult:
-    """Integrate ``mode`` from ``(t, x)`` until a watch switches on, the horizon, or a solver failure."""
+                  memory: Mapping[str, float], steps_before: int, disarmed: frozenset[str]) -> _SegmentResult:
+    """Integrate ``mode`` from ``(t, x)`` until a watch switches on, the horizon, or a solver failure.
+
+    ``disarmed``: crossing guards that cannot fire from zero (:func:`hybrid.events.arm_watches`).
+    """
     seg_memory = dict(memory)
     watches = run.watches(mode, seg_memory, t, x)
     times, states, interpolants = [t], [x], []
     steps = rhs = roots = 0
-    event: _Event | None = None
+    event: LocatedEvent | None = None
     on: tuple[int, ...] = ()
     failure: str | None = None
 
     def values(tt: float, xx: tuple[float, ...]) -> list[float]:
         return run.values(watches, mode, seg_memory, tt, xx)
 
+    if t < opts.t_end:
+        phi_old = values(t, x)
+        watches = arm_watches(watches, phi_old, disarmed)
     rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
-    refiner = (_Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
-                        opts.event_tol) if watches and opts.sign_checks and opts.refine_depth else None)
+    refiner = (Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
+                       opts.event_tol, t) if watches and opts.sign_checks and opts.refine_depth else None)
     resolution = 0.0
     run.last_point = (t, x)
     if t < opts.t_end:
         solver = METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
                                       rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step)
-        phi_old = values(t, x)
         want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
         while solver.status == "running":
             if steps_before + steps >= opts.max_steps:
@@ -1156,7 +645,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
                 resolution = spacing if spacing > resolution else resolution
                 if refiner is not None and point is not None:
                     refiner.point = point
-                bracket, phi_old = _find_switch(values, watches, t_old, t_new, y_new, phi_old, point,
+                bracket, phi_old = find_switch(values, watches, t_old, t_new, y_new, phi_old, point,
                                                 opts.sign_checks, refiner if point is not None else None)
             else:
                 bracket = None
@@ -1170,13 +659,13 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
             if interp is None:
                 interp = solver.dense_output()
             point = point or _point_evaluator(interp)
-            event, iterations = _locate(values, watches, bracket, point, opts.event_tol)
+            event, iterations = locate_event(values, watches, bracket, point, opts.event_tol)
             roots += iterations
             times.append(event.time)
             states.append(event.state)
             interpolants.append(interp)
             on = tuple(k for k in bracket.candidates if watches[k].role != "guard"
-                       and _is_on(watches[k].kind, event.values[k]))
+                       and is_on(watches[k].kind, event.values[k]))
             break
         rhs = int(getattr(solver, "nfev", 0))
     dense_out = _LazySolution(times, interpolants) if interpolants and opts.dense else None
@@ -1188,7 +677,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     if refiner is not None:
         run.refinement_evaluations += refiner.evaluations
     return _SegmentResult(segment=segment, event=event, on=on, watches=watches, steps=steps, rhs=rhs, roots=roots,
-                          failure=failure, resolution=resolution)
+                          failure=failure, resolution=resolution, disarmed=disarmed)
 
 
 def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
@@ -1198,14 +687,18 @@ def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mappi
     At a located event (``located``) the kernel's first round reuses the guard
     values the search computed at the event and at the bracket's left end
     (the "previous" evaluation of crossing guards) instead of calling the
-    guards again; later rounds evaluate them at the post-jump states.
+    guards again; later rounds evaluate them at the post-jump states.  The
+    crossing guards still disarmed at the bracket's left end
+    (:func:`hybrid.events.still_disarmed`) cannot fire.
     """
     known: dict[int, float] = {}
     v_now: tuple[float, ...] | None = None
     v_left: tuple[float, ...] | None = None
     previous = None
+    disarmed: frozenset[str] = frozenset()
     if located is not None and located.event is not None:
         event = located.event
+        disarmed = still_disarmed(located.watches, event.left_values, located.disarmed)
         v_now = run.signals(mode, t, x)
         guards = [(k, w.transition) for k, w in enumerate(located.watches) if w.role == "guard"]
         if any(tr.direction != 0 for _, tr in guards):  # type: ignore[union-attr]
@@ -1235,8 +728,23 @@ def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mappi
         return jump(tr, state, v, m)
 
     return settle_instant(run.outgoing, mode, x, memory, signals=signals, previous=previous, guard=guard,
-                          fire=fire, ties="raise", max_jumps=max_jumps, time=t,
+                          fire=fire, ties="raise", max_jumps=max_jumps, time=t, disarmed=disarmed,
                           where=lambda state: f"x = {_fmt(state)}")
+
+
+def _disarmed_after(run: _Run, instant: Instant, located: _SegmentResult) -> frozenset[str]:
+    """Crossing guards disarmed for the next flow: those crossed at ``instant`` and those still disarmed before it.
+
+    A crossing guard enabled at the instant's first jump (the winner and the
+    outranked) has had its crossing; if the next flow starts on its zero it
+    must first go strictly below zero (:func:`hybrid.events.arm_watches`).
+    One disarmed before and not yet strictly below stays disarmed.
+    """
+    if not run.crossing_names:
+        return frozenset()
+    crossed_now = (n for n in instant.jumps[0].enabled if n in run.crossing_names) if instant.jumps else ()
+    assert located.event is not None
+    return still_disarmed(located.watches, located.event.left_values, located.disarmed).union(crossed_now)
 
 
 def _landing_error(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
@@ -1432,9 +940,11 @@ def simulate_continuous(
         interval between them is split into 4 at points of the dense output,
         recursively, down to ``refine_depth`` levels (spacing
         ``step / (sign_checks + 1) / 4**refine_depth``; at most
-        :data:`REFINE_BUDGET` evaluations per step).  Bends still unresolved
-        there are listed in :attr:`HybridTrajectory.unresolved` and reported by
-        one :class:`~hybrid.errors.GuardResolutionWarning`.  ``0`` disables it.
+        :data:`~hybrid.events.REFINE_BUDGET` evaluations per step), where the
+        extremum is searched (a touch of zero is found).  Bends still
+        unresolved there are listed in :attr:`HybridTrajectory.unresolved` and
+        reported by one :class:`~hybrid.errors.GuardResolutionWarning`.  ``0``
+        disables it.
     max_jumps : int
         Total jumps before termination ``"jump_limit"``.
     max_jumps_per_instant : int
@@ -1501,7 +1011,7 @@ def simulate_continuous(
     book = _Book(zeno_interval if zeno_interval is not None else 1e-6 * float(duration))
     t = float(t0)
     instant = _resolve(run, mode, t, x, memory, max_jumps_per_instant)
-    after_event = False
+    after_event, disarmed = False, frozenset()
     while True:
         book.record(t, instant)
         mode, x, memory = instant.mode, instant.state, instant.memory
@@ -1519,7 +1029,7 @@ def simulate_continuous(
         if after_event and _after_jumps(book, t, max_jumps, zeno, chatter_window, chatter_switches,
                                                    stop_on_chatter):
             break
-        result = _flow_segment(run, opts, mode, book.j, t, x, memory, book.steps)
+        result = _flow_segment(run, opts, mode, book.j, t, x, memory, book.steps, disarmed)
         book.add_segment(result)
         t, x = result.segment.t_end, tuple(result.segment.states[-1].tolist())
         if result.failure is not None:
@@ -1536,14 +1046,14 @@ def simulate_continuous(
             break
         x = result.event.state
         instant = _resolve(run, mode, t, x, memory, max_jumps_per_instant, located=result)
-        after_event = True
+        after_event, disarmed = True, _disarmed_after(run, instant, result)
         if not instant.jumps:
             book.end("invariant_violated", _deadlock_detail(run, result, mode))
             break
     chatter = (find_chatter(book.events, window=chatter_window, min_switches=chatter_switches)
                if chatter_window is not None else ())
     if run.unresolved.total:
-        warnings.warn(_unresolved_message(system.name, run.unresolved), GuardResolutionWarning, stacklevel=2)
+        warnings.warn(unresolved_message(system.name, run.unresolved), GuardResolutionWarning, stacklevel=2)
     return HybridTrajectory(
         system=system.name, mode_names=system.automaton.mode_names, state_names=system.state_names,
         segments=tuple(book.segments), events=tuple(book.events), termination=book.termination,
@@ -1553,17 +1063,6 @@ def simulate_continuous(
                              root_iterations=book.roots, events=len(book.events),
                              refinement_evaluations=run.refinement_evaluations),
         resolution=book.resolution, unresolved=tuple(run.unresolved.items),
-    )
-
-
-def _unresolved_message(name: str, log: _UnresolvedLog) -> str:
-    first = log.items[0]
-    return (
-        f"simulate_continuous({name!r}): {log.total} place(s) where a watched function may switch on and off "
-        f"between samples unseen; the first: the {first.role} {first.name!r} in mode {first.mode!r} on "
-        f"[{format_time(first.t_start)}, {format_time(first.t_end)}] s, {first.distance:.3g} from zero where it "
-        f"may move by {first.reach:.3g} ({first.reason} of the refinement reached); listed in "
-        "HybridTrajectory.unresolved; fix: a smaller max_step, or a larger sign_checks or refine_depth"
     )
 
 

@@ -20,9 +20,23 @@ the signals are ``v = h(x)`` (the state itself when there is no output map).
    and ``g1 = g(v, m)``, a rising transition (``+1``) fires when
    ``g0 <= 0 <= g1`` and ``g0 < g1`` (the guard reached zero from below or left
    zero upwards); a falling one (``-1``) mirrors it (:func:`crossed`).  A
-   guard that *starts* on zero therefore fires as soon as it moves in its
-   direction, and a guard sitting on zero after its own reset fires again only
-   if the flow pushes it further the same way.
+   guard that *starts* on zero (the initial time, or entered on zero by
+   another transition's jump) therefore fires as soon as it moves in its
+   direction.
+
+   **One event per crossing.**  A crossing guard that has had its crossing
+   (it fired, or was enabled and outranked, at an instant) and sits on its
+   zero or beyond it afterwards is *disarmed*: it fires again only after its
+   guard has been strictly on the pre-crossing side (``g < 0`` for a rising
+   one).  Leaving zero in its direction is the same crossing continuing, not
+   a new one: ``x' = 1`` with the rising guard ``x - 1`` and the jump
+   ``x := 1`` fires once, not at every step.  The caller, which knows the
+   history, passes the disarmed transitions (``disarmed``); for them the
+   crossing test is ``g0 < 0 <= g1``.  The continuous executor tracks them
+   along each flow (:mod:`hybrid.events`: the guard's samples must go strictly
+   below zero to re-arm it); the sampled executor and the fuzz runner do not
+   pass them yet (a sample exactly on zero followed by one above it fires
+   twice there).
 2. **Priority.**  The enabled transition with the smallest priority number
    fires; the others are reported as ``enabled``.  Equal priorities among the
    enabled set are non-determinism: ``ties="raise"`` raises
@@ -44,7 +58,7 @@ the signals are ``v = h(x)`` (the state itself when there is no output map).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, NamedTuple
@@ -170,6 +184,7 @@ def _enabled(
     memory: Mapping[str, float],
     previous: Sequence[float] | None,
     guard: GuardEvaluator,
+    disarmed: Collection[str] = (),
 ) -> list[tuple[Transition, float]]:
     """Enabled transitions with their guard values, priority order (``previous`` only for crossings)."""
     out = []
@@ -180,7 +195,8 @@ def _enabled(
                 out.append((t, g))
         elif previous is not None:
             g = guard(t, v, memory)
-            if crossed(t.direction, guard(t, previous, memory), g):
+            g0 = guard(t, previous, memory)
+            if crossed(t.direction, g0, g) and not (g0 == 0.0 and t.name in disarmed):
                 out.append((t, g))
     return out
 
@@ -217,6 +233,7 @@ def settle_instant(
     time: float = 0.0,
     where: Callable[[Any], str] | None = None,
     stop_before: Transition | None = None,
+    disarmed: Collection[str] = (),
 ) -> Instant:
     """Fire the transitions enabled at one instant until none is (the rule of the module docstring).
 
@@ -249,6 +266,10 @@ def settle_instant(
     stop_before : Transition or None
         End the instant, without firing it, when this transition wins
         (the structural checks ask "does the reset re-trigger t?").
+    disarmed : collection of str
+        Crossing-triggered transitions disarmed by their own earlier crossing
+        (the module docstring): they fire only from strictly below zero
+        (``g0 < 0 <= g1`` rising), not when they leave zero.
 
     Returns
     -------
@@ -267,7 +288,7 @@ def settle_instant(
     jumps: list[InstantJump] = []
     while True:
         v = state if signals is None else signals(mode, state)
-        enabled = _enabled(outgoing[mode], v, frozen, previous if not jumps else None, guard)
+        enabled = _enabled(outgoing[mode], v, frozen, previous if not jumps else None, guard, disarmed)
         if not enabled:
             return Instant(mode, state, frozen, tuple(jumps))
         winner, g = enabled[0]
