@@ -595,7 +595,8 @@ def _cmd_analyse_problem(args: argparse.Namespace) -> int:
         print(json.dumps(out, sort_keys=True))
     else:
         print(_stability_human(out) + "".join(f"\n  wrote {path}" for path in written))
-    return EXIT_OK
+    # a stability that was not decided is never a pass: incomplete (5); an unstable system is a finding (1)
+    return {"stable": EXIT_OK, "unstable": EXIT_TASK_FAILED}.get(analysis.verdict, EXIT_INCOMPLETE)
 
 
 def _cmd_analyse(args: argparse.Namespace) -> int:

@@ -160,3 +160,34 @@ def test_a_formula_that_divides_by_zero_is_bad_input_naming_the_formula_not_the_
     path.write_text(path.read_text().replace('formula="always[0, 2] (x > 0)"', 'formula="always[0, 2] (x / (x - x) > 0)"'))
     code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
     assert code == 2 and "x / (x - x)" in err and "your simulator raised" not in err and "Traceback" not in err
+
+
+BALL = '''
+from analysis.verify import Parameter, Requirement, hybrid_problem
+from hybrid.examples import bouncing_ball
+
+problem = hybrid_problem(
+    name="ball", system=bouncing_ball(h0=4.905, restitution=0.5).system,
+    initial={"h": Parameter(name="h0", low=4.8, high=4.905, nominal=4.905), "v": 0.0}, horizon=10.0,
+    requirements=(Requirement(name="r", formula="always[0, 10] (h >= -0.01)"),), stability=True)
+'''
+
+
+def test_report_of_a_zeno_model_is_incomplete_never_a_pass(tmp_path, capsys):
+    path = tmp_path / "ball.py"
+    path.write_text(BALL)
+    code, out, err = _run(capsys, "report", "--problem", f"{path}:problem", "--quick", "--budget", "3",
+                          "--out", str(tmp_path / "r"), "--json")
+    assert code == 5, err
+    summary = json.loads(out)
+    assert summary["verdict"] == "incomplete"
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert report["verdict"] == "incomplete" and report["verification"]["requirements"][0]["verdict"] == "incomplete"
+    assert "INCOMPLETE" in (tmp_path / "r" / "report.md").read_text()
+
+
+def test_analyse_of_a_stability_it_cannot_decide_exits_5(tmp_path, capsys):
+    path = tmp_path / "ball.py"
+    path.write_text(BALL)
+    code, out, _ = _run(capsys, "analyse", "--problem", f"{path}:problem")
+    assert code == 5 and "NOT DECIDED" in out
