@@ -786,5 +786,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    from visnav.app.entry import ignore_late_interrupts
+
+    sys.exit(ignore_late_interrupts(main()))
 

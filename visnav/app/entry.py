@@ -7,9 +7,18 @@ the command line module itself is being imported.
 
 from __future__ import annotations
 
+import signal
 import sys
 
-__all__ = ["main"]
+__all__ = ["main", "ignore_late_interrupts"]
+
+
+def ignore_late_interrupts(code: int) -> int:
+    """Return ``code`` with SIGINT ignored from now on: the command has finished and written its results, so a
+    Ctrl-C during the interpreter's shutdown (joining the executors' threads) must neither print "Exception
+    ignored in threading._shutdown" nor change the exit code."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code
 
 
 def main() -> int:
@@ -19,7 +28,7 @@ def main() -> int:
     except KeyboardInterrupt:
         print("visnav: interrupted (SIGINT) during start-up; nothing was run", file=sys.stderr)
         return 130
-    return run()
+    return ignore_late_interrupts(run())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -69,3 +69,36 @@ def test_the_exit_codes_are_documented():
     doc = open(os.path.join(here, "..", "..", "..", "docs", "failure_modes.md"), encoding="utf-8").read()
     for code in EXIT_CODES:
         assert re.search(rf"^\| {code} \|", doc, re.M), code
+
+
+def test_a_finished_command_ignores_a_late_ctrl_c_during_shutdown(monkeypatch):
+    import signal
+
+    from visnav.app import entry
+
+    monkeypatch.setattr("sys.argv", ["visnav", "mode-graph", "--format", "json"])
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        assert entry.main() == 0
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # no "Exception ignored in threading._shutdown"
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_a_late_ctrl_c_after_the_command_does_not_print_or_change_the_exit_code(tmp_path):
+    import subprocess
+    import sys
+    import textwrap
+
+    script = tmp_path / "late.py"  # the command finishes, then SIGINT arrives while a thread is still joined
+    script.write_text(textwrap.dedent('''
+        import os, signal, sys, threading, time
+        from visnav.app import entry
+        sys.argv = ["visnav", "mode-graph", "--format", "json"]
+        code = entry.main()
+        threading.Thread(target=time.sleep, args=(0.5,)).start()   # a non-daemon thread the shutdown joins
+        threading.Timer(0.1, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+        sys.exit(code)
+    '''))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "Exception ignored" not in done.stderr and "KeyboardInterrupt" not in done.stderr
