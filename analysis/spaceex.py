@@ -69,7 +69,8 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     component : str or None
         The component to analyse; default: the configuration's ``system``, else the file's last component.
     sample_period : float or None
-        Uniform sampling of the flows for the STL trace [s] (default: horizon / 400).
+        Uniform sampling of the flows for the STL trace [s] (default: the integrator's own steps, which are
+        dense where the state changes fast: a uniform grid could step over a peak).
 
     Raises
     ------
@@ -108,7 +109,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     return hybrid_problem(
         name=f"spaceex-{Path(xml).stem}-{model.system.automaton.name}",
         system=model.system, initial=initial, horizon=cfg.horizon, requirements=requirements,
-        parameters=parameters, initial_mode=mode, sample_period=sample_period or cfg.horizon / 400.0,
+        parameters=parameters, initial_mode=mode, sample_period=sample_period,
         description=f"SpaceEx model {xml} (component {model.system.automaton.name!r}) with {config}. "
                     + " ".join(notes),
         source=f"{xml}:{model.system.automaton.name} --config {config}",

@@ -26,10 +26,12 @@ Mapping onto :mod:`hybrid` (docs/spaceex.md):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .errors import HybridError
 from .model import HybridAutomaton, Mode, Transition
 from .spaceex_flatten import FlatAutomaton, flatten
 from .spaceex_model import parse_components
@@ -89,10 +91,16 @@ def load_spaceex(path: str | Path, component: str | None = None) -> SpaceExModel
 
 def import_spaceex(data: bytes, component: str | None = None, *, source: str = "<spaceex>") -> SpaceExModel:
     """Import a SpaceEx model from its XML bytes (see :func:`load_spaceex`)."""
-    components = parse_components(data, source)
-    name = component if component is not None else list(components)[-1]
-    flat = flatten(components, name, source)
-    return build_system(flat, source)
+    try:
+        components = parse_components(data, source)
+        name = component if component is not None else list(components)[-1]
+        flat = flatten(components, name, source)
+        return build_system(flat, source)
+    except SpaceExError:
+        raise
+    except (HybridError, ArithmeticError, ValueError, RecursionError) as error:  # e.g. 10^1000 in a flow
+        raise SpaceExError(source, f"{type(error).__name__}: {error}", "a model hybrid can represent (finite "
+                           "constants, integer powers, division by constants)", "fix the expression named") from None
 
 
 _FUNCS = {"sin": sin, "cos": cos, "exp": exp, "sqrt": sqrt, "log": log}
@@ -100,6 +108,14 @@ _BIN = {"+": lambda a, b: a + b, "-": lambda a, b: a - b, "*": lambda a, b: a * 
 
 
 def to_symbolic(tree: Any, env: dict[str, Expr], where: str) -> Any:
+    """See :func:`symbolic_node`; a constant that folds to an infinity is refused."""
+    node = symbolic_node(tree, env, where)
+    if isinstance(node, Const) and not math.isfinite(node.value):
+        raise SpaceExError(where, tree, "a finite constant", "the constant overflows double precision: rescale it")
+    return node
+
+
+def symbolic_node(tree: Any, env: dict[str, Expr], where: str) -> Any:
     """A :mod:`hybrid.symbolic` expression or condition for a renamed tree (``env``: variable -> expression).
 
     Raises

@@ -40,6 +40,7 @@ __all__ = [
     "MAX_FILE_BYTES",
     "MAX_ELEMENTS",
     "MAX_DEPTH",
+    "MAX_TERMS",
     "FUNCTIONS",
 ]
 
@@ -49,8 +50,14 @@ MAX_FILE_BYTES = 64 * 1024 * 1024
 MAX_ELEMENTS = 2_000_000
 """Largest number of XML elements read: beyond it the file is refused before it is interpreted."""
 
-MAX_DEPTH = 200
+MAX_DEPTH = 100
 """Deepest nesting of parentheses or operators in one expression (bounded recursion)."""
+
+MAX_CONJUNCTS = 100_000
+"""Most constraints of one conjunction (flat: no recursion, a bound on work only)."""
+
+MAX_TERMS = 250
+"""Most terms of one sum or factors of one product (the tree of a sum is as deep as it is long)."""
 
 FUNCTIONS = ("sin", "cos", "exp", "sqrt", "log")
 """Functions of the SpaceEx expression language that the import maps onto :mod:`hybrid.symbolic`."""
@@ -224,6 +231,8 @@ class _Parser:
         while self.peek().text == "&":
             self.take()
             parts.append(self.atom())
+            if len(parts) > MAX_CONJUNCTS:
+                raise self.error(f"a conjunction of at most {MAX_CONJUNCTS} constraints")
         flat: list[Any] = []
         for p in parts:
             flat.extend(p[1] if p[0] == "and" else (p,))
@@ -301,17 +310,25 @@ class _Parser:
     def expr(self) -> Any:
         self.nest()
         node = self.term()
+        count = 1
         while self.peek().text in ("+", "-"):
             op = self.take().text
             node = (op, node, self.term())
+            count += 1
+            if count > MAX_TERMS:
+                raise self.error(f"a sum of at most {MAX_TERMS} terms")
         self.depth -= 1
         return node
 
     def term(self) -> Any:
         node = self.unary()
+        count = 1
         while self.peek().text in ("*", "/"):
             op = self.take().text
             node = (op, node, self.unary())
+            count += 1
+            if count > MAX_TERMS:
+                raise self.error(f"a product of at most {MAX_TERMS} factors")
         return node
 
     def unary(self) -> Any:
@@ -336,7 +353,10 @@ class _Parser:
     def primary(self) -> Any:
         tok = self.take()
         if tok.kind == "num":
-            return ("num", float(tok.text))
+            value = float(tok.text)
+            if value == float("inf"):
+                raise self.error("a number within double precision", tok)
+            return ("num", value)
         if tok.kind == "name" and self.peek().text == "(":
             if tok.text not in FUNCTIONS:
                 raise self.error(f"a function among {', '.join(FUNCTIONS)}", tok)
