@@ -15,10 +15,12 @@ expressions.  What SpaceEx's language can say (docs/spaceex.md):
   keeps is not assigned); memory variables become SpaceEx variables with flow
   ``m' == 0``.
 
-Not expressible, and refused with the function and the place named: ``abs``,
-``min``/``max`` inside expressions, ``atan2``, ``ite``, ``select``, time ``t``
-in a flow or output, a disjunction inside an invariant, plain Python
-callables.  A crossing-triggered transition (``direction = ±1``) is written as
+A transition whose guard, jump or reset holds ``ite``, ``select``, ``min``,
+``max`` or ``abs`` is split into one SpaceEx transition per case
+(:mod:`hybrid.spaceex_split`).  Not expressible, and refused with the
+function and the place named: ``atan2``; ``abs``, ``min``/``max``, ``ite``,
+``select`` in a flow or an invariant; time ``t``; a disjunction inside an
+invariant; plain Python callables.  A crossing-triggered transition (``direction = ±1``) is written as
 its level guard and priorities are dropped; a comment in the XML says so
 (SpaceEx has neither).  Names that are not SpaceEx identifiers (``a.b``,
 ``m|n``) are written with ``_`` for the other characters, listed in a comment.
@@ -33,6 +35,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .model import Conjunction, HybridAutomaton
+from .spaceex_split import MAX_CASES, Split, case_of, negate, replace, static_truth
 from .spaceex_syntax import SpaceExError
 from .symbolic import (
     Apply,
@@ -41,9 +44,11 @@ from .symbolic import (
     Const,
     Coordinate,
     Expr,
+    Ite,
     Logic,
     MemoryRef,
     Param,
+    Select,
     SymbolicReset,
     SymbolicVector,
     substitute,
@@ -83,6 +88,7 @@ class _Writer:
     def __init__(self, system: HybridSystem, names: dict[str, str]) -> None:
         self.system = system
         self.names = names
+        self.split = False  # inside a transition: a piecewise node raises Split (the transition is split by cases)
 
     def number(self, value: float, where: str) -> str:
         if not math.isfinite(value):
@@ -107,9 +113,13 @@ class _Writer:
                 return f"({self.expr(node.args[0], where)}^{int(node.args[1].value)})"
             if node.op in _FUNCS:
                 return f"{node.op}({self.expr(node.args[0], where)})"
+            if self.split and node.op in ("min", "max", "abs"):
+                raise Split(node)
             raise SpaceExError(where, node.op, f"a function SpaceEx expresses (+ - * / ^ {' '.join(_FUNCS)})",
                                f"{node.op}() has no SpaceEx form: split the mode where it switches, or keep the "
                                "model in visnav")
+        if self.split and isinstance(node, (Ite, Select)):
+            raise Split(node)
         raise SpaceExError(where, type(node).__name__, "an arithmetic expression of states, numbers and parameters",
                            "time t, ite() and select() have no SpaceEx form in a flat component")
 
@@ -259,37 +269,102 @@ def _location(comp: ET.Element, w: _Writer, system: HybridSystem, mode: Any, lid
     ET.SubElement(loc, "flow").text = " & ".join(parts)
 
 
-def _transition(comp: ET.Element, w: _Writer, system: HybridSystem, t: Any, ids: Mapping[str, str],
-                signals: Mapping[str, Expr]) -> None:
-    where = f"system {system.automaton.name!r}: transition {t.name!r}"
-    assignments: list[str] = []
+def _parts(system: HybridSystem, t: Any, signals: Mapping[str, Expr],
+           where: str) -> tuple[Any, dict[str, Expr], dict[str, Expr]]:
+    """The guard, the jump's assignments (states it changes) and the reset's, all over the state."""
+    jumps: dict[str, Expr] = {}
     jump = system.jumps.get(t.name)
     if jump is not None:
         if not isinstance(jump, SymbolicVector):
             raise SpaceExError(f"{where}: jump map", "a Python function", "a symbolic jump_map(...)",
                                "write the jump map with hybrid.symbolic.jump_map")
-        for i, (s, e) in enumerate(zip(system.state_names, jump.components)):
-            if not (isinstance(e, Coordinate) and e.name == s):
-                assignments.append(f"{w.names[s]} := {w.expr(e, f'{where}: jump of {s}')}")
+        jumps = {s: e for s, e in zip(system.state_names, jump.components)
+                 if not (isinstance(e, Coordinate) and e.name == s)}
+    resets: dict[str, Expr] = {}
     if t.reset is not None:
         if not isinstance(t.reset, SymbolicReset):
             raise SpaceExError(f"{where}: reset", "a Python function", "a symbolic reset(...)",
                                "write the reset with hybrid.symbolic.reset")
-        for m, e in t.reset.assignments.items():
-            assignments.append(f"{w.names[m]} := {w.expr(_on_state(e, signals), f'{where}: reset of {m}')}")
+        resets = {m: _on_state(e, signals) for m, e in t.reset.assignments.items()}
+    return _on_state(t.guard, signals), jumps, resets
+
+
+def _alternatives(c: Condition) -> list[list[Compare]]:
+    """``c`` in disjunctive normal form over comparisons without ``!=``."""
+    if isinstance(c, Compare):
+        if c.op == "!=":
+            return [[Compare("<", c.left, c.right)], [Compare(">", c.left, c.right)]]
+        return [[c]]
+    if c.op == "not":
+        return _alternatives(negate(c.args[0]))
+    if c.op == "or":
+        return [alt for a in c.args for alt in _alternatives(a)]
+    out: list[list[Compare]] = [[]]
+    for a in c.args:
+        out = [x + y for x in out for y in _alternatives(a)]
+    return out
+
+
+def _rows(w: _Writer, extra: tuple[Condition, ...], guard: Any, jumps: Mapping[str, Expr],
+          resets: Mapping[str, Expr], where: str) -> list[tuple[list[str], list[str]]]:
+    """``(guard conjuncts, assignments)`` of each SpaceEx transition (raises :class:`Split` at a piecewise node)."""
+    assignments = [f"{w.names[s]} := {w.expr(e, f'{where}: jump of {s}')}" for s, e in jumps.items()]
+    assignments += [f"{w.names[m]} := {w.expr(e, f'{where}: reset of {m}')}" for m, e in resets.items()]
+    cases: list[list[Compare]] = [[]]
+    for c in extra:
+        cases = [x + y for x in cases for y in _alternatives(c)]
+    rows = []
+    for disjunct in w.guards(guard, f"{where}: guard"):
+        for case in cases:
+            conjuncts = disjunct + [text for c in case for text in w.constraints(c, f"{where}: case")]
+            rows.append(([c for c in conjuncts if c != "1.0 >= 0"], assignments))
+    return rows
+
+
+def _transition(comp: ET.Element, w: _Writer, system: HybridSystem, t: Any, ids: Mapping[str, str],
+                signals: Mapping[str, Expr]) -> None:
+    where = f"system {system.automaton.name!r}: transition {t.name!r}"
+    guard, jumps, resets = _parts(system, t, signals, where)
     notes = []
     if t.direction != 0:
         notes.append(f"crossing-triggered (direction {t.direction:+d}) in visnav; SpaceEx has level guards only")
     if t.priority != 0 or len(system.automaton.outgoing(t.source)) > 1:
         notes.append(f"priority {t.priority} dropped: SpaceEx transitions are unprioritised")
-    for disjunct in w.guards(_on_state(t.guard, signals), f"{where}: guard"):
+    work: list[tuple[tuple[Condition, ...], Any, dict[str, Expr], dict[str, Expr]]] = [((), guard, jumps, resets)]
+    rows: list[tuple[list[str], list[str]]] = []
+    w.split = True
+    try:
+        while work:
+            extra, g, js, rs = work.pop(0)
+            try:
+                rows += _rows(w, extra, g, js, rs, where)
+            except Split as split:
+                cond, then, otherwise = case_of(split.node)
+                truth = static_truth(cond)
+                cases = [(cond, then), (negate(cond), otherwise)]
+                if truth is not None:  # x < inf: one branch only, no condition to write
+                    cases = [(None, then if truth else otherwise)]
+                for c, branch in cases:
+                    conditions = tuple(replace(e, split.node, branch) for e in extra)
+                    if c is not None:
+                        conditions += (replace(c, split.node, branch),)
+                    work.append((conditions, replace(g, split.node, branch),
+                                 {k: replace(v, split.node, branch) for k, v in js.items()},
+                                 {k: replace(v, split.node, branch) for k, v in rs.items()}))
+                if len(work) + len(rows) > MAX_CASES:
+                    raise SpaceExError(where, f"more than {MAX_CASES} cases", f"at most {MAX_CASES} case splits",
+                                       "simplify the piecewise functions of the transition") from None
+    finally:
+        w.split = False
+    if len(rows) > 1:
+        notes.append(f"split into {len(rows)} SpaceEx transitions (disjunctions and piecewise functions by cases)")
+    for conjuncts, assignments in rows:
         if notes:
             comp.append(ET.Comment(f" transition {t.name}: " + "; ".join(notes) + " "))
         edge = ET.SubElement(comp, "transition", {"source": ids[t.source], "target": ids[t.target]})
         ET.SubElement(edge, "label").text = w.names[t.name]
-        kept = [c for c in disjunct if c != "1.0 >= 0"]
-        if kept:
-            ET.SubElement(edge, "guard").text = " & ".join(kept)
+        if conjuncts:
+            ET.SubElement(edge, "guard").text = " & ".join(conjuncts)
         if assignments:
             ET.SubElement(edge, "assignment").text = " & ".join(assignments)
 

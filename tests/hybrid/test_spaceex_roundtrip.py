@@ -165,3 +165,73 @@ def test_a_disjunctive_guard_becomes_one_transition_per_disjunct():
     assert [render(t.guard) for t in back.automaton.transitions] == ["(p - 1)", "(q - 2)"]
     run = simulate_continuous(back, (0.0, 5.0), duration=1.0, initial_mode="a")
     assert run.events[0].time == 0.0 and run.final_state == (0.0, 0.0)
+
+
+def _piecewise_system() -> HybridSystem:
+    """p' = 1, q' = 0; when |p| >= 1 the jump p := ite(q >= 0, -0.5, -0.25)."""
+    x = coordinates("p", "q")
+    automaton = HybridAutomaton(
+        name="saw", modes=(Mode(name="m"),),
+        transitions=(Transition(name="back", source="m", target="m", guard=abs(x.p) >= 1.0),),
+        variables=("p", "q"), initial_mode="m")
+    return HybridSystem(automaton=automaton, state_names=("p", "q"), flows={"m": flow_map(1.0, 0.0)},
+                        jumps={"back": jump_map(ite(x.q >= 0.0, -0.5, -0.25), x.q)})
+
+
+def test_piecewise_guards_and_jumps_are_split_into_cases():
+    system = _piecewise_system()
+    xml = to_spaceex(system)
+    assert xml.count("<transition ") == 4 and "split into 4 SpaceEx transitions" in xml
+    back = import_spaceex(xml.encode()).system
+    assert [t.name for t in back.automaton.transitions] == ["back_1", "back_2", "back_3", "back_4"]
+    # closed form: from p = 0 the first jump is at t = 1, then every 1.5 s (q >= 0) or 1.25 s (q < 0)
+    for q, period in ((1.0, 1.5), (-1.0, 1.25)):
+        expected = [1.0 + k * period for k in range(3)]
+        for model in (system, back):
+            run = simulate_continuous(model, (0.0, q), duration=expected[-1] + 0.1, initial_mode="m")
+            assert [e.time for e in run.events] == pytest.approx(expected, abs=1e-9)
+
+
+def test_the_case_study_supervisor_exports_as_far_as_it_is_expressible():
+    import dataclasses
+
+    from visnav.scenario import load_scenario
+    from visnav.supervisor import build_supervisor, measurement_box, measurement_system
+
+    scenario = load_scenario("paper")
+    model = build_supervisor(scenario.envelopes, scenario.supervisor, 2)
+    system = measurement_system(model)
+    with pytest.raises(SpaceExError, match="mode 'FAR\\|CLEAR': flow .*Python function"):
+        to_spaceex(system)  # its zero flows are Python lambdas
+    zero = flow_map(*([0.0] * system.dimension))
+    symbolic = dataclasses.replace(system, flows={m: zero for m in system.automaton.mode_names})
+    xml = to_spaceex(symbolic)
+    back = import_spaceex(xml.encode()).system
+    memory = [m.name for m in system.automaton.memory]
+    assert back.state_names == (*system.state_names, *memory)
+    names = spaceex_names(symbolic)
+    assert back.automaton.mode_names == tuple(names[m] for m in system.automaton.mode_names)
+    # every original transition is enabled exactly where one of its SpaceEx cases is, with the same reset
+    box = measurement_box(model, 320.0)
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(300):
+        x = tuple(float(rng.uniform(*box.bounds[n])) if n in box.bounds else float(rng.choice(box.choices[n]))
+                  for n in system.state_names)
+        m = {name: float(rng.choice([-1.0, 1.0])) if name in ("side", "arm_sign")
+             else float(rng.choice([0.0, 1.0])) if name == "obstacle"
+             else float(rng.uniform(0.0, 2.0)) for name in memory}
+        v = system.signals(0.0, x)
+        xb = (*x, *(m[k] for k in memory))
+        for t in system.automaton.transitions:
+            label = names[t.name]
+            cases = [u for u in back.automaton.transitions if re.fullmatch(rf"{re.escape(label)}(_\d+)?", u.name)]
+            assert cases
+            enabled = [u for u in cases if u.guard(xb, {}) >= 0]
+            assert bool(enabled) == (t.guard(v, m) >= 0), t.name
+            if enabled and t.reset is not None:
+                after = back.jump(enabled[0].name, 0.0, xb, {})
+                for k, value in t.reset(v, m).items():
+                    assert after[back.state_names.index(k)] == pytest.approx(value, abs=1e-12), (t.name, k)
+                checked += 1
+    assert checked >= 20
