@@ -40,7 +40,8 @@ from .symbolic import Compare, Const, Expr, all_true, any_true, coordinates, cos
 from .symbolic import log, sin, sqrt
 from .system import HybridSystem
 
-__all__ = ["SpaceExModel", "load_spaceex", "import_spaceex", "to_symbolic", "read_bytes"]
+__all__ = ["SpaceExModel", "load_spaceex", "import_spaceex", "build_system", "to_symbolic", "symbolic_node",
+           "substitute_tree", "read_bytes"]
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

@@ -90,11 +90,16 @@ def load_verification_problem(spec: str, options: Mapping[str, Any], requirement
     ``requirements`` when given."""
     from analysis.loading import ProblemLoadError, load_problem
 
+    from analysis.spaceex import is_spaceex_spec
+
+    if "config" in options and not is_spaceex_spec(spec):
+        raise ProblemLoadError("--config", options["config"], "a SpaceEx model FILE.xml[:COMPONENT] as the problem",
+                               "drop --config (it gives a SpaceEx model its .cfg)")
     if spec == "paper":
         from visnav.verification import paper_problem
 
         problem = paper_problem(**options)
-    elif "config" in options or spec.lower().rsplit(":", 1)[0].endswith(".xml") or spec.lower().endswith(".xml"):
+    elif is_spaceex_spec(spec):
         problem = load_problem(spec, options)  # a SpaceEx model and its --config (or the error saying so)
     else:
         if options:

@@ -71,3 +71,8 @@ def test_check_model_problem_on_the_ball_is_incomplete_without_a_box(tmp_path):
     assert proc.returncode == 5, proc.stderr
     data = json.loads(proc.stdout)
     assert "unreachable" in json.dumps(data)
+
+
+def test_config_without_a_spaceex_model_is_refused(tmp_path):
+    proc = visnav("verify", "paper", "--config", SAFE, "--budget", 1, cwd=tmp_path)
+    assert proc.returncode == 2 and "drop --config" in proc.stderr and "Traceback" not in proc.stderr
