@@ -135,6 +135,14 @@ def _conjuncts(tree: Any) -> tuple[Any, ...]:
     return tree[1] if tree[0] == "and" else (tree,)
 
 
+def _names(tree: Any) -> set[str]:
+    if not isinstance(tree, tuple) or not tree:
+        return set()
+    if tree[0] == "name":
+        return {tree[1]}
+    return set().union(*(_names(t) for t in tree[1:]))
+
+
 _FLIP = {"<=": ">=", "<": ">", ">=": "<=", ">": "<", "==": "=="}
 
 
@@ -203,6 +211,10 @@ def initial_box(model: SpaceExModel, config: SpaceExConfig) -> tuple[dict[str, t
             locs.append((c[1], c[2]))
             continue
         b = _bound(c, states, where)
+        unknown = sorted(_names(c) - states - set(model.outputs))
+        if unknown:
+            raise SpaceExError(f"{where}: initially", unknown, f"state variables of the model "
+                               f"({sorted(states)[:12]})", "correct the names (a local variable is instance.name)")
         if b is None:
             raise SpaceExError(f"{where}: initially", c, "a conjunction of bounds var <= c, var >= c, var == c "
                                "(state variables) and loc(instance)==name", "the problem's initial set is a box: "

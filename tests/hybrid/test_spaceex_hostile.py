@@ -137,6 +137,7 @@ def test_the_configuration_refuses_what_is_not_a_box():
     model = load_spaceex(DATA / "spaceexparser" / "bball" / "bball.xml")
     for initially, expected in (("x + v <= 1 & v == 0", "box"), ("x == 1 | x == 2", "box"),
                                 ("x == 1", "finite, non-empty range for every state"),
+                                ("x == 1 & v == 0 & w == 2", "['w']"),
                                 ("x == 1 & v == 0 & loc(ball) == nowhere", "exactly one location")):
         cfg = parse_config(f'initially = "{initially}"\ntime-horizon = 1\n', "bad.cfg")
         with pytest.raises(SpaceExError) as info:

@@ -52,7 +52,10 @@ def build_parser() -> argparse.ArgumentParser:
     graph = sub.add_parser("mode-graph", help="print the supervisor's mode graph (Graphviz DOT or JSON)")
     graph.add_argument("--scenario", default="paper")
     graph.add_argument("--problem", default=None, metavar="SPEC",
-                       help="the automaton of a verification problem instead (PKG.MOD:OBJ or FILE.py:OBJ)")
+                       help="the automaton of a verification problem instead (PKG.MOD:OBJ or FILE.py:OBJ, or a "
+                            "SpaceEx model FILE.xml[:COMPONENT] with --config FILE.cfg: the flattened automaton)")
+    graph.add_argument("--config", default=None, metavar="FILE.cfg",
+                       help="with --problem FILE.xml[:COMPONENT]: the SpaceEx configuration (docs/spaceex.md)")
     graph.add_argument("--format", choices=("dot", "json"), default="dot",
                        help="dot: Graphviz with guards and resets as labels; json: the automaton's description")
     graph.set_defaults(func=_cmd_mode_graph)
@@ -327,7 +330,7 @@ def _cmd_mode_graph(args: argparse.Namespace) -> int:
     from visnav.supervisor import build_supervisor
 
     if args.problem is not None:
-        problem = _user_problem(args.problem)
+        problem = _user_problem(args.problem, args.config)
         if isinstance(problem, int):
             return problem
         automaton = problem.automaton

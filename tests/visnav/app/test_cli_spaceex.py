@@ -76,3 +76,14 @@ def test_check_model_problem_on_the_ball_is_incomplete_without_a_box(tmp_path):
 def test_config_without_a_spaceex_model_is_refused(tmp_path):
     proc = visnav("verify", "paper", "--config", SAFE, "--budget", 1, cwd=tmp_path)
     assert proc.returncode == 2 and "drop --config" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_mode_graph_of_a_spaceex_network_is_the_flattened_automaton(tmp_path):
+    timed = DATA / "spaceexparser" / "bball_timed" / "bball_timed.xml"
+    proc = visnav("mode-graph", "--problem", timed, "--config", DATA / "spaceexparser" / "bball_timed" /
+                  "bball_timed.cfg", "--format", "json", cwd=tmp_path)
+    # bball_timed.cfg has no forbidden set: nothing to verify, refused with the reason
+    assert proc.returncode == 2 and "forbidden" in proc.stderr
+    proc = visnav("mode-graph", "--problem", BALL, "--config", SAFE, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "\"always\" -> \"always\"" in proc.stdout and "(x <= 0 and v < 0)" in proc.stdout  # eps = 0 substituted
