@@ -23,7 +23,11 @@ from analysis.problems import hybrid_problem
 from analysis.requirements import Requirement
 from analysis.verification import Parameter, VerificationProblem
 
-__all__ = ["spaceex_problem", "split_spaceex_spec", "is_spaceex_spec", "InitialLocation", "LOCATION_PARAMETER"]
+__all__ = ["spaceex_problem", "split_spaceex_spec", "is_spaceex_spec", "InitialLocation", "LOCATION_PARAMETER",
+           "TRACE_SAMPLES"]
+
+TRACE_SAMPLES = 2000
+"""Samples of the STL trace over the horizon (plus both sides of every jump)."""
 
 LOCATION_PARAMETER = "initial_location"
 """The parameter choosing the initial location when the initial set names none (its value rounded: an index)."""
@@ -69,8 +73,9 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     component : str or None
         The component to analyse; default: the configuration's ``system``, else the file's last component.
     sample_period : float or None
-        Uniform sampling of the flows for the STL trace [s] (default: the integrator's own steps, which are
-        dense where the state changes fast: a uniform grid could step over a peak).
+        Uniform sampling of the flows for the STL trace [s] (default: horizon / :data:`TRACE_SAMPLES`; the
+        integrator's own steps would be too sparse on smooth arcs: an exactly integrated parabola takes one
+        step, and its apex would not be a sample).
 
     Raises
     ------
@@ -109,7 +114,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     return hybrid_problem(
         name=f"spaceex-{Path(xml).stem}-{model.system.automaton.name}",
         system=model.system, initial=initial, horizon=cfg.horizon, requirements=requirements,
-        parameters=parameters, initial_mode=mode, sample_period=sample_period,
+        parameters=parameters, initial_mode=mode, sample_period=sample_period or cfg.horizon / TRACE_SAMPLES,
         description=f"SpaceEx model {xml} (component {model.system.automaton.name!r}) with {config}. "
                     + " ".join(notes),
         source=f"{xml}:{model.system.automaton.name} --config {config}",

@@ -63,3 +63,21 @@ def test_load_problem_takes_the_config_option():
 def test_a_configuration_without_a_forbidden_set_is_refused():
     with pytest.raises(SpaceExError, match="forbidden"):
         spaceex_problem(BALL, DATA / "spaceexparser" / "bball" / "bball.cfg")
+
+
+def test_an_exported_model_and_configuration_make_a_problem(tmp_path):
+    from hybrid.examples import bouncing_ball, bouncing_ball_impact_times
+    from hybrid.spaceex_export import spaceex_cfg, to_spaceex
+
+    ref = bouncing_ball(restitution=0.5, h0=4.905, gravity=9.81)
+    (tmp_path / "ball.xml").write_text(to_spaceex(ref.system))
+    (tmp_path / "ball.cfg").write_text(spaceex_cfg(ref.system, {"h": (4.905, 4.905), "v": (0.0, 0.0)}, horizon=2.2,
+                                                   forbidden="h >= 5"))
+    problem = spaceex_problem(tmp_path / "ball.xml", tmp_path / "ball.cfg")
+    assert problem.parameters == () and problem.requirements[0].formula == "always[0, 2.2] not (h >= 5.0)"
+    trace = problem.trace({})
+    # the impacts at 1 s and 2 s (closed form): h = 0 there, and the apex between them is h0 / 4
+    impacts = bouncing_ball_impact_times(restitution=0.5, h0=4.905, gravity=9.81, count=2)
+    assert impacts == pytest.approx((1.0, 2.0))
+    h, t = trace.signal("h"), trace.signal("time")
+    assert h[(t > 1.0) & (t < 2.0)].max() == pytest.approx(4.905 / 4, rel=1e-3)
