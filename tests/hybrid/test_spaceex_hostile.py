@@ -153,3 +153,20 @@ def test_the_configuration_refuses_what_is_not_a_box():
 def test_a_missing_file_is_named():
     with pytest.raises(SpaceExError, match="nope.xml"):
         load_spaceex(DATA / "nope.xml")
+
+
+def test_a_long_chain_of_locations_imports_and_runs_in_bounded_time():
+    from hybrid.continuous import simulate_continuous
+
+    n = 3000
+    locations = "".join(f'<location id="{i}" name="l{i}"><invariant>x &lt;= {i + 1}</invariant>'
+                        f"<flow>x' == 1</flow></location>\n" for i in range(n))
+    transitions = "".join(f'<transition source="{i}" target="{i + 1}"><guard>x &gt;= {i + 1}</guard></transition>\n'
+                          for i in range(n - 1))
+    start = time.perf_counter()
+    model = import_spaceex(document(component(locations + transitions)), source="chain.xml")
+    assert time.perf_counter() - start < 15.0 and len(model.system.automaton.modes) == n
+    run = simulate_continuous(model.system, (0.0,), duration=20.5, initial_mode="l0")
+    # x = t; the chain moves on at every integer: 20 jumps, in location l20 at the end
+    assert [e.time for e in run.events] == pytest.approx([float(k) for k in range(1, 21)], abs=1e-9)
+    assert run.final_mode == "l20"
