@@ -128,9 +128,11 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
     Parameters
     ----------
     spec : str
-        ``"package.module:OBJECT"`` or ``"path/to/file.py:OBJECT"`` (``OBJECT`` defaults to ``problem``).
+        ``"package.module:OBJECT"`` or ``"path/to/file.py:OBJECT"`` (``OBJECT`` defaults to ``problem``), or a
+        SpaceEx model ``"FILE.xml"`` / ``"FILE.xml:COMPONENT"`` (:func:`analysis.spaceex.spaceex_problem`).
     options : Mapping or None
-        Keyword arguments for an ``OBJECT`` that is a function; refused for a problem object.
+        Keyword arguments for an ``OBJECT`` that is a function; refused for a problem object.  For a SpaceEx
+        model: ``{"config": "FILE.cfg"}``.
 
     Raises
     ------
@@ -139,6 +141,8 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
         object, the object is not a problem (nor a function returning one), or
         calling it failed.
     """
+    if _is_spaceex(spec):
+        return _spaceex(spec, options)
     where, name = split_spec(spec)
     module = _import(where)
     if not hasattr(module, name):
@@ -168,6 +172,30 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
     if not obj.source:
         object.__setattr__(obj, "source", spec)
     return obj
+
+
+def _is_spaceex(spec: str) -> bool:
+    from analysis.spaceex import is_spaceex_spec
+
+    return is_spaceex_spec(spec)
+
+
+def _spaceex(spec: str, options: Mapping[str, Any] | None) -> VerificationProblem:
+    """A SpaceEx model ``FILE.xml[:COMPONENT]`` with the configuration ``options["config"]`` (``--config``)."""
+    from analysis.spaceex import spaceex_problem, split_spaceex_spec
+
+    opts = dict(options or {})
+    config = opts.pop("config", None)
+    if opts:
+        raise ProblemLoadError("problem options", opts, "only config (the SpaceEx .cfg) for a SpaceEx model",
+                               "drop the other options")
+    if not config:
+        raise ProblemLoadError("--config", None, f"the SpaceEx configuration FILE.cfg of {spec}",
+                               f"add --config FILE.cfg (initially, forbidden, time-horizon)")
+    xml, component = split_spaceex_spec(spec)
+    problem = spaceex_problem(xml, config, component)
+    object.__setattr__(problem, "source", spec)
+    return problem
 
 
 TOOLKIT_PACKAGES = ("hybrid", "analysis", "visnav")

@@ -7,7 +7,11 @@
   :class:`~hybrid.region.Box`, the affine coefficients of every flow,
   invariant term, guard term, jump map and memory reset (or why there are none).
 * :func:`to_spacex` and :func:`spacex_config` write a SpaceEx model and its
-  configuration, for systems that are affine on the box.
+  configuration.  A system written entirely with :mod:`hybrid.symbolic` is
+  exported from its expressions by :func:`hybrid.spaceex_export.to_spaceex`
+  (the box is then not needed; non-expressible functions are named in the
+  error); a system with plain Python functions is exported when it is affine
+  on the box, from sampled affine forms.
 
 Which functions are affine, and their coefficients, is decided by
 :mod:`hybrid.affine` (:func:`~hybrid.affine.system_affinity`); this module
@@ -408,6 +412,10 @@ def to_spacex(system: HybridSystem, box: Box, *, tol: float = 1e-9, seed: int = 
     """
     if not isinstance(system, HybridSystem):
         raise ModelDefinitionError(f"to_spacex: system = {system!r}; expected a HybridSystem")
+    if _all_symbolic(system):  # written from the expressions themselves (hybrid.spaceex_export), not sampled
+        from .spaceex_export import to_spaceex
+
+        return to_spaceex(system)
     what = f"SpaceEx export of system {system.name!r}"
     _require_identifiers(system, what)
     affinity = system_affinity(system, box, tol=tol, seed=seed, what=what)
@@ -429,6 +437,22 @@ def to_spacex(system: HybridSystem, box: Box, *, tol: float = 1e-9, seed: int = 
         _spacex_transition(component, system, t, ids, affinity)
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _all_symbolic(system: HybridSystem) -> bool:
+    """Whether every function of ``system`` is a :mod:`hybrid.symbolic` tree (the export then needs no sampling)."""
+    from .model import Conjunction
+    from .symbolic import is_symbolic
+
+    def sym(f: Any) -> bool:
+        if isinstance(f, Conjunction):
+            return all(sym(t) for t in f.terms)
+        return f is None or is_symbolic(f)
+
+    a = system.automaton
+    return (all(sym(m.invariant) for m in a.modes) and all(sym(t.guard) and sym(t.reset) for t in a.transitions)
+            and all(sym(f) for f in system.flows.values()) and all(sym(j) for j in system.jumps.values())
+            and sym(system.output))
 
 
 def _memory_names(system: HybridSystem) -> tuple[str, ...]:

@@ -53,7 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     graph = sub.add_parser("mode-graph", help="print the supervisor's mode graph (Graphviz DOT or JSON)")
     graph.add_argument("--scenario", default="paper")
     graph.add_argument("--problem", default=None, metavar="SPEC",
-                       help="the automaton of a verification problem instead (PKG.MOD:OBJ or FILE.py:OBJ)")
+                       help="the automaton of a verification problem instead (PKG.MOD:OBJ or FILE.py:OBJ, or a "
+                            "SpaceEx model FILE.xml[:COMPONENT] with --config FILE.cfg: the flattened automaton)")
+    graph.add_argument("--config", default=None, metavar="FILE.cfg",
+                       help="with --problem FILE.xml[:COMPONENT]: the SpaceEx configuration (docs/spaceex.md)")
     graph.add_argument("--format", choices=("dot", "json"), default="dot",
                        help="dot: Graphviz with guards and resets as labels; json: the automaton's description")
     graph.set_defaults(func=_cmd_mode_graph)
@@ -79,6 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--problem", default=None, metavar="SPEC",
                      help="report a verification problem instead: paper, package.module:OBJECT or "
                           "path/to/file.py:OBJECT (the verification and the structural checks only)")
+    rep.add_argument("--config", default=None, metavar="FILE.cfg",
+                     help="with --problem FILE.xml[:COMPONENT]: the SpaceEx configuration (docs/spaceex.md)")
     rep.add_argument("--out", default=None, help="output folder (default: reports/<scenario or problem>)")
     rep.add_argument("--quick", action="store_true", help="smaller budgets (verification, structural samples, "
                                                           "fuzzing, campaign, stiffness grid): about a minute")
@@ -95,7 +100,10 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--seed", type=int, default=0, help="seed of the sampling (default: 0)")
     chk.add_argument("--json", action="store_true", help="print the report as one JSON object")
     chk.add_argument("--problem", default=None, metavar="SPEC",
-                     help="check a verification problem's automaton instead (its own box; PKG.MOD:OBJ or FILE.py:OBJ)")
+                     help="check a verification problem's automaton instead (its own box; PKG.MOD:OBJ or FILE.py:OBJ, "
+                          "or a SpaceEx model FILE.xml[:COMPONENT] with --config FILE.cfg)")
+    chk.add_argument("--config", default=None, metavar="FILE.cfg",
+                     help="with --problem FILE.xml[:COMPONENT]: the SpaceEx configuration (docs/spaceex.md)")
     chk.add_argument("--method", choices=("auto", "sampled", "smt"), default=None,
                      help="auto: decide the symbolic modes with the SMT solver (PROVEN), sample the others "
                           "(SAMPLED); sampled: sample every mode; smt: decide only (default: auto)")
@@ -133,6 +141,8 @@ def _build_problem_report(args: argparse.Namespace, options: Any, progress: Any)
     from visnav.app.verification_report import build_problem_report
 
     loading = {} if args.scenario is None else {"scenario": args.scenario}
+    if args.config is not None:
+        loading["config"] = args.config
     problem = load_verification_problem(args.problem, loading, None)
     check_requirement_names(problem.requirement_names, f"problem {problem.name!r}")
     shown = Path(args.out if args.out is not None else "reports/" + safe_name(
@@ -328,14 +338,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK if summary["success"] else EXIT_TASK_FAILED
 
 
-def _user_problem(spec: str) -> Any:
-    """The verification problem ``spec`` names, or the exit code of a bad one (the message printed)."""
+def _user_problem(spec: str, config: str | None = None) -> Any:
+    """The verification problem ``spec`` names (a SpaceEx model with its ``config``), or the exit code of a bad
+    one (the message printed)."""
     from hybrid.errors import ParameterError
 
     from visnav.app.cli_verify import load_verification_problem
 
     try:
-        return load_verification_problem(spec, {}, None)
+        return load_verification_problem(spec, {} if config is None else {"config": config}, None)
     except ParameterError as error:
         trace = getattr(error, "user_traceback", "")
         if trace:
@@ -351,7 +362,7 @@ def _cmd_mode_graph(args: argparse.Namespace) -> int:
     from visnav.supervisor import build_supervisor
 
     if args.problem is not None:
-        problem = _user_problem(args.problem)
+        problem = _user_problem(args.problem, args.config)
         if isinstance(problem, int):
             return problem
         automaton = problem.automaton
@@ -639,7 +650,7 @@ def _check_problem(args: argparse.Namespace) -> int:
 
     from visnav.app.structural import completeness_data, verdict_line
 
-    problem = _user_problem(args.problem)
+    problem = _user_problem(args.problem, args.config)
     if isinstance(problem, int):
         return problem
     structural = problem.structural

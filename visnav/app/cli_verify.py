@@ -60,7 +60,10 @@ def add_parser(sub: Any) -> None:
     from analysis.falsification import METHODS
 
     ver = sub.add_parser("verify", help="verify a problem's STL requirements: proven, falsified or not falsified")
-    ver.add_argument("problem", help="paper, package.module:OBJECT or path/to/file.py:OBJECT")
+    ver.add_argument("problem", help="paper, package.module:OBJECT, path/to/file.py:OBJECT, or a SpaceEx model "
+                                     "FILE.xml[:COMPONENT] with --config FILE.cfg")
+    ver.add_argument("--config", default=None, metavar="FILE.cfg",
+                     help="SpaceEx models only: the configuration (initially, forbidden, time-horizon; docs/spaceex.md)")
     ver.add_argument("--budget", type=positive_int, default=DEFAULT_BUDGET,
                      help=f"simulations allowed (default: {DEFAULT_BUDGET})")
     ver.add_argument("--seed", type=non_negative_int, default=0, help="seed of the search (default: 0)")
@@ -90,6 +93,8 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
         options["scenario"] = args.scenario
     if args.variant is not None:
         options["variant"] = args.variant
+    if getattr(args, "config", None) is not None:
+        options["config"] = args.config
     return options
 
 
@@ -98,10 +103,17 @@ def load_verification_problem(spec: str, options: Mapping[str, Any], requirement
     ``requirements`` when given."""
     from analysis.loading import ProblemLoadError, load_problem
 
+    from analysis.spaceex import is_spaceex_spec
+
+    if "config" in options and not is_spaceex_spec(spec):
+        raise ProblemLoadError("--config", options["config"], "a SpaceEx model FILE.xml[:COMPONENT] as the problem",
+                               "drop --config (it gives a SpaceEx model its .cfg)")
     if spec == "paper":
         from visnav.verification import paper_problem
 
         problem = paper_problem(**options)
+    elif is_spaceex_spec(spec):
+        problem = load_problem(spec, options)  # a SpaceEx model and its --config (or the error saying so)
     else:
         if options:
             raise ProblemLoadError("--scenario/--variant", dict(options), "options of the built-in 'paper' problem",

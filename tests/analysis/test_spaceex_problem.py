@@ -1,0 +1,83 @@
+"""A verification problem from a SpaceEx model and configuration: box, initial location, requirement, verdicts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from analysis.loading import ProblemLoadError, load_problem
+from analysis.spaceex import InitialLocation, is_spaceex_spec, spaceex_problem, split_spaceex_spec
+from analysis.testing import assert_verified
+from hybrid.spaceex_syntax import SpaceExError
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex"
+GEAR = DATA / "arch2017" / "Gear" / "SpaceEx"
+BUILDING = DATA / "arch2017" / "Building" / "SpaceEx"
+BALL = DATA / "spaceexparser" / "bball" / "bball.xml"
+
+
+def test_specs():
+    assert is_spaceex_spec("a/b.xml") and is_spaceex_spec("a/b.XML:sys") and not is_spaceex_spec("a/b.py:problem")
+    assert split_spaceex_spec("a/b.xml") == ("a/b.xml", None)
+    assert split_spaceex_spec("a/b.xml:sys") == ("a/b.xml", "sys")
+
+
+def test_the_gearbox_problem_and_its_published_verdict():
+    problem = spaceex_problem(GEAR / "GRBX01-MES01.xml", GEAR / "GRBX01-MES01.cfg")
+    names = {p.name: (p.low, p.high) for p in problem.parameters}
+    assert names == {"px_0": (-0.0168, -0.0166), "py_0": (0.0029, 0.0031), "initial_location": (0.0, 1.0)}
+    assert problem.horizon == 0.5
+    (requirement,) = problem.requirements
+    assert requirement.formula == ('always[0, 0.5] not (((mode == "Clock_1.loc01|Stateflow_2.move_free") and '
+                                   '(t >= 0.2)) or (I >= 20.0))')
+    # no loc(...) in the initial set: every location is initial, chosen by a parameter (rounded)
+    chooser = InitialLocation(modes=("a", "b"))
+    assert (chooser({"initial_location": 0.4}), chooser({"initial_location": 0.6})) == ("a", "b")
+    # ARCH-COMP 2017 AFF: GRBX01-MES01 is safe (meshed before 0.2 s, impulse below 20)
+    result = assert_verified(problem, budget=8)
+    assert result.verdict == "not_falsified"
+    assert 0.0 < result.requirement("safe").robustness < 0.2
+
+
+def test_the_building_problem_and_its_published_verdict():
+    problem = spaceex_problem(BUILDING / "BLDC01.xml", BUILDING / "BLDC01-BDS01.cfg")
+    names = {p.name: (p.low, p.high) for p in problem.parameters}
+    assert names["x1_0"] == (0.0002, 0.00025) and names["model.u1_0"] == (0.8, 1.0) and "x11_0" not in names
+    assert problem.requirements[0].formula == "always[0, 20.0] not (x25 >= 0.0051)"
+    # ARCH-COMP 2017 AFF: BLDC01-BDS01 safe (x25 <= 0.0051 over 20 s); the runs peak near 0.0035..0.0039
+    result = assert_verified(problem, budget=2)
+    assert result.verdict == "not_falsified"
+    assert 0.0051 - 0.0040 <= result.requirement("safe").robustness <= 0.0051 - 0.0030
+
+
+def test_load_problem_takes_the_config_option():
+    problem = load_problem(f"{BALL}:system", {"config": str(DATA / "visnav" / "bball_forbidden.cfg")})
+    assert problem.source == f"{BALL}:system" and problem.requirement_names == ("safe",)
+    with pytest.raises(ProblemLoadError, match="--config"):
+        load_problem(str(BALL))
+    with pytest.raises(ProblemLoadError, match="only config"):
+        load_problem(str(BALL), {"config": "x.cfg", "variant": "paper"})
+
+
+def test_a_configuration_without_a_forbidden_set_is_refused():
+    with pytest.raises(SpaceExError, match="forbidden"):
+        spaceex_problem(BALL, DATA / "spaceexparser" / "bball" / "bball.cfg")
+
+
+def test_an_exported_model_and_configuration_make_a_problem(tmp_path):
+    from hybrid.examples import bouncing_ball, bouncing_ball_impact_times
+    from hybrid.spaceex_export import spaceex_cfg, to_spaceex
+
+    ref = bouncing_ball(restitution=0.5, h0=4.905, gravity=9.81)
+    (tmp_path / "ball.xml").write_text(to_spaceex(ref.system))
+    (tmp_path / "ball.cfg").write_text(spaceex_cfg(ref.system, {"h": (4.905, 4.905), "v": (0.0, 0.0)}, horizon=2.2,
+                                                   forbidden="h >= 5"))
+    problem = spaceex_problem(tmp_path / "ball.xml", tmp_path / "ball.cfg")
+    assert problem.parameters == () and problem.requirements[0].formula == "always[0, 2.2] not (h >= 5.0)"
+    trace = problem.trace({})
+    # the impacts at 1 s and 2 s (closed form): h = 0 there, and the apex between them is h0 / 4
+    impacts = bouncing_ball_impact_times(restitution=0.5, h0=4.905, gravity=9.81, count=2)
+    assert impacts == pytest.approx((1.0, 2.0))
+    h, t = trace.signal("h"), trace.signal("time")
+    assert h[(t > 1.0) & (t < 2.0)].max() == pytest.approx(4.905 / 4, rel=1e-3)
