@@ -21,7 +21,7 @@ import importlib.util
 import os
 import sys
 import traceback
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -217,7 +217,8 @@ def _file_digest(path: Path) -> str:
         return "unreadable"
 
 
-def source_digests(spec: str, base: str | os.PathLike[str] | None = None) -> dict[str, str]:
+def source_digests(spec: str, base: str | os.PathLike[str] | None = None,
+                   data_files: Sequence[str | os.PathLike[str]] = ()) -> dict[str, str]:
     """What the results of problem ``spec`` depend on: SHA-256 (16 hex digits) of its code.
 
     The toolkit's packages (one digest each, over every ``.py`` and ``.toml`` file), and for a user's
@@ -229,10 +230,16 @@ def source_digests(spec: str, base: str | os.PathLike[str] | None = None) -> dic
     """
     root = Path(__file__).resolve().parent.parent
     out = {f"toolkit:{name}": _tree_digest(root / name) for name in TOOLKIT_PACKAGES if (root / name).is_dir()}
+    for data in data_files:  # a model given as data (a SpaceEx .cfg): its bytes are the model too
+        path = Path(data).expanduser()
+        path = (Path(base) / path if base is not None and not path.is_absolute() else path).resolve()
+        out[str(path)] = _file_digest(path)
     if spec == "paper":
         return out
     where, _ = split_spec(spec)
-    is_file = where.endswith(".py") or os.sep in where or "/" in where
+    if where.endswith(".xml") or ".xml:" in spec:  # a SpaceEx model: the XML file is the model
+        where = spec.split(".xml", 1)[0] + ".xml"
+    is_file = where.endswith((".py", ".xml")) or os.sep in where or "/" in where
     if is_file:
         path = Path(where).expanduser()
         path = (Path(base) / path if base is not None and not path.is_absolute() else path).resolve()

@@ -797,7 +797,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    from visnav.app.entry import ignore_late_interrupts
+    from visnav.app.cli_types import ignore_late_interrupts
 
     sys.exit(ignore_late_interrupts(main()))
 

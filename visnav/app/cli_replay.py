@@ -111,7 +111,10 @@ def _options(data: Mapping[str, Any], spec: str, source: str) -> dict[str, str]:
     if not isinstance(options, Mapping):
         raise CounterexampleError(source, f"options = {show_value(options)}: expected an object, found "
                                           f"{json_type(options)}")
-    accepted = PAPER_OPTIONS if spec == PAPER else ()
+    from analysis.spaceex import is_spaceex_spec
+
+    # paper's options name a scenario and a variant; a SpaceEx model's, its .cfg: data read, never code run
+    accepted = PAPER_OPTIONS if spec == PAPER else (("config",) if is_spaceex_spec(spec) else ())
     for key, value in options.items():
         if key not in accepted:
             known = ", ".join(accepted) if accepted else "none (a user's problem takes no options from a file)"

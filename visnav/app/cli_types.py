@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 
 __all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
-           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "VERDICT_EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds"]
+           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "VERDICT_EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds", "ignore_late_interrupts"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
@@ -68,3 +69,11 @@ def positive_seconds(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"{text} is not a positive time; give seconds > 0, e.g. 10")
     return value
+
+
+def ignore_late_interrupts(code: int) -> int:
+    """Return ``code`` with SIGINT ignored from now on: the command has finished and written its results, so a
+    Ctrl-C during the interpreter's shutdown (joining the executors' threads) must neither print "Exception
+    ignored in threading._shutdown" nor change the exit code."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code

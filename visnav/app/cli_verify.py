@@ -137,7 +137,8 @@ def _spec_hash(spec: str, options: Mapping[str, Any], problem: Any, args: argpar
     identity = {"problem": spec, "options": dict(options), "method": args.method, "seed": args.seed,
                 "budget": args.budget, "requirements": [[r.name, r.formula] for r in problem.requirements],
                 "parameters": [[p.name, p.low, p.high, p.nominal] for p in problem.parameters],
-                "timeout_s": getattr(args, "sim_timeout", None), "model": source_digests(spec, getattr(args, "start_dir", None))}
+                "timeout_s": getattr(args, "sim_timeout", None), "model": source_digests(spec, getattr(args, "start_dir", None),
+                                            [options["config"]] if "config" in options else [])}
     digest = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     return {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION, "spec_hash": digest, "spec": identity}
 

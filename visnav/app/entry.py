@@ -7,18 +7,9 @@ the command line module itself is being imported.
 
 from __future__ import annotations
 
-import signal
 import sys
 
-__all__ = ["main", "ignore_late_interrupts"]
-
-
-def ignore_late_interrupts(code: int) -> int:
-    """Return ``code`` with SIGINT ignored from now on: the command has finished and written its results, so a
-    Ctrl-C during the interpreter's shutdown (joining the executors' threads) must neither print "Exception
-    ignored in threading._shutdown" nor change the exit code."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    return code
+__all__ = ["main"]
 
 
 def main() -> int:
@@ -28,6 +19,8 @@ def main() -> int:
     except KeyboardInterrupt:
         print("visnav: interrupted (SIGINT) during start-up; nothing was run", file=sys.stderr)
         return 130
+    from visnav.app.cli_types import ignore_late_interrupts
+
     return ignore_late_interrupts(run())
 
 

@@ -36,7 +36,9 @@ def test_verify_an_unsafe_ball_is_falsified_and_replays(tmp_path):
     assert proc.returncode == 1, proc.stderr
     assert "falsified" in proc.stdout
     counterexample = tmp_path / "v" / "counterexamples" / "safe.json"
-    replay = visnav("replay", counterexample, cwd=tmp_path)
+    refused = visnav("replay", counterexample, cwd=tmp_path)  # the file names the model: confirm it
+    assert refused.returncode == 2 and "--problem" in refused.stderr
+    replay = visnav("replay", counterexample, "--problem", f"{BALL}:system", cwd=tmp_path)
     assert replay.returncode == 1 and "VIOLATED" in replay.stdout, replay.stderr
 
 
