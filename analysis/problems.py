@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from hybrid import HybridSystem
+from hybrid.model import initial_mode_of
 from hybrid.continuous import HybridTrajectory, simulate_continuous
 from hybrid.sampled import Plant, SampledTrace, simulate_sampled
 
@@ -235,6 +236,9 @@ class HybridSimulation:
         system = self.build(point)
         x0 = _point_values(point, self.initial)
         mode = self.initial_mode(point) if callable(self.initial_mode) else self.initial_mode
+        if mode is None and not system.automaton.initial_mode_given:  # the invariants decide it
+            x = tuple(float(x0[s]) for s in self.state_names)
+            mode = initial_mode_of(system.automaton, system.signals(0.0, x), system.automaton.initial_memory())
         trajectory = simulate_continuous(
             system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode,
             **dict(self.options),
@@ -342,7 +346,9 @@ def hybrid_problem(
     parameters : sequence of Parameter
         The model parameters passed to ``build`` (in the point, by name).
     initial_mode : str, callable or None
-        The initial mode (``None``: the automaton's), or ``mode(point)``.
+        The initial mode, or ``mode(point)``; ``None``: the automaton's when it declares one, otherwise the one
+        mode whose invariant holds at the point's initial state (an error naming the candidates when none or
+        several hold: a definition error of the model, reported as such).
     sample_period : float or None
         Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).
     options : Mapping or None

@@ -47,6 +47,7 @@ from .symbolic import (
 )
 
 __all__ = [
+    "initial_mode_of",
     "symbolic_text",
     "Guard",
     "Reset",
@@ -364,6 +365,9 @@ class HybridAutomaton:
     description: str = ""
     _outgoing: Mapping[str, tuple[Transition, ...]] = field(init=False, repr=False, compare=False)
     _mode_index: Mapping[str, int] = field(init=False, repr=False, compare=False)
+    initial_mode_given: bool = field(init=False, repr=False, compare=False)
+    """Whether ``initial_mode`` was written (otherwise it is the first mode, and a problem infers the initial mode
+    of each point from the invariants: :func:`initial_mode_of`)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "modes", tuple(self.modes))
@@ -385,6 +389,7 @@ class HybridAutomaton:
                 )
         mode_names = [m.name for m in self.modes]
         known = set(mode_names)
+        object.__setattr__(self, "initial_mode_given", bool(self.initial_mode))
         initial = self.initial_mode or mode_names[0]
         if initial not in known:
             raise ModelDefinitionError(
@@ -603,3 +608,26 @@ def all_of(*terms: Guard) -> Conjunction:
     for term in terms:
         flat.extend(term.terms if isinstance(term, Conjunction) else (term,))
     return Conjunction(tuple(flat))
+
+
+def initial_mode_of(automaton: HybridAutomaton, signals: Sequence[float], memory: Mapping[str, float]) -> str:
+    """The one mode whose invariant holds at ``signals`` (with ``memory``): the initial mode the invariants decide.
+
+    Raises
+    ------
+    ModelDefinitionError
+        When no invariant or more than one holds there, naming the candidates and the fix (give the
+        initial mode: ``HybridAutomaton(initial_mode=...)`` or the problem's ``initial_mode=``).
+    """
+    holds = []
+    for mode in automaton.modes:
+        value = math.inf if mode.invariant is None else float(mode.invariant(tuple(signals), dict(memory)))
+        if value >= 0.0:
+            holds.append(mode.name)
+    if len(holds) != 1:
+        shown = ", ".join(f"{n}={float(v):.6g}" for n, v in zip(automaton.variables, signals))
+        raise ModelDefinitionError(
+            f"automaton {automaton.name!r}: the initial mode is not decided by the invariants at ({shown}): "
+            f"{'no invariant holds' if not holds else 'the invariants of ' + ', '.join(holds) + ' all hold'}; "
+            "give it: HybridAutomaton(initial_mode=...) or the problem's initial_mode=NAME or a function of the point")
+    return holds[0]
