@@ -145,7 +145,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     from analysis.falsification import FalsificationError, SimulationFailed
     from analysis.loading import ProblemLoadError
-    from analysis.verdicts import EXIT_CODES
     from hybrid.errors import ParameterError
 
     from visnav.app.files import prepare_output_dir
@@ -188,7 +187,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     written = write_report(report, folder)
     elapsed = time.perf_counter() - start
     counts, verdict = report.data["claim_counts"], report.data["verdict"]
-    code = EXIT_CODES[verdict]
+    code = report.data["exit_code"]  # the verification's, or 1 for a structural error (REPORT_EXIT_CODES)
     # the scenario's own task (its nominal simulation): a failed task is a failed report, as for `simulate`
     metrics = report.data.get("simulation", {}).get("metrics")
     task_achieved = None if metrics is None else bool(metrics["success"])
@@ -206,6 +205,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
                  f"{counts['proven']} proven, {counts['measured']} measured, {counts['sampled']} sampled claims in "
                  f"{elapsed:.1f} s"]
         lines += _verdict_lines(report.data["verification"]["requirements"], folder)
+        errors = report.data["structural_errors"]
+        if errors["count"]:
+            lines.append(f"  structural     {errors['count']} error(s): {', '.join(errors['kinds'])} "
+                         f"(report.md, section {' and '.join(errors['sections'])})")
         lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
         lines += [f"  wrote {p}" for p in written]
         print("\n".join(lines))

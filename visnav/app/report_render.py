@@ -189,12 +189,28 @@ def _rho(value: Any) -> str:
     return _fmt(value + 0.0 if isinstance(value, float) else value)
 
 
-def _verdict_sentence(ver: dict[str, Any]) -> str:
+_STRUCTURE_HEADINGS = {"structure": "Structural checks", "model": "Model"}
+"""Where the report shows each section's structural findings (the heading of its part of the document)."""
+
+
+def _structural_text(errors: dict[str, Any] | None) -> str:
+    """`` — structural checks: N error(s) (kinds; section ...)`` when the checks found errors, else ``""``."""
+    if not errors or not errors["count"]:
+        return ""
+    where = " and ".join(f"\"{_STRUCTURE_HEADINGS.get(s, s)}\"" for s in errors["sections"])
+    return (f"; the structural checks found {errors['count']} error(s) ({', '.join(errors['kinds'])}; "
+            f"section {where})")
+
+
+def _verdict_sentence(data: dict[str, Any]) -> str:
+    """The summary line: the report's overall verdict and exit code (structural errors included), the counts."""
+    ver = data["verification"]
+    verdict, code = data.get("verdict", ver["verdict"]), data.get("exit_code", ver["exit_code"])
     counts = {v: sum(r["verdict"] == v for r in ver["requirements"]) for v in ("proven", "falsified",
                                                                                "not_falsified")}
     parts = [f"{n} {VERDICT_LABELS[v].lower()}" for v, n in counts.items() if n]
-    text = (f"Overall verdict: {VERDICT_LABELS[ver['verdict']]} (exit code {ver['exit_code']}) — "
-            f"{len(ver['requirements'])} requirement(s): {', '.join(parts)}; {ver['simulations']} simulation(s) "
+    text = (f"Overall verdict: {VERDICT_LABELS[verdict]} (exit code {code}){_structural_text(data.get('structural_errors'))}"
+            f" — {len(ver['requirements'])} requirement(s): {', '.join(parts)}; {ver['simulations']} simulation(s) "
             f"of a budget of {ver['budget']} (method {ver['method']}, seed {ver['seed']}).")
     if ver["invalid"]:
         text += (f" {ver['invalid']} point(s) outside the problem's hypotheses skipped ("
@@ -240,7 +256,7 @@ def _verification_figures(ver: dict[str, Any]) -> list[Block]:
 def _verification_blocks(data: dict[str, Any]) -> list[Block]:
     ver = data["verification"]
     blocks = [Block("h2", f"Verification of `{ver['problem']}`"),
-              Block("p", _verdict_sentence(ver)),
+              Block("p", _verdict_sentence(data)),
               _verification_table(ver)]
     replay = [r["counterexample_file"] for r in ver["requirements"] if r["counterexample_file"]]
     if replay:

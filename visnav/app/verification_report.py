@@ -45,10 +45,14 @@ from typing import Any
 
 from hybrid.jsonable import to_jsonable
 
+from visnav.app.precision import round_section, round_value
+
 __all__ = [
     "CLAIM_STATUSES",
     "DEPENDENCIES",
     "VERDICT_LABELS",
+    "STRUCTURAL_ERROR",
+    "REPORT_EXIT_CODES",
     "COUNTEREXAMPLE_DIR",
     "VERIFY_BUDGET",
     "VERIFY_BUDGET_QUICK",
@@ -62,6 +66,8 @@ __all__ = [
     "stability_section",
     "findings_summary",
     "assemble_report",
+    "structural_errors",
+    "overall_verdict",
     "build_problem_report",
     "report_command",
 ]
@@ -73,9 +79,17 @@ DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx",
                 "distributed", "z3-solver", "cvxpy", "clarabel", "scs")
 """Packages whose versions the report records."""
 
+STRUCTURAL_ERROR = "structural_error"
+"""A report's overall verdict when its requirements are proven or not falsified but a structural check found an
+error (a defect whose witness re-checked on the model): the model is wrong whatever its runs showed."""
+
 VERDICT_LABELS = {"proven": "PROVEN", "falsified": "FALSIFIED", "not_falsified": "NOT FALSIFIED",
-                  "diverged": "DIVERGED"}
-"""How the documents write a verdict (:data:`analysis.verdicts.OVERALL`)."""
+                  "diverged": "DIVERGED", STRUCTURAL_ERROR: "STRUCTURAL ERROR"}
+"""How the documents write a verdict (:data:`analysis.verdicts.OVERALL` and :data:`STRUCTURAL_ERROR`)."""
+
+REPORT_EXIT_CODES = {"proven": 0, "not_falsified": 0, "falsified": 1, STRUCTURAL_ERROR: 1, "diverged": 3}
+"""Exit code of ``visnav report`` by the report's overall verdict (:data:`analysis.verdicts.EXIT_CODES`, and 1
+(a finding) for :data:`STRUCTURAL_ERROR`)."""
 
 COUNTEREXAMPLE_DIR = "counterexamples"
 """Sub-folder of the report's counterexample files (``counterexamples/NAME.json``)."""
@@ -174,8 +188,10 @@ def dependency_versions() -> dict[str, str]:
 # --------------------------------------------------------------------------- the verification section
 
 
-def _number(value: float | None) -> str:
-    return "—" if value is None else f"{value + 0.0:.4g}"  # + 0.0: no "-0"
+def _number(value: float | None, kind: str = "simulation") -> str:
+    """A robustness (or a number of ``kind``) as the report prints it: rounded by the policy
+    (:func:`visnav.app.precision.round_value`), then written with 4 significant digits."""
+    return "—" if value is None else f"{round_value(value, kind):.4g}"
 
 
 def _point_text(point: Mapping[str, float] | None, problem: Any) -> str:
@@ -188,7 +204,7 @@ def _point_text(point: Mapping[str, float] | None, problem: Any) -> str:
     if not moved:
         return "the nominal point"
     shown = sorted(moved, key=lambda m: (-m[0], m[1]))[:_POINT_COORDINATES]
-    text = ", ".join(f"{k} = {v:.4g}" for _, k, v in sorted(shown, key=lambda m: m[1]))
+    text = ", ".join(f"{k} = {_number(v, 'input')}" for _, k, v in sorted(shown, key=lambda m: m[1]))
     extra = len(moved) - len(shown)
     return text + (f" (+{extra} more off nominal)" if extra else "")
 
@@ -202,7 +218,7 @@ def _evidence(verdict: Any, result: Any, problem: Any) -> str:
     """One sentence of evidence for a requirement's verdict."""
     cx, proof = verdict.counterexample, verdict.proof
     if cx is not None:
-        return (f"violated at t = {cx.time:.4g} s by `{cx.atom.strip()}` = {_number(cx.atom_value)} "
+        return (f"violated at t = {_number(cx.time, 'time')} s by `{cx.atom.strip()}` = {_number(cx.atom_value)} "
                 f"(simulation {cx.evaluation}; {cx.how}) at {_point_text(cx.point, problem)}")
     if verdict.verdict == "proven":
         return f"{proof.method}: {proof.evidence}"
@@ -224,7 +240,7 @@ def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None
         cx = verdict.counterexample
         return Claim(section="verification", status="measured",
                      text=(f"requirement {verdict.name} {label}: robustness {_number(cx.robustness)} at "
-                           f"{_point_text(cx.point, problem)}, violated at t = {cx.time:.4g} s by "
+                           f"{_point_text(cx.point, problem)}, violated at t = {_number(cx.time, 'time')} s by "
                            f"`{cx.atom.strip()}`; replay with `visnav replay {file}`"))
     share = _coverage_share(result)
     return Claim(section="verification", status="sampled",
@@ -457,25 +473,62 @@ def stability_section(problem: Any) -> Section | None:
 # --------------------------------------------------------------------------- the document
 
 
+def structural_errors(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The structural errors of a report's data: the ``structure`` section's (a problem's checks) and the
+    ``model`` section's (the scenario's supervisor).
+
+    Returns
+    -------
+    dict
+        ``count`` (errors: findings of severity ``error``, each a defect whose witness re-checked on the
+        model), ``kinds`` (sorted) and ``sections`` (where they are, in report order).
+    """
+    count, kinds, sections = 0, set(), []
+    for name, key in (("structure", None), ("model", "structural_checks")):
+        section = data.get(name)
+        checks = section.get(key) if isinstance(section, Mapping) and key else section
+        if not isinstance(checks, Mapping) or "summary" not in checks:
+            continue
+        errors = [row for row in checks["summary"]["by_kind"] if row["severity"] == "error"]
+        if errors:
+            count += sum(row["count"] for row in errors)
+            kinds.update(row["kind"] for row in errors)
+            sections.append(name)
+    return {"count": count, "kinds": sorted(kinds), "sections": sections}
+
+
+def overall_verdict(verification: str | None, errors: Mapping[str, Any]) -> str | None:
+    """A report's overall verdict: the verification's, except that structural errors turn a proven or not
+    falsified one into :data:`STRUCTURAL_ERROR` (a falsified or diverged verification keeps its verdict;
+    the errors are listed beside it)."""
+    if verification in ("proven", "not_falsified", None) and errors["count"]:
+        return STRUCTURAL_ERROR
+    return verification
+
+
 def assemble_report(meta: Mapping[str, Any], sections: Sequence[tuple[str, Section]],
                     timings: Mapping[str, float] | None = None) -> Report:
     """The report of ``sections`` in order: their data by name, every claim, the counts and the verdict.
 
     ``report.json``'s top-level ``verdict`` is the ``verification`` section's overall verdict
-    (``None`` without one).
+    (``None`` without one), turned into :data:`STRUCTURAL_ERROR` when a structural check found an error
+    (:func:`overall_verdict`); ``exit_code`` is its :data:`REPORT_EXIT_CODES`, ``structural_errors``
+    the errors counted (:func:`structural_errors`).
     """
     data: dict[str, Any] = {"meta": dict(meta), "sections": [name for name, _ in sections]}
     claims: list[Claim] = []
     figures: dict[str, Any] = {}
     files: dict[str, str] = {}
     for name, section in sections:
-        data[name] = section.data
+        data[name] = round_section(name, section.data)  # every number to its digits (visnav.app.precision)
         claims += section.claims
         figures.update(section.figures)
         files.update(section.files)
     data["claims"] = [c.as_dict() for c in claims]
     data["claim_counts"] = {s: sum(c.status == s for c in claims) for s in CLAIM_STATUSES}
-    data["verdict"] = data["verification"]["verdict"] if "verification" in data else None
+    data["structural_errors"] = structural_errors(data)
+    data["verdict"] = overall_verdict(data.get("verification", {}).get("verdict"), data["structural_errors"])
+    data["exit_code"] = None if data["verdict"] is None else REPORT_EXIT_CODES[data["verdict"]]
     return Report(data=to_jsonable(data), figures=figures, files=files, timings_s=dict(timings or {}))
 
 
