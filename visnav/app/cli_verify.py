@@ -118,21 +118,33 @@ def _journal(folder: Path, header: dict[str, Any], budget: int):
     return open_store(folder / "evaluations.jsonl", header, codec, samples=budget, hints=hints)
 
 
-def counterexample_text(result: Any, verdict: Any, problem: Any, spec: str, options: Mapping[str, Any]) -> str:
-    """The counterexample file of a falsified requirement: where, how much, and the trace it reads."""
+def counterexample_text(result: Any, verdict: Any, problem: Any, spec: str, options: Mapping[str, Any], *,
+                        rounded: bool = False) -> str:
+    """The counterexample file of a falsified requirement: where, how much, and the trace it reads.
+
+    ``rounded`` (the report's files): the trace, the robustness and the instant with the digits the report
+    prints (:mod:`visnav.app.precision`: ``time``, ``simulation``); the unit coordinates that
+    ``visnav replay`` re-runs are kept bit for bit either way.
+    """
     from analysis.counterexamples import CounterexampleFormat
+
+    from visnav.app.precision import round_value
+
+    def keep(value: float, kind: str) -> float:
+        return round_value(value, kind) if rounded else value
 
     cx = verdict.counterexample
     parsed = next(p for p in problem.parsed if p.name == verdict.name)
     trace = problem.simulate(problem.point(cx.unit))
     names = sorted(parsed.formula.signals - {"time", "jumps"})
     labels = sorted(parsed.formula.labels)
-    rows = [[float(trace.times[k]), int(trace.jumps[k]), *(trace.label(n)[k] for n in labels),
-             *(float(trace.signal(n)[k]) for n in names)] for k in range(trace.n)]
+    rows = [[keep(float(trace.times[k]), "time"), int(trace.jumps[k]), *(trace.label(n)[k] for n in labels),
+             *(keep(float(trace.signal(n)[k]), "simulation") for n in names)] for k in range(trace.n)]
     fmt = CounterexampleFormat(name=COUNTEREXAMPLE_FORMAT, version=1, reader="this visnav")
     fields = {
         "problem": spec, "options": dict(options), "requirement": verdict.name, "formula": verdict.formula,
-        "unit": list(cx.unit), "point": dict(cx.point), "robustness": cx.robustness, "time": cx.time,
+        "unit": list(cx.unit), "point": dict(cx.point), "robustness": keep(cx.robustness, "simulation"),
+        "time": keep(cx.time, "time"),
         "atom": cx.atom, "how": cx.how, "seed": result.seed, "method": result.method,
         "columns": ["time", "jumps", *labels, *names],
         "replay": f"visnav replay <this file>",

@@ -121,6 +121,10 @@ KINDS: dict[str, Precision] = {p.kind: p for p in (
               why="a value given to the computation (scenario parameters, settings, box bounds, points drawn from "
                   "the box, gain grids from np.logspace): at most a last-bit difference (measured 1.5e-16 relative "
                   "between SIMD paths); 12 digits print a given decimal exactly"),
+    Precision(kind="search_point", digits=6,
+              why="a point a guided search moved to (where the lowest robustness was): its moves follow robustness "
+                  "values, so their round-off reaches the coordinates (measured 1.7e-10 relative between libm "
+                  "variants); 6 digits (a counterexample file keeps its unit coordinates bit for bit for replay)"),
     Precision(kind="time", digits=15, resolution=1e-9,
               why="an instant [s]: sample instants are sums of T_e (error <= 1e-13 s) and events are located to "
                   "event_tol = 1e-12 s; printed to 1 ns"),
@@ -164,6 +168,11 @@ KINDS: dict[str, Precision] = {p.kind: p for p in (
     Precision(kind="bound_down", digits=4, direction="down",
               why="a lower bound proven by interval branch and bound on an SDP-derived function: 4 significant "
                   "digits, rounded down: never above the proven bound"),
+    Precision(kind="certified_level", digits=6, direction="down",
+              why="a number in the text of an SOS claim (the level of a certified sublevel set, a box bound): the "
+                  "library writes 9 digits and the SDP decides the last three (measured 0.999999969 against "
+                  "0.999999973); 6 digits rounded down: a smaller level of the same certified family, box bounds "
+                  "(written with 6 digits) unchanged"),
     Precision(kind="roundoff", digits=1, floor=ROUNDOFF_FLOOR, direction="up",
               why="a residual of an exact identity evaluated in floating point: round-off only; printed as at most "
                   "ROUNDOFF_FLOOR (1e-12), or rounded up to 1 significant digit above it"),
@@ -175,9 +184,9 @@ KINDS: dict[str, Precision] = {p.kind: p for p in (
 
 RULES: tuple[tuple[str, str], ...] = (
     # --- verification (any problem) ---
-    ("verification/requirements/counterexample/point*", "input"),
-    ("verification/requirements/counterexample/unit*", "input"),
-    ("verification/requirements/lowest_at*", "input"),
+    ("verification/requirements/counterexample/point*", "search_point"),
+    ("verification/requirements/counterexample/unit*", "search_point"),
+    ("verification/requirements/lowest_at*", "search_point"),
     ("verification/requirements/counterexample/time", "time"),
     ("verification/nominal/decided/*/time", "time"),
     ("verification/requirements/*", "simulation"),
@@ -250,6 +259,7 @@ RULES: tuple[tuple[str, str], ...] = (
     ("stiffness/period_s", "input"),
     ("stiffness/*rtol*", "input"),
     ("stiffness/*atol*", "input"),
+    ("stiffness/*spurious*", "roundoff"),
     ("stiffness/*truncation_error_px*", "truncation_px"),
     ("stiffness/*truncation_error_mm*", "truncation_mm"),
     ("stiffness/*error_px*", "error_px"),
@@ -284,10 +294,12 @@ path ``section/key/...`` gives its kind (:data:`KINDS`)."""
 
 TEXT_RULES: tuple[tuple[str, str], ...] = (
     ("analysis/path_following/sos/*lyapunov", "sdp"),
+    ("analysis/path_following/sos/*claim", "certified_level"),
 )
 """``(pattern, kind)`` of the text leaves whose numbers are rounded (:func:`round_numbers_in_text`): an SOS
-polynomial is printed with the digits the SDP supports (4 significant; the polynomial the interval
-re-check certified has the SDP's own floats: ``visnav analyse --json``)."""
+polynomial is printed with the digits the SDP supports (4 significant digits of its largest coefficient:
+a coefficient the SDP leaves at 1e-5 beside one of 16 is noise; the polynomial the interval re-check
+certified has the SDP's own floats: ``visnav analyse --json``); the levels in an SOS claim rounded down."""
 
 FIGURE_DIGITS = 6
 """Significant digits of every value a report figure plots (1e-6 of an axis: a thousandth of a pixel)."""
@@ -343,12 +355,24 @@ _NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?(?!
 
 
 def round_numbers_in_text(text: str, precision: Precision | str) -> str:
-    """``text`` with every decimal number that has a fraction or exponent rounded (:func:`number_text`)."""
+    """``text`` with every decimal number that has a fraction or exponent rounded (:func:`number_text`).
+
+    For a ``nearest`` kind the numbers are coefficients of one expression: the step is that of the largest
+    one (its significant digits), so a coefficient the solver left at noise level prints as 0.
+    """
+    p = KINDS[precision] if isinstance(precision, str) else precision
+    tokens = [m.group(0) for m in _NUMBER.finditer(text) if any(c in m.group(0) for c in ".eE")]
+    if p.digits is not None and p.direction == "nearest" and tokens:
+        largest = max(abs(float(t)) for t in tokens)
+        if math.isfinite(largest) and largest > 0:
+            step = 10.0 ** (math.floor(math.log10(largest)) - p.digits + 1)
+            p = dataclasses.replace(p, resolution=max(p.resolution, float(f"{step:.0e}")))
+
     def one(match: re.Match[str]) -> str:
         token = match.group(0)
         if not any(c in token for c in ".eE"):
             return token  # an integer (an exponent of a power, a count) is exact
-        return number_text(float(token), precision)
+        return number_text(float(token), p)
 
     return _NUMBER.sub(one, text)
 

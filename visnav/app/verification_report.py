@@ -204,7 +204,7 @@ def _point_text(point: Mapping[str, float] | None, problem: Any) -> str:
     if not moved:
         return "the nominal point"
     shown = sorted(moved, key=lambda m: (-m[0], m[1]))[:_POINT_COORDINATES]
-    text = ", ".join(f"{k} = {_number(v, 'input')}" for _, k, v in sorted(shown, key=lambda m: m[1]))
+    text = ", ".join(f"{k} = {_number(v, 'search_point')}" for _, k, v in sorted(shown, key=lambda m: m[1]))
     extra = len(moved) - len(shown)
     return text + (f" (+{extra} more off nominal)" if extra else "")
 
@@ -352,7 +352,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
         file = None
         if r.counterexample is not None:
             file = f"{COUNTEREXAMPLE_DIR}/{r.name}.json"
-            files[file] = counterexample_text(result, r, problem, spec, options)
+            files[file] = counterexample_text(result, r, problem, spec, options, rounded=True)
         rows.append({**r.as_dict(), "history": list(r.history), "evidence": _evidence(r, result, problem),
                      "counterexample_file": file, "figure": stems[r.name]})
     claims = [_requirement_claim(r, result, problem, row["counterexample_file"])

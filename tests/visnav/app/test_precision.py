@@ -90,8 +90,25 @@ def test_negative_zero_and_non_finite_values():
 
 
 def test_numbers_in_text_are_rounded_names_and_integers_kept():
-    text = "-0.053721509873867035*sin(alpha)^4 + 0.19494002684950829*x2^3 - 6.306091755628586e-05*delta"
-    assert round_numbers_in_text(text, "sdp") == "-0.05372*sin(alpha)^4 + 0.1949*x2^3 - 6.306e-05*delta"
+    """A polynomial's coefficients to 4 significant digits of the largest one (a noise-level one prints 0);
+    names (x2) and integer exponents kept."""
+    text = "-0.053721509873867035*sin(alpha)^4 + 0.19494002684950829*x2^3 - 6.306091755628586e-06*delta"
+    assert round_numbers_in_text(text, "sdp") == "-0.0537*sin(alpha)^4 + 0.1949*x2^3 - 0*delta"
+    # two SDP solutions of one machine and another (measured): the same text
+    assert (round_numbers_in_text("1.264e-05*sin(alpha)^4 + 16.38*sin(alpha)^3*cos(alpha)", "sdp")
+            == round_numbers_in_text("9.775e-06*sin(alpha)^4 + 16.38*sin(alpha)^3*cos(alpha)", "sdp"))
+    # the level of a certified set rounds down (a smaller set of the certified family), box bounds unchanged
+    claim = "S = {x in B : V(x) <= %s} with B = delta in [-0.5, 0.5] x alpha in [-2.98451, 2.98451]"
+    assert (round_numbers_in_text(claim % "0.999999969", "certified_level")
+            == round_numbers_in_text(claim % "0.999999973", "certified_level") == claim % "0.999999")
+
+
+def test_the_documentation_lists_every_kind():
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[3] / "docs" / "report.md").read_text()
+    for kind, p in KINDS.items():
+        assert f"| `{kind}` | {'bit for bit' if p.digits is None else p.digits} |" in doc, kind
 
 
 def test_every_rule_names_a_kind_and_every_kind_says_why():

@@ -118,26 +118,50 @@ from visnav.app.entry import main
 sys.argv = ["visnav", "report", "--scenario", "paper", "--quick", "--out", sys.argv[1]]
 code = main()
 libs = glob.glob(os.path.join(os.path.dirname(numpy.__file__), "..", "numpy.libs", "*openblas*"))
-threads = ctypes.CDLL(libs[0]).scipy_openblas_get_num_threads64_() if libs else -1
-print(f"blas-threads={threads}", file=sys.stderr)
+blas = ctypes.CDLL(libs[0]) if libs else None
+if blas is not None:
+    blas.scipy_openblas_get_corename64_.restype = ctypes.c_char_p
+    print(f"blas-threads={blas.scipy_openblas_get_num_threads64_()}", file=sys.stderr)
+    print(f"blas-core={blas.scipy_openblas_get_corename64_().decode()}", file=sys.stderr)
 sys.exit(code)
 """
 
 
 def test_two_blas_threads_write_the_same_report(tmp_path, report_tools):
     """A process whose BLAS runs 2 threads writes the bytes the console script (1 thread) writes."""
+    from visnav.app.cli import REPORT_NUMERICS
+
     one = tmp_path / "one"
     done = report_tools.run(one, "--quick")
     report_tools.exit_is_the_verdicts(done, one)
     two = tmp_path / "two"
-    env = {**os.environ, "PYTHONHASHSEED": "7", "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    env = {**os.environ, **REPORT_NUMERICS, "PYTHONHASHSEED": "7", "OPENBLAS_NUM_THREADS": "2",
+           "OMP_NUM_THREADS": "2"}
     done = subprocess.run([sys.executable, "-c", _TWO_THREADS, str(two)], capture_output=True, text=True, env=env,
-                          cwd=ROOT, timeout=600)
+                          cwd=ROOT, timeout=900)
     report_tools.exit_is_the_verdicts(done, two)
-    if "blas-threads=-1" not in done.stderr:  # numpy's OpenBLAS found: it did run 2 threads
+    if "blas-threads=" in done.stderr:  # numpy's OpenBLAS found: it did run 2 threads, on the pinned kernels
         assert "blas-threads=2" in done.stderr, done.stderr[-2000:]
+        assert f"blas-core={REPORT_NUMERICS['OPENBLAS_CORETYPE']}" in done.stderr, done.stderr[-2000:]
     for name in ("report.json", "report.md", "report.html"):
         assert (one / name).read_bytes() == (two / name).read_bytes(), name
     assert report_tools.counterexamples(one) == report_tools.counterexamples(two)
     for png in sorted((one / "figures").glob("*.png")):
         assert png.read_bytes() == (two / "figures" / png.name).read_bytes(), png.name
+
+
+def test_the_report_command_pins_its_numerics_before_numpy_loads():
+    """``visnav report`` pins numpy's SIMD dispatch and OpenBLAS's kernels (visnav.app.cli.REPORT_NUMERICS); the
+    command-line modules load no numpy before it does, and other commands are left alone."""
+    from visnav.app.cli import REPORT_NUMERICS
+
+    probe = ("import os, sys; import visnav.app.entry, visnav.app.cli as cli; loaded = 'numpy' in sys.modules; "
+             "cli._pinned_report_numerics(sys.argv[1:]); "
+             "print(loaded, os.environ.get('OPENBLAS_CORETYPE'), os.environ.get('NPY_DISABLE_CPU_FEATURES'))")
+    env = {k: v for k, v in os.environ.items() if k not in REPORT_NUMERICS}
+    for args, pinned in ((["report", "--quick"], True), (["simulate"], False)):
+        done = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True, env=env,
+                              cwd=ROOT, timeout=120, check=True)
+        expected = (f"False {REPORT_NUMERICS['OPENBLAS_CORETYPE']} {REPORT_NUMERICS['NPY_DISABLE_CPU_FEATURES']}"
+                    if pinned else "False None None")
+        assert done.stdout.strip() == expected, (args, done.stdout, done.stderr)
