@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from visnav.app.precision import KINDS
 from visnav.app.verification_report import VERDICT_LABELS
 
 __all__ = ["Block", "report_blocks", "findings_blocks", "structural_blocks", "render_markdown", "render_html",
@@ -425,6 +426,11 @@ def _stiffness_blocks(data: dict[str, Any]) -> list[Block]:
             for scheme, row in st["reconstruction"].items()]
     blocks.append(Block("table", ([f"scheme (h = {st['period_s']:g} s)", "max |s - s~| [px]", "max |z - z~| [mm]",
                                    "truncation error [px]"], rows)))
+    px, mm, trunc = KINDS["error_px"], KINDS["error_mm"], KINDS["truncation_px"]
+    blocks.append(Block("p", (f"Errors to {px.resolution:g} px and {mm.resolution:g} mm, truncation errors to "
+                              f"{trunc.digits} significant digits; a truncation error of at most {trunc.floor:g} px "
+                              f"is written {trunc.floor:g} (below it: round-off of the reference). Every number of "
+                              "this report carries the digits its computation supports (docs/report.md).")))
     orders = st["observed_order"]
     blocks.append(Block("p", "Observed orders (exact-solution orbit problem): "
                         + ", ".join(f"{k} {_fmt(v)}" for k, v in orders.items()) + "."))
