@@ -30,7 +30,7 @@ from visnav.app.cli_types import (
     positive_seconds,
 )
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "REPORT_NUMERICS"]
 
 
 
@@ -190,7 +190,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     from analysis.falsification import FalsificationError, SimulationFailed
     from analysis.loading import ProblemLoadError
-    from visnav.app.cli_types import VERDICT_EXIT_CODES as EXIT_CODES
     from hybrid.errors import ParameterError
 
     from visnav.app.ownership import anchored
@@ -233,7 +232,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     folder = shown
     elapsed = time.perf_counter() - start
     counts, verdict = report.data["claim_counts"], report.data["verdict"]
-    code = EXIT_CODES[verdict]
+    code = report.data["exit_code"]  # the verification's, or 1 for a structural error (REPORT_EXIT_CODES)
     # the scenario's own task (its nominal simulation): a failed task is a failed report, as for `simulate`
     metrics = report.data.get("simulation", {}).get("metrics")
     task_achieved = None if metrics is None else bool(metrics["success"])
@@ -256,6 +255,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
             saturated = report.data["saturated"]
             lines.append(f"  saturated loop ({saturated['problem']}): {VERDICT_LABELS[saturated['verdict']]}")
             lines += _verdict_lines(saturated["requirements"], folder, saturated.get("source") or "paper")
+        errors = report.data["structural_errors"]
+        if errors["count"]:
+            lines.append(f"  structural     {errors['count']} error(s): {', '.join(errors['kinds'])} "
+                         f"(report.md, section {' and '.join(errors['sections'])})")
+        for line in errors.get("undecided", ())[:5]:
+            lines.append(f"  not decided    {line}")
         lines += [f"  {name:<12} {seconds:6.1f} s" for name, seconds in report.timings_s.items()]
         lines += [f"  wrote {p}" for p in written]
         print("\n".join(lines))
@@ -759,6 +764,25 @@ def _single_threaded_blas() -> None:
         os.environ[name] = "1"
 
 
+REPORT_NUMERICS = {"NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR", "OPENBLAS_CORETYPE": "Nehalem"}
+"""What ``visnav report`` pins before numpy loads, so that its figures are drawn by the same code on every
+x86-64 machine: numpy's baseline loops instead of the SIMD dispatch targets of the pinned numpy (2.4: AVX2
+and AVX-512 variants of log10, exp, sin... whose last bits differ, which moves an antialiased edge of a
+log-scale figure by a 1/255 grey level), and OpenBLAS's Nehalem kernels (SSE4.2: every x86-64-v2 CPU) instead
+of the ones it picks for the CPU.  The numbers are rounded anyway (:mod:`visnav.app.precision`); this keeps
+the remaining round-off below the figures too.  A name another numpy does not dispatch is ignored by it."""
+
+
+def _pinned_report_numerics(argv: Sequence[str] | None) -> None:
+    """Pin :data:`REPORT_NUMERICS` when the command is ``report`` (before numpy loads; without effect after)."""
+    import os
+
+    words = list(sys.argv[1:] if argv is None else argv)
+    command = next((w for w in words if not w.startswith("-")), None)
+    if command == "report":
+        os.environ.update(REPORT_NUMERICS)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``visnav`` console script; returns the exit code (``docs/failure_modes.md``)."""
     from visnav.app.failures import run_guarded
@@ -768,6 +792,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(argv: Sequence[str] | None) -> int:
     _single_threaded_blas()  # before anything imports numpy (building the parser imports some of the toolkit)
+    _pinned_report_numerics(argv)
     parser = build_parser()
     args = parser.parse_args(argv)
     from visnav.app.ownership import start_folder

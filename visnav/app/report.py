@@ -54,6 +54,7 @@ from visnav.app.verification_report import (
     Section,
     dependency_versions,
 )
+from visnav.app.precision import quantise_for_figure, round_section, round_value
 from visnav.parameters import Scenario
 
 __all__ = [
@@ -197,35 +198,35 @@ def _simulation_section(scenario: Scenario, options: ReportOptions) -> tuple[dic
     from visnav.simulation import simulate
 
     result = simulate(scenario)
-    m = result.metrics
-    metrics = m.as_dict()
+    metrics = round_section("simulation", {"metrics": result.metrics.as_dict()})["metrics"]
+    m = metrics  # the claims say what report.json says (visnav.app.precision)
     ours = {
-        "task_achieved": m.success,
-        "collision": m.collided,
-        "occlusion_duration_s": m.occlusion_duration_s,
-        "max_reconstruction_error_px": m.max_reconstruction_error_px,
-        "max_depth_error_mm": m.max_depth_error_mm,
-        "controls_saturated": not m.within_actuator_limits,
+        "task_achieved": m["success"],
+        "collision": m["collided"],
+        "occlusion_duration_s": m["occlusion_duration_s"],
+        "max_reconstruction_error_px": m["max_reconstruction_error_px"],
+        "max_depth_error_mm": m["max_depth_error_mm"],
+        "controls_saturated": not m["within_actuator_limits"],
     }
     comparison = [{"quantity": k, "paper": PAPER_PUBLISHED[k], "ours": ours[k]} for k in PAPER_PUBLISHED]
     data = {"metrics": metrics, "paper_comparison": comparison,
             "figures": ["fig4_trajectory", "fig5_risk", "fig6_reconstruction", "fig7_controls"]}
     claims = [
         Claim(section="simulation", status="measured",
-              text=(f"the paper scenario {'succeeds' if m.success else 'fails'} ({m.termination}) "
-                    f"{'without' if not m.collided else 'WITH'} collision; minimum clearance "
-                    f"{m.min_clearance_m:.3g} m (exact arcs, 20 sub-samples per period)")),
+              text=(f"the paper scenario {'succeeds' if m['success'] else 'fails'} ({m['termination']}) "
+                    f"{'without' if not m['collided'] else 'WITH'} collision; minimum clearance "
+                    f"{m['min_clearance_m']:.3g} m (exact arcs, 20 sub-samples per period)")),
         Claim(section="simulation", status="measured",
-              text=(f"reconstruction while hidden: max |s - s~| = {m.max_reconstruction_error_px:.3g} px, "
-                    f"max |z - z~| = {m.max_depth_error_mm:.3g} mm over a {m.occlusion_duration_s:.4g} s occlusion "
-                    f"(paper: < {PAPER_PUBLISHED['max_reconstruction_error_px']} px, "
+              text=(f"reconstruction while hidden: max |s - s~| = {m['max_reconstruction_error_px']:.3g} px, "
+                    f"max |z - z~| = {m['max_depth_error_mm']:.3g} mm over a {m['occlusion_duration_s']:.4g} s "
+                    f"occlusion (paper: < {PAPER_PUBLISHED['max_reconstruction_error_px']} px, "
                     f"< {PAPER_PUBLISHED['max_depth_error_mm']} mm over about 15 s)")),
         Claim(section="simulation", status="measured",
-              text=(f"{len(m.transitions)} transitions, {m.chatter_count} chatter episode(s); peak |v|, |w|, "
-                    f"|pan rate| = {', '.join(f'{x:.3g}' for x in m.max_abs_input)} "
-                    f"({'within' if m.within_actuator_limits else 'BEYOND'} the actuator limits)")),
+              text=(f"{len(m['transitions'])} transitions, {m['chatter_count']} chatter episode(s); peak |v|, |w|, "
+                    f"|pan rate| = {', '.join(f'{x:.3g}' for x in m['max_abs_input'])} "
+                    f"({'within' if m['within_actuator_limits'] else 'BEYOND'} the actuator limits)")),
     ]
-    return data, claims, paper_figures(result)
+    return data, claims, paper_figures(quantise_for_figure(result))
 
 
 def _sos_claims(sos: dict[str, Any] | None) -> list[Claim]:
@@ -246,7 +247,8 @@ def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
     from visnav.app.figures_analysis import analysis_figures
 
     # the quick report judges the scenario's k only; the full one scans the gains as `visnav analyse` does
-    full = analyse(scenario, sos="scenario" if options.quick else "scan").as_dict()
+    # rounded first (visnav.app.precision): the claims, the documents and the figures all use the same digits
+    full = round_section("analysis", analyse(scenario, sos="scenario" if options.quick else "scan").as_dict())
     figures = analysis_figures(full)
     data = {k: v for k, v in full.items() if k not in ("frequency_responses", "scenario")}
     data["figures"] = sorted(figures)
@@ -303,8 +305,8 @@ def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict
     except NoOcclusionError as err:  # a scenario without an occlusion: nothing to reconstruct, nothing to study
         return ({"not_applicable": str(err), "figures": []},
                 [Claim(section="stiffness", status="measured", text=f"stiffness study not applicable: {err}")], {})
-    data = study.as_dict(include_timing=False)
-    figures = stiffness_figures(study, reproducible=True)
+    data = round_section("stiffness", study.as_dict(include_timing=False))
+    figures = stiffness_figures(_figure_study(study), reproducible=True)
     data["figures"] = sorted(figures)
     ans = data["answer"]
     a_alpha = data["stability"]["a_alpha"]
@@ -331,6 +333,24 @@ def _stiffness_section(scenario: Scenario, options: ReportOptions) -> tuple[dict
                     "BDF order (from order 3 on)")),
     ]
     return data, claims, figures
+
+
+def _figure_study(study: Any) -> Any:
+    """What the stiffness figures plot: the study with every plotted float to
+    :data:`~visnav.app.precision.FIGURE_DIGITS` digits, the integration errors of the reconstruction problem
+    at least :data:`~visnav.app.precision.ACCURACY_FLOOR` (below, round-off of the references: drawn on the
+    fit floor) and the observed orders as the report prints them."""
+    import dataclasses
+
+    plots = quantise_for_figure(dict(study.plots))
+    for key in ("paper_accuracy", "reference_accuracy", "verification"):
+        rows = plots.get(key, {})
+        for row in rows.values():
+            if key != "verification" and "errors" in row:
+                row["errors"] = [round_value(e, "accuracy_error") for e in row["errors"]]
+            if row.get("observed_order") is not None:
+                row["observed_order"] = round_value(row["observed_order"], "order")
+    return dataclasses.replace(study, plots=plots, data=round_section("stiffness", study.data))
 
 
 def _fuzzing_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
@@ -372,8 +392,9 @@ def _campaign_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
     executor = InlineExecutor() if options.quick else process_pool(2)
     with executor:
         run_campaign(spec, executor, results.append)
-    summary = summarise(spec, results).as_dict()
-    data = {"spec": {k: v for k, v in spec.as_dict().items() if k != "scenario_toml"}, "summary": summary}
+    data = round_section("campaign", {"spec": {k: v for k, v in spec.as_dict().items() if k != "scenario_toml"},
+                                      "summary": summarise(spec, results).as_dict()})
+    summary = data["summary"]
     rate, interval = summary["success_rate"], summary["success_interval_95"]
     counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items() if v)
     claims = [Claim(

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from visnav.app.precision import KINDS
 from visnav.app.verification_report import VERDICT_LABELS
 
 __all__ = ["Block", "report_blocks", "findings_blocks", "structural_blocks", "render_markdown", "render_html",
@@ -189,12 +190,28 @@ def _rho(value: Any) -> str:
     return _fmt(value + 0.0 if isinstance(value, float) else value)
 
 
-def _verdict_sentence(ver: dict[str, Any]) -> str:
+_STRUCTURE_HEADINGS = {"structure": "Structural checks", "model": "Model"}
+"""Where the report shows each section's structural findings (the heading of its part of the document)."""
+
+
+def _structural_text(errors: dict[str, Any] | None) -> str:
+    """`` — structural checks: N error(s) (kinds; section ...)`` when the checks found errors, else ``""``."""
+    if not errors or not errors["count"]:
+        return ""
+    where = " and ".join(f"\"{_STRUCTURE_HEADINGS.get(s, s)}\"" for s in errors["sections"])
+    return (f"; the structural checks found {errors['count']} error(s) ({', '.join(errors['kinds'])}; "
+            f"section {where})")
+
+
+def _verdict_sentence(data: dict[str, Any]) -> str:
+    """The summary line: the report's overall verdict and exit code (structural errors included), the counts."""
+    ver = data["verification"]
+    verdict, code = data.get("verdict", ver["verdict"]), data.get("exit_code", ver["exit_code"])
     counts = {v: sum(r["verdict"] == v for r in ver["requirements"]) for v in ("proven", "falsified",
                                                                                "not_falsified")}
     parts = [f"{n} {VERDICT_LABELS[v].lower()}" for v, n in counts.items() if n]
-    text = (f"Overall verdict: {VERDICT_LABELS[ver['verdict']]} (exit code {ver['exit_code']}) — "
-            f"{len(ver['requirements'])} requirement(s): {', '.join(parts)}; {ver['simulations']} simulation(s) "
+    text = (f"Overall verdict: {VERDICT_LABELS[verdict]} (exit code {code}){_structural_text(data.get('structural_errors'))}"
+            f" — {len(ver['requirements'])} requirement(s): {', '.join(parts)}; {ver['simulations']} simulation(s) "
             f"of a budget of {ver['budget']} (method {ver['method']}, seed {ver['seed']}).")
     if ver["invalid"]:
         text += (f" {ver['invalid']} point(s) outside the problem's hypotheses skipped ("
@@ -244,7 +261,7 @@ def _verification_figures(ver: dict[str, Any]) -> list[Block]:
 def _verification_blocks(data: dict[str, Any]) -> list[Block]:
     ver = data["verification"]
     blocks = [Block("h2", f"Verification of `{ver['problem']}`"),
-              Block("p", _verdict_sentence(ver)),
+              Block("p", _verdict_sentence(data)),
               _verification_table(ver)]
     replay = [r["counterexample_file"] for r in ver["requirements"] if r["counterexample_file"]]
     if replay:
@@ -429,6 +446,11 @@ def _stiffness_blocks(data: dict[str, Any]) -> list[Block]:
             for scheme, row in st["reconstruction"].items()]
     blocks.append(Block("table", ([f"scheme (h = {st['period_s']:g} s)", "max |s - s~| [px]", "max |z - z~| [mm]",
                                    "truncation error [px]"], rows)))
+    px, mm, trunc = KINDS["error_px"], KINDS["error_mm"], KINDS["truncation_px"]
+    blocks.append(Block("p", (f"Errors to {px.resolution:g} px and {mm.resolution:g} mm, truncation errors to "
+                              f"{trunc.digits} significant digits; a truncation error of at most {trunc.floor:g} px "
+                              f"is written {trunc.floor:g} (below it: round-off of the reference). Every number of "
+                              "this report carries the digits its computation supports (docs/report.md).")))
     orders = st["observed_order"]
     blocks.append(Block("p", "Observed orders (exact-solution orbit problem): "
                         + ", ".join(f"{k} {_fmt(v)}" for k, v in orders.items()) + "."))

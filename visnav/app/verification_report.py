@@ -46,11 +46,14 @@ from typing import Any
 from hybrid.jsonable import to_jsonable
 
 from visnav.app.cli_types import VERDICT_EXIT_CODES
+from visnav.app.precision import round_section, round_value
 
 __all__ = [
     "CLAIM_STATUSES",
     "DEPENDENCIES",
     "VERDICT_LABELS",
+    "STRUCTURAL_ERROR",
+    "REPORT_EXIT_CODES",
     "COUNTEREXAMPLE_DIR",
     "VERIFY_BUDGET",
     "VERIFY_BUDGET_QUICK",
@@ -64,6 +67,8 @@ __all__ = [
     "stability_section",
     "findings_summary",
     "assemble_report",
+    "structural_errors",
+    "overall_verdict",
     "build_problem_report",
     "report_command",
 ]
@@ -75,9 +80,18 @@ DEPENDENCIES = ("numpy", "scipy", "casadi", "control", "hypothesis", "networkx",
                 "distributed", "z3-solver", "cvxpy", "clarabel", "scs")
 """Packages whose versions the report records."""
 
+STRUCTURAL_ERROR = "structural_error"
+"""A report's overall verdict when its requirements are proven or not falsified but a structural check found an
+error (a defect whose witness re-checked on the model): the model is wrong whatever its runs showed."""
+
 VERDICT_LABELS = {"proven": "PROVEN", "falsified": "FALSIFIED", "not_falsified": "NOT FALSIFIED",
-                  "diverged": "DIVERGED", "incomplete": "INCOMPLETE", "error": "MODEL ERROR"}
-"""How the documents write a verdict (:data:`analysis.verdicts.OVERALL`)."""
+                  "diverged": "DIVERGED", "incomplete": "INCOMPLETE", "error": "MODEL ERROR",
+                  STRUCTURAL_ERROR: "STRUCTURAL ERROR"}
+"""How the documents write a verdict (:data:`analysis.verdicts.OVERALL` and :data:`STRUCTURAL_ERROR`)."""
+
+REPORT_EXIT_CODES = {**VERDICT_EXIT_CODES, STRUCTURAL_ERROR: 1}
+"""Exit code of ``visnav report`` by the report's overall verdict (:data:`visnav.app.cli_types.VERDICT_EXIT_CODES`,
+and 1 (a finding) for :data:`STRUCTURAL_ERROR`)."""
 
 COUNTEREXAMPLE_DIR = "counterexamples"
 """Sub-folder of the report's counterexample files (``counterexamples/NAME.json``)."""
@@ -176,8 +190,10 @@ def dependency_versions() -> dict[str, str]:
 # --------------------------------------------------------------------------- the verification section
 
 
-def _number(value: float | None) -> str:
-    return "—" if value is None else f"{value + 0.0:.4g}"  # + 0.0: no "-0"
+def _number(value: float | None, kind: str = "simulation") -> str:
+    """A robustness (or a number of ``kind``) as the report prints it: rounded by the policy
+    (:func:`visnav.app.precision.round_value`), then written with 4 significant digits."""
+    return "—" if value is None else f"{round_value(value, kind):.4g}"
 
 
 def _point_text(point: Mapping[str, float] | None, problem: Any) -> str:
@@ -190,7 +206,7 @@ def _point_text(point: Mapping[str, float] | None, problem: Any) -> str:
     if not moved:
         return "the nominal point"
     shown = sorted(moved, key=lambda m: (-m[0], m[1]))[:_POINT_COORDINATES]
-    text = ", ".join(f"{k} = {v:.4g}" for _, k, v in sorted(shown, key=lambda m: m[1]))
+    text = ", ".join(f"{k} = {_number(v, 'search_point')}" for _, k, v in sorted(shown, key=lambda m: m[1]))
     extra = len(moved) - len(shown)
     return text + (f" (+{extra} more off nominal)" if extra else "")
 
@@ -204,7 +220,7 @@ def _evidence(verdict: Any, result: Any, problem: Any) -> str:
     """One sentence of evidence for a requirement's verdict."""
     cx, proof = verdict.counterexample, verdict.proof
     if cx is not None:
-        return (f"violated at t = {cx.time:.4g} s by `{cx.atom.strip()}` = {_number(cx.atom_value)} "
+        return (f"violated at t = {_number(cx.time, 'time')} s by `{cx.atom.strip()}` = {_number(cx.atom_value)} "
                 f"(simulation {cx.evaluation}; {cx.how}) at {_point_text(cx.point, problem)}")
     if verdict.verdict == "proven":
         return f"{proof.method}: {proof.evidence}"
@@ -229,7 +245,7 @@ def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None
         cx = verdict.counterexample
         return Claim(section=section, status="measured",
                      text=(f"requirement {verdict.name} {label}: robustness {_number(cx.robustness)} at "
-                           f"{_point_text(cx.point, problem)}, violated at t = {cx.time:.4g} s by "
+                           f"{_point_text(cx.point, problem)}, violated at t = {_number(cx.time, 'time')} s by "
                            f"`{cx.atom.strip()}`; replay with `{replay_command(file, spec)}`"))
     share = _coverage_share(result)
     return Claim(section=section, status="sampled",
@@ -351,7 +367,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
         file = None
         if r.counterexample is not None:
             file = f"{COUNTEREXAMPLE_DIR}/{tag}{r.name}.json"
-            files[file] = counterexample_text(result, r, problem, spec, options)
+            files[file] = counterexample_text(result, r, problem, spec, options, rounded=True)
         rows.append({**r.as_dict(), "history": list(r.history), "evidence": _evidence(r, result, problem),
                      "counterexample_file": file, "figure": stems[r.name]})
     claims = [_requirement_claim(r, result, problem, row["counterexample_file"], spec, name)
@@ -428,7 +444,7 @@ def structure_section(problem: Any) -> Section | None:
     transitions sharing a mode) and ``solver``.  Claims: one for the graph checks and one per check
     with a claim (:func:`visnav.app.structural.report_claims`).
     """
-    from visnav.app.structural import report_claims, structural_data
+    from visnav.app.structural import completeness_data, report_claims, structural_data, verdict_line
 
     if problem.structural is None:
         return None
@@ -438,7 +454,9 @@ def structure_section(problem: Any) -> Section | None:
     errors, warnings = summary["by_severity"]["error"], summary["by_severity"]["warning"]
     searched = getattr(report, "searched", None)
     automaton = str(getattr(report, "automaton", problem.name))
-    data = {"automaton": automaton, "clean": not (errors or warnings),
+    completeness = completeness_data(report)
+    data = {"automaton": automaton, "clean": verdict_line(report)[0] == "clean",
+            "complete": bool(completeness.get("complete")), "incomplete": list(completeness.get("incomplete", ())),
             "summary": summary, "findings": findings,
             "checks": dict(getattr(searched, "checks", {})), "samples": getattr(searched, "samples", None),
             "seed": getattr(searched, "seed", None), **structural_data(report)}
@@ -472,25 +490,70 @@ def stability_section(problem: Any) -> Section | None:
 # --------------------------------------------------------------------------- the document
 
 
+def structural_errors(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The structural errors of a report's data: the ``structure`` section's (a problem's checks) and the
+    ``model`` section's (the scenario's supervisor).
+
+    Returns
+    -------
+    dict
+        ``count`` (errors: findings of severity ``error``, each a defect whose witness re-checked on the
+        model), ``kinds`` (sorted) and ``sections`` (where they are, in report order).
+    """
+    count, kinds, sections, undecided = 0, set(), [], []
+    for name, key in (("structure", None), ("model", "structural_checks")):
+        section = data.get(name)
+        checks = section.get(key) if isinstance(section, Mapping) and key else section
+        if not isinstance(checks, Mapping) or "summary" not in checks:
+            continue
+        if checks.get("complete") is False:
+            undecided += [f"{name}: {why}" for why in checks.get("incomplete", ())] or [f"{name}: not complete"]
+        errors = [row for row in checks["summary"]["by_kind"] if row["severity"] == "error"]
+        if errors:
+            count += sum(row["count"] for row in errors)
+            kinds.update(row["kind"] for row in errors)
+            sections.append(name)
+    out = {"count": count, "kinds": sorted(kinds), "sections": sections}
+    if undecided:  # the checks that did not decide (a report says so only when there are some)
+        out["undecided"] = undecided
+    return out
+
+
+def overall_verdict(verification: str | None, errors: Mapping[str, Any]) -> str | None:
+    """A report's overall verdict: the verification's, except that structural errors turn a proven, not
+    falsified or incomplete one into :data:`STRUCTURAL_ERROR` (a falsified, diverged or model-error
+    verification keeps its verdict; the errors are listed beside it), and structural checks that did not all
+    decide turn a pass into ``incomplete`` (never a pass over a check that did not complete)."""
+    if verification in ("proven", "not_falsified", "incomplete", None) and errors["count"]:
+        return STRUCTURAL_ERROR
+    if verification in ("proven", "not_falsified") and errors.get("undecided"):
+        return "incomplete"
+    return verification
+
+
 def assemble_report(meta: Mapping[str, Any], sections: Sequence[tuple[str, Section]],
                     timings: Mapping[str, float] | None = None) -> Report:
     """The report of ``sections`` in order: their data by name, every claim, the counts and the verdict.
 
     ``report.json``'s top-level ``verdict`` is the ``verification`` section's overall verdict
-    (``None`` without one).
+    (``None`` without one), turned into :data:`STRUCTURAL_ERROR` when a structural check found an error
+    (:func:`overall_verdict`); ``exit_code`` is its :data:`REPORT_EXIT_CODES`, ``structural_errors``
+    the errors counted (:func:`structural_errors`).
     """
     data: dict[str, Any] = {"meta": dict(meta), "sections": [name for name, _ in sections]}
     claims: list[Claim] = []
     figures: dict[str, Any] = {}
     files: dict[str, str] = {}
     for name, section in sections:
-        data[name] = section.data
+        data[name] = round_section(name, section.data)  # every number to its digits (visnav.app.precision)
         claims += section.claims
         figures.update(section.figures)
         files.update(section.files)
     data["claims"] = [c.as_dict() for c in claims]
     data["claim_counts"] = {s: sum(c.status == s for c in claims) for s in CLAIM_STATUSES}
-    data["verdict"] = data["verification"]["verdict"] if "verification" in data else None
+    data["structural_errors"] = structural_errors(data)
+    data["verdict"] = overall_verdict(data.get("verification", {}).get("verdict"), data["structural_errors"])
+    data["exit_code"] = None if data["verdict"] is None else REPORT_EXIT_CODES[data["verdict"]]
     return Report(data=to_jsonable(data), figures=figures, files=files, timings_s=dict(timings or {}))
 
 

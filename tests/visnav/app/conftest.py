@@ -13,6 +13,8 @@ import pytest
 
 from visnav.app.cli_types import VERDICT_EXIT_CODES as EXIT_CODES
 
+from visnav.app.verification_report import REPORT_EXIT_CODES
+
 ROOT = Path(__file__).resolve().parents[3]
 COMMITTED = ROOT / "reports" / "paper"
 
@@ -30,10 +32,13 @@ def _run_report(out: Path, *extra: str, hashseed: str = "7", blas_threads: str |
 
 
 def _assert_exit_is_the_verdicts(done: subprocess.CompletedProcess, out: Path) -> None:
-    """The report exits with its verification's code: 0 proven / not falsified, 1 falsified, 3 diverged."""
+    """The report exits with its verdict's code: 0 proven / not falsified, 1 falsified or a structural error,
+    3 diverged (:data:`visnav.app.verification_report.REPORT_EXIT_CODES`)."""
     assert (out / "report.json").is_file(), done.stderr
-    verdict = json.loads((out / "report.json").read_text())["verdict"]
-    assert done.returncode == EXIT_CODES[verdict], (verdict, done.stderr)
+    data = json.loads((out / "report.json").read_text())
+    verdict = data["verdict"]
+    assert done.returncode == REPORT_EXIT_CODES[verdict] == data["exit_code"], (verdict, done.stderr)
+    assert REPORT_EXIT_CODES[verdict] == EXIT_CODES.get(verdict, 1)  # the verification's own code, or a finding
 
 
 def _counterexamples(folder: Path) -> dict[str, bytes]:

@@ -25,9 +25,18 @@ def test_committed_paper_report_regenerates(tmp_path, report_tools):
                   if dependency_versions().get(k) != v}
         pytest.skip(f"the report ran; its bytes are not compared: reports/paper was generated with other "
                     f"package versions {differ}: regenerate it with `make demo` on this machine")
-    for name in ("report.json", "report.md"):
+    for name in ("report.json", "report.md"):  # byte for byte: every number rounded by visnav.app.precision
         assert (tmp_path / name).read_bytes() == (COMMITTED / name).read_bytes(), (
             f"{name} differs from reports/paper/{name}: the report changed; regenerate it with `make demo` and "
             "review the diff")
     assert report_tools.counterexamples(tmp_path) == report_tools.counterexamples(COMMITTED), (
         "reports/paper/counterexamples/ differs: regenerate it with `make demo` and review the diff")
+    # every figure too: drawn from the numbers the rounding policy keeps (docs/report.md)
+    pngs = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert pngs == sorted(p.name for p in (COMMITTED / "figures").glob("*.png")), "the figures differ in name"
+    differ = [name for name in pngs
+              if (tmp_path / "figures" / name).read_bytes() != (COMMITTED / "figures" / name).read_bytes()]
+    assert not differ, (f"reports/paper/figures/ differs in {differ}: regenerate it with `make demo` and review "
+                        "the diff")
+    # report.html embeds the figures: the same bytes once they and report.md are
+    assert (tmp_path / "report.html").read_bytes() == (COMMITTED / "report.html").read_bytes()

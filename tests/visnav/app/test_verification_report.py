@@ -296,3 +296,65 @@ def test_a_second_verification_section_has_its_own_figures_files_and_claims(zero
     assert "clips the applied commands (v, ω, ϖ)" in md
     assert "[counterexamples/saturated~min_dwell.json](counterexamples/saturated~min_dwell.json)" in md
     assert "figures/saturated_counterexample_min_dwell.png" in md and "figures/verification_robustness.png" in md
+
+
+ZERO_BAND_COMFORT = '''
+"""The zero-band thermostat with its comfort requirement only: the runs stay comfortable, but both guards
+hold at the setpoint, so a reset re-triggers its own guard (an instantaneous cycle the checks find)."""
+import importlib.util
+
+spec = importlib.util.spec_from_file_location("thermostat_example", {path!r})
+example = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(example)
+
+from analysis.problems import hybrid_problem
+from analysis.verification import Parameter
+from hybrid import Box
+
+problem = hybrid_problem(
+    name="zero-band-comfort", system=example._builder(0.0),
+    initial={{"T": Parameter(name="T0", low=19.9, high=20.1, nominal=20.0, unit="°C")}},
+    parameters=(Parameter(name="rate", low=0.05, high=0.2, nominal=0.1, unit="1/s"),),
+    initial_mode=example._initial_mode, horizon=example.HORIZON_S, sample_period=0.25,
+    requirements=example.REQUIREMENTS[:1], check_box=Box(bounds={{"T": (15.0, 25.0)}}))
+'''
+
+
+def test_structural_errors_fail_the_report_even_when_every_requirement_holds(tmp_path, capsys):
+    """A problem whose checks find re-checked errors is not "not falsified, exit 0": the verdict is
+    ``structural_error``, the exit code 1, and the summary line at the top of report.md names the errors."""
+    source = tmp_path / "zero_band_comfort.py"
+    source.write_text(ZERO_BAND_COMFORT.format(path=str(ROOT / THERMOSTAT)))
+    out = tmp_path / "report"
+    code = main(["report", "--problem", f"{source}:problem", "--out", str(out), "--quick", "--budget", str(BUDGET),
+                 "--json"])
+    summary = json.loads(capsys.readouterr().out)
+    data = json.loads((out / "report.json").read_text())
+    assert data["verification"]["verdict"] == "not_falsified"  # the runs alone say nothing is wrong
+    errors = [f for f in data["structure"]["findings"] if f["severity"] == "error"]
+    assert errors and {f["kind"] for f in errors} == {"reset_retriggers"}
+    assert data["structural_errors"] == {"count": len(errors), "kinds": ["reset_retriggers"],
+                                         "sections": ["structure"]}
+    assert data["verdict"] == "structural_error" and data["exit_code"] == 1
+    assert code == 1 and summary["verdict"] == "structural_error" and summary["exit_code"] == 1
+    md = (out / "report.md").read_text()
+    first = next(line for line in md.splitlines() if line.startswith("Overall verdict:"))
+    assert md.index(first) < md.index("## Claims")  # the summary line at the top
+    assert first.startswith(f"Overall verdict: STRUCTURAL ERROR (exit code 1); the structural checks found "
+                            f"{len(errors)} error(s) (reset_retriggers; section \"Structural checks\")")
+    # the human summary of the command says it too
+    assert main(["report", "--problem", f"{source}:problem", "--out", str(out), "--quick",
+                 "--budget", str(BUDGET)]) == 1
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].startswith("visnav report zero-band-comfort (quick): STRUCTURAL ERROR; ")
+    assert any(line.strip().startswith(f"structural     {len(errors)} error(s): reset_retriggers")
+               for line in printed)
+
+
+def test_a_falsified_problem_keeps_its_verdict_and_names_its_structural_errors(zero_band):
+    _, report = zero_band
+    data = report.data
+    assert data["verdict"] == "falsified" and data["exit_code"] == 1
+    assert data["structural_errors"]["count"] >= 1 and data["structural_errors"]["kinds"] == ["reset_retriggers"]
+    md, _ = _documents(report)
+    assert "Overall verdict: FALSIFIED (exit code 1); the structural checks found" in md
