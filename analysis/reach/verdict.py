@@ -1,0 +1,183 @@
+"""Verdicts from reachability: decide an STL safety requirement on a flowpipe, re-check it, give a Proof.
+
+:func:`decide` runs :func:`analysis.reach.reach` from the problem's box of initial states and
+decides the fragment (:mod:`analysis.reach.fragment`) on every segment whose time interval meets
+the window ``[a, b]``: an atom ``c·x <= d`` holds on a segment when a rigorous upper bound of
+``max c·x`` over the segment (the smaller of the zonotope's and the box's support, rounded
+outward) is at most ``d`` (below ``d`` when strict); a conjunction when all parts hold; a
+disjunction when one part holds on the whole segment; a label atom by the segment's mode.  The
+*margin* is the smallest slack ``d − max c·x`` over the segments (conjunction: the smallest of the
+parts; disjunction: the largest of the parts that hold), in the units of the atoms.  A flowpipe
+that is not complete — inconclusive (a blow-up, a limit) or stopped by the jump bound — proves
+nothing.
+
+:func:`reach_proof` turns that into an :class:`analysis.verification.Proof`: ``holds`` when the
+producer decides the requirement, ``rechecked`` only when the independent re-check
+(:func:`analysis.reach.recheck.recheck_flowpipe`, from the saved JSON) passes too.
+:class:`ReachProof` is the picklable callable that :func:`analysis.problems.hybrid_problem`
+attaches to a requirement (``reach="auto"``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from analysis.verification import Proof
+
+from .engine import reach
+from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
+from .recheck import recheck_flowpipe
+from .result import ReachResult, ReachSegment
+from .zonotope import from_box, round_down, support_bounds
+
+__all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "default_time_step",
+           "default_max_jumps"]
+
+METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+
+
+def default_time_step(end: float) -> float:
+    """``end / 1000`` [s] (``end``: the window's end, the reach horizon)."""
+    return end / 1000.0
+
+
+def default_max_jumps(end: float) -> int:
+    """``max(50, 10·⌈end⌉)`` jumps: a bound a flowpipe must not hit (hitting it proves nothing)."""
+    return max(50, 10 * math.ceil(end))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ReachDecision:
+    """The producer's decision: ``holds``, ``margin`` (smallest slack; ``nan`` when nothing decided),
+    ``reason`` in words, the flowpipe, and the seconds taken."""
+
+    holds: bool
+    margin: float
+    reason: str
+    result: ReachResult | None
+    seconds: float
+
+
+def _atom_top(atom: LinearAtom, seg: ReachSegment) -> float:
+    """A rigorous upper bound of ``max c·x`` over ``zonotope ∩ box`` (residual for a non-float ``c``)."""
+    normal = np.array([float(q) for q in atom.coefficients])
+    residual = np.array([abs(float(q - Fraction(f))) * 2 for q, f in zip(atom.coefficients, normal)])
+    _, top_z = support_bounds(seg.zonotope, normal, residual)
+    _, top_b = support_bounds(from_box(seg.lo, seg.hi), normal, residual)
+    return min(top_z, top_b)
+
+
+def _slack(node: Nnf, seg: ReachSegment) -> tuple[bool, float | None]:
+    if isinstance(node, LabelAtom):
+        return label_holds(node, seg.mode), None
+    if isinstance(node, LinearAtom):
+        bound = float(node.bound)
+        if Fraction(bound) > node.bound:
+            bound = float(np.nextafter(bound, -np.inf))
+        slack = float(round_down(np.float64(bound) - np.float64(_atom_top(node, seg))))
+        return (slack > 0 if node.strict else slack >= 0), slack
+    results = [_slack(p, seg) for p in node.parts]
+    slacks = [v for _, v in results if v is not None]
+    if isinstance(node, Conj):
+        return all(ok for ok, _ in results), (min(slacks) if slacks else None)
+    good = [v for ok, v in results if ok and v is not None]
+    return any(ok for ok, _ in results), (max(good) if good else (max(slacks) if slacks else None))
+
+
+def decide(result: ReachResult, fragment: SafetyFragment) -> tuple[bool, float, str]:
+    """Decide the fragment on a flowpipe: (holds, margin, reason)."""
+    if not result.complete:
+        bad = next(t for t in result.terminations if not t.conclusive)
+        return False, math.nan, f"the flowpipe is inconclusive: {bad.detail}"
+    capped = [t for t in result.terminations if t.reason == "max_jumps"]
+    if capped:
+        return False, math.nan, f"the flowpipe stopped at the jump bound ({capped[0].detail}): not every behaviour covered"
+    margin = math.inf
+    for seg in result.segments:
+        if seg.t_lo > fragment.end or seg.t_hi < fragment.start:
+            continue
+        ok, slack = _slack(fragment.body, seg)
+        if not ok:
+            return False, (slack if slack is not None else math.nan), (
+                f"not decided on the segment of mode {seg.mode!r} at t in [{seg.t_lo:.6g}, {seg.t_hi:.6g}] s "
+                f"(slack {slack if slack is not None else 'n/a'}): the flowpipe does not prove it")
+        if slack is not None:
+            margin = min(margin, slack)
+    return True, margin, f"holds on all {len(result.segments)} segments"
+
+
+def _evidence(decision: ReachDecision, check: Any, recheck_seconds: float) -> str:
+    r = decision.result
+    size = f"{len(r.segments)} segments, {len(r.jumps)} jumps, step {r.time_step:g} s" if r is not None else ""
+    if check is None:
+        return f"reachability: {decision.reason}; {size}; {decision.seconds:.2f} s; not re-checked (nothing to re-check)"
+    if check.passed:
+        again = (f"re-checked from the saved flowpipe ({check.segments} segments, {check.jumps} jumps: "
+                 f"{'; '.join(check.parts)}), exact margin {check.margin}, {recheck_seconds:.2f} s")
+    else:
+        again = f"re-check FAILED ({check.failure}); {recheck_seconds:.2f} s"
+    return f"reachability: {decision.reason}, margin {decision.margin:.6g}; {size}; {decision.seconds:.2f} s; {again}"
+
+
+def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]], *,
+                initial_mode: str | None = None, time_step: float | None = None,
+                max_jumps: int | None = None) -> tuple[Proof, ReachDecision]:
+    """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
+
+    Parameters
+    ----------
+    system : hybrid.system.HybridSystem
+        Symbolic and affine.
+    fragment : SafetyFragment
+    initial : mapping {state: (lo, hi)}
+        The box of initial states.
+    initial_mode : str or None
+    time_step : float or None
+        ``δ`` [s]; default :func:`default_time_step` of the window's end.
+    max_jumps : int or None
+        Default :func:`default_max_jumps`.
+    """
+    end = max(fragment.end, 1e-9)
+    step = default_time_step(end) if time_step is None else time_step
+    jumps = default_max_jumps(end) if max_jumps is None else max_jumps
+    start = time.perf_counter()
+    result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=initial_mode,
+                   max_jumps=jumps)
+    holds, margin, reason = decide(result, fragment)
+    decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
+                             seconds=time.perf_counter() - start)
+    check = None
+    took = 0.0
+    if holds:
+        start = time.perf_counter()
+        check = recheck_flowpipe(result.to_json(), system, initial, fragment, initial_mode=initial_mode)
+        took = time.perf_counter() - start
+    assumptions = (f"the initial box {dict(initial)}", f"the window [{fragment.start:g}, {fragment.end:g}] s",
+                   "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)")
+    proof = Proof(holds=holds, method=METHOD, evidence=_evidence(decision, check, took),
+                  rechecked=bool(check is not None and check.passed), assumptions=assumptions)
+    return proof, decision
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ReachProof:
+    """``() -> Proof`` for one requirement of a problem (picklable when the system is)."""
+
+    system: Any
+    fragment: SafetyFragment
+    initial: tuple[tuple[str, float, float], ...]
+    initial_mode: str | None = None
+    time_step: float | None = None
+    max_jumps: int | None = None
+
+    def __call__(self) -> Proof:
+        proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
+                               initial_mode=self.initial_mode, time_step=self.time_step, max_jumps=self.max_jumps)
+        return proof
