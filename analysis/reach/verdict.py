@@ -38,7 +38,7 @@ from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
 __all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "default_time_step",
-           "default_max_jumps"]
+           "default_max_jumps", "reach_proofs", "REACH_CHOICES"]
 
 METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
 
@@ -176,8 +176,93 @@ class ReachProof:
     initial_mode: str | None = None
     time_step: float | None = None
     max_jumps: int | None = None
+    refused: str | None = None
 
     def __call__(self) -> Proof:
-        proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
-                               initial_mode=self.initial_mode, time_step=self.time_step, max_jumps=self.max_jumps)
+        """The proof (never raises: a model or option reachability cannot handle gives a proof that does not hold)."""
+        from hybrid.errors import ModelDefinitionError, ParameterError
+
+        if self.refused is not None:
+            return Proof(holds=False, method=METHOD, evidence=self.refused, rechecked=False)
+        try:
+            proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
+                                   initial_mode=self.initial_mode, time_step=self.time_step,
+                                   max_jumps=self.max_jumps)
+        except (ParameterError, ModelDefinitionError) as exc:
+            return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
         return proof
+
+
+REACH_CHOICES = ("auto", True, False)
+
+
+def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_mode: Any = "auto",
+                 initial_mode: Any = None, builder: bool = False, options: Mapping[str, Any] | None = None,
+                 where: str = "problem") -> dict[str, Any]:
+    """The reachability proofs of a problem's requirements: ``{requirement name: ReachProof}``.
+
+    Parameters
+    ----------
+    system : HybridSystem or other
+        The problem's system (the probe, when ``builder``).
+    parsed : sequence of ParsedRequirement
+        ``problem.parsed``.
+    initial : mapping {state: Parameter or float}
+        The problem's initial states (a Parameter gives its ``[low, high]``).
+    reach_mode : "auto", True or False
+        ``False``: none.  ``"auto"``: a proof for each requirement in the fragment when the system is
+        symbolic and affine.  ``True``: the same, and a non-symbolic or non-affine system raises.
+    builder : bool
+        The problem's system is built by a function of the parameters (not decided by reachability:
+        each requirement in the fragment gets a proof that says so and does not hold).
+    options : mapping or None
+        ``time_step`` [s] and ``max_jumps`` of :func:`reach_proof`.
+
+    Raises
+    ------
+    analysis.verification.ProblemError
+        ``reach=True`` with a system reachability cannot read, or bad options.
+    """
+    from analysis.verification import ProblemError
+
+    from .affine import AffineError
+    from .fragment import NotInFragment, safety_fragment
+    from .model import affine_model
+
+    if reach_mode not in REACH_CHOICES or isinstance(reach_mode, int) and not isinstance(reach_mode, bool):
+        raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
+                           "write reach='auto' (the default), True (required) or False (falsification only)")
+    opts = dict(options or {})
+    unknown = sorted(set(opts) - {"time_step", "max_jumps"})
+    if unknown:
+        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s] and max_jumps",
+                           f"remove {unknown}")
+    if reach_mode is False:
+        return {}
+    try:
+        model = affine_model(system)
+    except AffineError as exc:
+        if reach_mode is True:
+            raise ProblemError(f"{where}: reach", True, "a symbolic, affine HybridSystem (reachability needs a "
+                               f"symbolic model): {exc}",
+                               "write the flows with hybrid.symbolic.flow_map(...), the resets with jump_map(...), "
+                               "guards and invariants as symbolic conditions (coordinates('x').x >= 1.0); or "
+                               "use reach='auto' or False (falsification still runs)") from None
+        return {}
+    out: dict[str, Any] = {}
+    for p in parsed:
+        try:
+            fragment = safety_fragment(p.formula.tree, model.state_names, ("mode",))
+        except NotInFragment:
+            continue
+        why = None
+        if builder:
+            why = ("not decided by reachability: the system depends on the parameters (it is built by a function "
+                   "of them; parameters as constant states: next step) — pass the HybridSystem itself when the "
+                   "parameters do not change it")
+        elif callable(initial_mode):
+            why = "not decided by reachability: the initial mode depends on the point (give it as a mode name)"
+        box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
+        out[p.name] = ReachProof(system=system, fragment=fragment, initial=box, initial_mode=initial_mode,
+                                 time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why)
+    return out
