@@ -199,6 +199,59 @@ class _Mode:
         return m, nc
 
 
+@dataclass(slots=True)
+class _Zono:
+    """The re-checker's own set ``{center + Σ gens[j] ξ_j : |ξ| <= 1} ⊕ [-err, err]`` (float-valued rationals)."""
+
+    center: list[Fraction]
+    gens: list[list[Fraction]]  # columns
+    err: list[Fraction]
+
+    @staticmethod
+    def of_box(box: Box) -> "_Zono":
+        n = len(box)
+        center = [(lo + hi) / 2 for lo, hi in box]
+        gens = [[(hi - lo) / 2 if i == j else Fraction(0) for i in range(n)] for j, (lo, hi) in enumerate(box)]
+        return _Zono(center=center, gens=[g for g in gens if any(g)], err=[Fraction(0)] * n).rounded()
+
+    def rounded(self) -> "_Zono":
+        """Every number rounded to the nearest float, the rounding moved into ``err`` (rounded up)."""
+        err = list(self.err)
+        center = []
+        for i, v in enumerate(self.center):
+            f = Fraction(float(v))
+            err[i] += abs(v - f)
+            center.append(f)
+        gens = []
+        for g in self.gens:
+            col = []
+            for i, v in enumerate(g):
+                f = Fraction(float(v))
+                err[i] += abs(v - f)
+                col.append(f)
+            gens.append(col)
+        return _Zono(center=center, gens=gens, err=[_up(e) for e in err])
+
+    def mapped(self, m: Sequence[Sequence[Fraction]], shift: Sequence[Fraction], extra: Box | None = None) -> "_Zono":
+        """``M Z + shift (+ extra box)``, exact, then :meth:`rounded`."""
+        n = len(m)
+        center = [sum((m[i][k] * self.center[k] for k in range(n)), Fraction(0)) + shift[i] for i in range(n)]
+        gens = [[sum((m[i][k] * g[k] for k in range(n)), Fraction(0)) for i in range(n)] for g in self.gens]
+        err = [sum((abs(m[i][k]) * self.err[k] for k in range(n)), Fraction(0)) for i in range(n)]
+        if extra is not None:
+            center = [c + (lo + hi) / 2 for c, (lo, hi) in zip(center, extra)]
+            err = [e + (hi - lo) / 2 for e, (lo, hi) in zip(err, extra)]
+        return _Zono(center=center, gens=gens, err=err).rounded()
+
+    def hull(self) -> Box:
+        """The exact interval hull."""
+        out = []
+        for i, c in enumerate(self.center):
+            r = sum((abs(g[i]) for g in self.gens), Fraction(0)) + self.err[i]
+            out.append((c - r, c + r))
+        return out
+
+
 def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
     """A box ``W`` with ``X + [0, δ] f(W) ⊂ int W`` (raises when none is found in 12 tries)."""
     w = _hull(x, _add(x, _scale0(mode.f(x), step)))
@@ -212,41 +265,91 @@ def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
     raise _Fail("no a-priori box found by the Picard operator (the step is too large for the re-check)")
 
 
-def _taylor_box(mode: _Mode, x: Box, s: Fraction, rem: Box, cache: dict[Fraction, Any]) -> Box:
+def _taylor_set(mode: _Mode, z: _Zono, s: Fraction, rem: Box, cache: dict[Fraction, Any]) -> _Zono:
+    """The states at ``s`` after the start: ``M(s) Z + N(s) c + [0, s^{p+1}/(p+1)!]·A^p f(W)``."""
     if s not in cache:
         cache[s] = mode.taylor(s)
     m, nc = cache[s]
     fact = math.factorial(TAYLOR_ORDER + 1)
-    return _add(_shift(_matvec(m, x), nc), _scale0(rem, s ** (TAYLOR_ORDER + 1) / fact))
+    return z.mapped(m, nc, _scale0(rem, s ** (TAYLOR_ORDER + 1) / fact))
 
 
-def _step(mode: _Mode, x: Box, step: Fraction, saved: Box, cache: dict[Fraction, Any]) -> tuple[Box | None, Box | None]:
-    """(the validated tube clipped to the invariant or ``None`` if empty, the next start box); raises on failure."""
-    w = _picard(mode, x, step)
+def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw: Box,
+            cache: dict[Fraction, Any]) -> list[tuple[Box, _Zono]]:
+    """The tube in ``m`` time pieces: (the piece's box ``∩ W`` clipped to the invariant, a set holding the
+    piece: ``Y_j ⊕ [0, h]·f(W)``); empty pieces dropped."""
+    h = step / m
+    n = len(mode.a)
+    one = [[Fraction(int(i == j)) + h * v for j, v in enumerate(row)] for i, row in enumerate(mode.a)]
+    eye = [[Fraction(int(i == j)) for j in range(n)] for i in range(n)]
+    drift = _scale0(mode.f(w), h)
+    out = []
+    for j in range(m):
+        y = _taylor_set(mode, z, j * h, rem, cache)
+        moved = y.mapped(one, [h * v for v in mode.c])
+        piece = _meet(_add(_hull(y.hull(), moved.hull()), _scale0(afw, h * h / 2)), w)
+        clipped = None if piece is None else _clip_union(_outward(piece), mode.invariant)
+        if clipped is not None:
+            out.append((clipped, y.mapped(eye, [Fraction(0)] * n, drift)))
+    return out
+
+
+def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
+    """A box holding ``z ∩ {a·x <= b for each row}``: the generators' weights ``ξ ∈ [-1, 1]`` (and the error
+    box's) are narrowed by interval propagation through each row (3 rounds, exact rationals); ``None``: empty."""
+    n = len(z.center)
+    gens = list(z.gens) + [[e if i == k else Fraction(0) for i in range(n)] for k, e in enumerate(z.err) if e]
+    lo, hi = [Fraction(-1)] * len(gens), [Fraction(1)] * len(gens)
+    for _ in range(3):
+        for row in rows:
+            a, b = row.normal, row.offset
+            g = [sum((ai * col[i] for i, ai in enumerate(a)), Fraction(0)) for col in gens]
+            mins = [min(gj * l, gj * u) for gj, l, u in zip(g, lo, hi)]
+            total = sum((ai * ci for ai, ci in zip(a, z.center)), Fraction(0)) + sum(mins, Fraction(0))
+            if total > b:
+                return None
+            for j, gj in enumerate(g):
+                if gj == 0:
+                    continue
+                room = (b - (total - mins[j])) / gj
+                if gj > 0:
+                    hi[j] = min(hi[j], room)
+                else:
+                    lo[j] = max(lo[j], room)
+                if lo[j] > hi[j]:
+                    return None
+                mins[j] = min(gj * lo[j], gj * hi[j])
+                total = sum((ai * ci for ai, ci in zip(a, z.center)), Fraction(0)) + sum(mins, Fraction(0))
+    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi)), Fraction(0)),
+             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi)), Fraction(0)))
+            for i, c in enumerate(z.center)]
+
+
+def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
+          covered: Any) -> _Zono:
+    """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
+    the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
+
+    ``covered(pieces)`` returns ``None`` or the first uncovered guard part (a message).  Both checks
+    are retried with ``m = 4, 16, 64, 256`` time pieces before failing.
+    """
+    w = _picard(mode, _outward(z.hull()), step)
     fw = mode.f(w)
     rem = _matvec(mode.power, fw)  # A^p f(W)
     afw = _matvec(mode.a, fw)  # A f(W)
-    tube = None
+    problem = ""
     for m in (4, 16, 64, 256):
-        h = step / m
-        one = [[Fraction(int(i == j)) + h * v for j, v in enumerate(row)] for i, row in enumerate(mode.a)]
-        pieces = None
-        for j in range(m):
-            y = _taylor_box(mode, x, j * h, rem, cache)
-            piece = _add(_hull(y, _shift(_matvec(one, y), [h * v for v in mode.c])), _scale0(afw, h * h / 2))
-            pieces = piece if pieces is None else _hull(pieces, piece)
-        met = _meet(pieces, w)
-        tube = None if met is None else _clip_union(_outward(met), mode.invariant)
-        if tube is None or _inside(tube, saved):
-            break
-    if tube is not None and not _inside(tube, saved):
-        lo = [float(v[0]) for v in tube]
-        hi = [float(v[1]) for v in tube]
-        raise _Fail(f"the re-checked tube [{lo}, {hi}] is not inside the saved box "
-                    f"[{[float(v[0]) for v in saved]}, {[float(v[1]) for v in saved]}]")
-    end = _outward(_taylor_box(mode, x, step, rem, cache))
-    met = _meet(end, w)
-    return tube, (None if met is None else _clip_union(met, mode.invariant))
+        pieces = _pieces(mode, z, step, m, w, rem, afw, cache)
+        outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
+        if outside is not None:
+            problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, {[float(v[1]) for v in outside]}]"
+                       f" is not inside the saved box [{[float(v[0]) for v in saved]}, "
+                       f"{[float(v[1]) for v in saved]}]")
+            continue
+        problem = covered(pieces) or ""
+        if not problem:
+            return _taylor_set(mode, z, step, rem, cache)
+    raise _Fail(problem)
 
 
 def _value(node: Nnf, box: Box, mode: str) -> tuple[bool, Fraction | None]:
@@ -257,12 +360,18 @@ def _value(node: Nnf, box: Box, mode: str) -> tuple[bool, Fraction | None]:
         top = sum((max(a * lo, a * hi) for a, (lo, hi) in zip(node.coefficients, box)), Fraction(0))
         slack = node.bound - top
         return (slack > 0 if node.strict else slack >= 0), slack
-    results = [_value(p, box, mode) for p in node.parts]
+    return _combine(node, [_value(p, box, mode) for p in node.parts])
+
+
+def _combine(node: Nnf, results: list[tuple[bool, Fraction | None]]) -> tuple[bool, Fraction | None]:
+    """And/or of parts; a slack ``None`` is a part without a numeric constraint (a label atom)."""
     slacks = [v for _, v in results if v is not None]
     if isinstance(node, Conj):
         return all(ok for ok, _ in results), (min(slacks) if slacks else None)
     ok = any(o for o, _ in results)
-    good = [v for o, v in results if o and v is not None]
+    good = [v for o, v in results if o]
+    if ok and any(v is None for v in good):
+        return True, None  # a label disjunct holds: no numeric constraint on this box
     return ok, (max(good) if good else (max(slacks) if slacks else None))
 
 
@@ -386,36 +495,43 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
     if entry["mode"] != pipe.mode or not _inside(pipe.start, box) or Fraction(entry["t"][0]) > pipe.t_lo \
             or Fraction(entry["t"][1]) < pipe.t_hi:
         raise _Fail(f"chaining: the entry segment of flowpipe {index} does not hold its start set (mode, box or times)")
-    _jumps_from(model, pipe.mode, pipe.start, pipe.t_lo, pipe.t_hi, jumps, index, flowed=False)
+    why = _jumps_from(model, pipe.mode, pipe.start, pipe.t_lo, pipe.t_hi, jumps, index, flowed=False)
+    if why:
+        raise _Fail(why)
     yield -1, box, Fraction(entry["t"][0]), Fraction(entry["t"][1])
-    x: Box | None = pipe.start
+    x = _Zono.of_box(pipe.start)
     cache: dict[Fraction, Any] = {}
     for k, seg in enumerate(pipe.segments[1:]):
-        if x is None:
-            raise _Fail(f"flowpipe {index}: a segment saved after the flow has left the invariant")
         t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step
         if seg["mode"] != pipe.mode or Fraction(seg["t"][0]) > t_lo or Fraction(seg["t"][1]) < t_hi:
             raise _Fail(f"segments: flowpipe {index} segment {k}: mode or times do not cover "
                         f"[{float(t_lo):.9g}, {float(t_hi):.9g}] s")
         saved = _box_of(seg["box"])
+
+        def covered(pieces: list[Box], t_lo: Fraction = t_lo, t_hi: Fraction = t_hi) -> str | None:
+            for piece, zono in pieces:
+                why = _jumps_from(model, pipe.mode, piece, t_lo, t_hi, jumps, index, flowed=True, zono=zono)
+                if why:
+                    return why
+            return None
+
         try:
-            tube, x = _step(mode, x, step, saved, cache)
+            x = _step(mode, x, step, saved, cache, covered)
         except _Fail as fail:
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
-        if tube is not None:
-            _jumps_from(model, pipe.mode, tube, t_lo, t_hi, jumps, index, flowed=True)
         yield k, saved, Fraction(seg["t"][0]), Fraction(seg["t"][1])
-    _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index)
+    _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
 
 
-def _check_end(pipe: _Pipe, flowed: int, x: Box | None, step: Fraction, horizon: Fraction, index: int) -> None:
+def _check_end(pipe: _Pipe, flowed: int, x: Any, step: Fraction, horizon: Fraction, index: int,
+               invariant: Any) -> None:
     reason = pipe.termination["reason"]
     if reason == "horizon":
         if pipe.t_lo + flowed * step <= horizon:
             raise _Fail(f"ends: flowpipe {index} claims the horizon but its {flowed} steps end at "
                         f"{float(pipe.t_lo + flowed * step):.9g} s <= {float(horizon):.9g} s")
     elif reason == "left_invariant":
-        if x is not None:
+        if _clip_union(_outward(x.hull()), invariant) is not None:
             raise _Fail(f"ends: flowpipe {index} claims to leave the invariant of {pipe.mode!r} after {flowed} steps, "
                         "but the re-checked states there are not all outside it")
     else:
@@ -424,17 +540,23 @@ def _check_end(pipe: _Pipe, flowed: int, x: Box | None, step: Fraction, horizon:
 
 
 def _jumps_from(model: AffineHybridModel, mode: str, box: Box, t_lo: Fraction, t_hi: Fraction,
-                jumps: Sequence[Mapping[str, Any]], index: int, *, flowed: bool) -> None:
+                jumps: Sequence[Mapping[str, Any]], index: int, *, flowed: bool, zono: _Zono | None = None
+                ) -> str | None:
+    """``None`` when every part of ``box`` in a guard lies in a saved jump's box before; else the message."""
     invariant = model.modes[mode].invariant
     for t in model.outgoing(mode):
         for guard in t.guard:
             for inv in (invariant if flowed else (None,)):
                 rows = guard.halfspaces + (inv.halfspaces if inv is not None else ())
                 part = _clip(box, rows)
+                if part is not None and zono is not None:
+                    narrow = _contract(zono, rows)
+                    part = None if narrow is None else _meet(part, narrow)
                 if part is None:
                     continue
                 if not any(j["transition"] == t.name and _inside(part, _box_of(j["before"]))
                            and Fraction(j["t"][0]) <= t_lo and Fraction(j["t"][1]) >= t_hi for j in jumps):
-                    raise _Fail(f"jumps: flowpipe {index} (mode {mode!r}) may take {t.name!r} from "
-                                f"[{[float(v[0]) for v in part]}, {[float(v[1]) for v in part]}] at t in "
-                                f"[{float(t_lo):.6g}, {float(t_hi):.6g}] s, which no saved jump covers")
+                    return (f"jumps: flowpipe {index} (mode {mode!r}) may take {t.name!r} from "
+                            f"[{[float(v[0]) for v in part]}, {[float(v[1]) for v in part]}] at t in "
+                            f"[{float(t_lo):.6g}, {float(t_hi):.6g}] s, which no saved jump covers")
+    return None

@@ -87,8 +87,10 @@ def _slack(node: Nnf, seg: ReachSegment) -> tuple[bool, float | None]:
     slacks = [v for _, v in results if v is not None]
     if isinstance(node, Conj):
         return all(ok for ok, _ in results), (min(slacks) if slacks else None)
-    good = [v for ok, v in results if ok and v is not None]
-    return any(ok for ok, _ in results), (max(good) if good else (max(slacks) if slacks else None))
+    good = [v for ok, v in results if ok]
+    if good and any(v is None for v in good):
+        return True, None  # a label disjunct holds: no numeric constraint on this segment
+    return bool(good), (max(good) if good else (max(slacks) if slacks else None))
 
 
 def decide(result: ReachResult, fragment: SafetyFragment) -> tuple[bool, float, str]:
