@@ -53,11 +53,12 @@ from typing import Any
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
 
-__all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS"]
+__all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncovered", "entry_uncovered"]
 
 Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
+                   "no deadlock where a flowpipe leaves its invariant or a jump lands",
                    "jumps (guards and resets)", "requirement atoms in exact rationals")
 
 
@@ -250,6 +251,50 @@ class _Zono:
             r = sum((abs(g[i]) for g in self.gens), Fraction(0)) + self.err[i]
             out.append((c - r, c + r))
         return out
+
+
+def _halfspace_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
+    """Whether ``{x : a·x >= b}`` lies in ``{x : g·x <= e}`` (exact: ``g = −λ a`` with ``λ >= 0`` and ``−λ b <= e``)."""
+    g, e = row.normal, row.offset
+    if not any(g):
+        return e >= 0
+    k = next(i for i, v in enumerate(a) if v != 0) if any(a) else None
+    if k is None:
+        return False
+    lam = -g[k] / a[k]
+    return lam >= 0 and all(gi == -lam * ai for gi, ai in zip(g, a)) and -lam * b <= e
+
+
+def exit_uncovered(model: AffineHybridModel, mode: str) -> str | None:
+    """``None`` when every state where a flow of ``mode`` can leave its invariant enables a transition.
+
+    Sufficient check (exact): the invariant is one polyhedron, and for each of its rows ``a·x <= b`` the
+    closed outside ``a·x >= b`` lies in the guard of some outgoing transition (a guard polyhedron whose
+    rows all contain it).  Otherwise the message: a flowpipe ending there may be a deadlock, which the
+    executor reports as an early end; reachability then proves nothing.
+    """
+    invariant = model.modes[mode].invariant
+    if len(invariant) != 1:
+        return f"mode {mode!r}: a disjunctive invariant (deadlock freedom at its exits is not checked)"
+    for h in invariant[0].halfspaces:
+        if not any(all(_halfspace_in(h.normal, h.offset, row) for row in poly.halfspaces)
+                   for t in model.outgoing(mode) for poly in t.guard):
+            return (f"mode {mode!r}: where the flow leaves the invariant ({h.text or 'a face'}) no guard is "
+                    "shown enabled (a possible deadlock: the run would end early)")
+    return None
+
+
+def entry_uncovered(model: AffineHybridModel, mode: str, box: Box) -> str | None:
+    """``None`` when a start box of ``mode`` lies in its invariant (exact), or in one guard polyhedron."""
+    def inside(poly: Any) -> bool:
+        return all(sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) <= h.offset
+                   for h in poly.halfspaces)
+    if any(inside(p) for p in model.modes[mode].invariant):
+        return None
+    if any(inside(p) for t in model.outgoing(mode) for p in t.guard):
+        return None
+    return (f"mode {mode!r}: a start box is not inside the invariant nor inside a guard (a possible deadlock "
+            "at entry)")
 
 
 def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
@@ -495,7 +540,8 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
     if entry["mode"] != pipe.mode or not _inside(pipe.start, box) or Fraction(entry["t"][0]) > pipe.t_lo \
             or Fraction(entry["t"][1]) < pipe.t_hi:
         raise _Fail(f"chaining: the entry segment of flowpipe {index} does not hold its start set (mode, box or times)")
-    why = _jumps_from(model, pipe.mode, pipe.start, pipe.t_lo, pipe.t_hi, jumps, index, flowed=False)
+    why = _jumps_from(model, pipe.mode, pipe.start, pipe.t_lo, pipe.t_hi, jumps, index, flowed=False) \
+        or entry_uncovered(model, pipe.mode, pipe.start)
     if why:
         raise _Fail(why)
     yield -1, box, Fraction(entry["t"][0]), Fraction(entry["t"][1])
@@ -521,6 +567,8 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
         yield k, saved, Fraction(seg["t"][0]), Fraction(seg["t"][1])
     _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
+    if pipe.termination["reason"] == "left_invariant" and (why := exit_uncovered(model, pipe.mode)):
+        raise _Fail(f"ends: flowpipe {index}: {why}")
 
 
 def _check_end(pipe: _Pipe, flowed: int, x: Any, step: Fraction, horizon: Fraction, index: int,

@@ -33,7 +33,8 @@ from analysis.verification import Proof
 
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
-from .recheck import recheck_flowpipe
+from .model import affine_model
+from .recheck import entry_uncovered, exit_uncovered, recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
@@ -41,6 +42,11 @@ __all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "de
            "default_max_jumps", "reach_proofs", "REACH_CHOICES"]
 
 METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+
+
+MAX_SEGMENTS = 50_000
+"""The flowpipe of a verdict stores at most this many segments (about 30 s with its re-check); beyond, it is
+inconclusive (``"segment_limit"``) and proves nothing."""
 
 
 def default_time_step(end: float) -> float:
@@ -93,8 +99,23 @@ def _slack(node: Nnf, seg: ReachSegment) -> tuple[bool, float | None]:
     return bool(good), (max(good) if good else (max(slacks) if slacks else None))
 
 
-def decide(result: ReachResult, fragment: SafetyFragment) -> tuple[bool, float, str]:
-    """Decide the fragment on a flowpipe: (holds, margin, reason)."""
+def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None) -> tuple[bool, float, str]:
+    """Decide the fragment on a flowpipe: (holds, margin, reason).
+
+    With the affine ``model``, a flowpipe that leaves an invariant where no guard is shown enabled, or
+    a jump landing outside the target's invariant and every guard, proves nothing (a possible deadlock:
+    the executor's run would end early).
+    """
+    if model is not None:
+        for term in result.terminations:
+            why = exit_uncovered(model, term.mode) if term.reason == "left_invariant" else None
+            if why:
+                return False, math.nan, f"not decided by reachability: {why}"
+        for seg in result.segments:
+            box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+            why = entry_uncovered(model, seg.mode, box) if seg.entry else None
+            if why:
+                return False, math.nan, f"not decided by reachability: {why}"
     if not result.complete:
         bad = next(t for t in result.terminations if not t.conclusive)
         return False, math.nan, f"the flowpipe is inconclusive: {bad.detail}"
@@ -151,8 +172,8 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     jumps = default_max_jumps(end) if max_jumps is None else max_jumps
     start = time.perf_counter()
     result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=initial_mode,
-                   max_jumps=jumps)
-    holds, margin, reason = decide(result, fragment)
+                   max_jumps=jumps, max_segments=MAX_SEGMENTS)
+    holds, margin, reason = decide(result, fragment, affine_model(system))
     decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
                              seconds=time.perf_counter() - start)
     check = None

@@ -201,3 +201,11 @@ def test_non_symbolic_models_and_builders():
                            horizon=30.0, requirements=(Requirement(name="band", formula=BAND),))
     proof = built.proofs["band"]()
     assert not proof.holds and "depends on the parameters" in proof.evidence
+
+
+def test_a_deadlock_at_the_invariants_end_proves_nothing():
+    from hybrid.examples import deadlock
+
+    # x' = 1, invariant x <= 1 and no transition: the executor's run ends early (deadlock) at t = 1
+    proof, decision = reach_proof(deadlock().system, _fragment("always[0, 10] (x < 5)", ("x",)), {"x": (0.0, 0.0)})
+    assert not proof.holds and "deadlock" in decision.reason
