@@ -13,7 +13,8 @@ Anything else is refused with :class:`NotInFragment` and the reason (the falsifi
 the requirement alone): another temporal operator at the top or inside ``φ`` (``eventually``,
 ``until``, past operators, edges), a window not starting at 0, a variable that is not a state
 (``time``, ``jumps``, a parameter, an output), and *non-affine* atoms — products of states,
-``abs``, ``min``, ``max``, ``prev``.  Polynomial atoms are not in this first version.
+``abs`` inside a sum, ``min``, ``max``, ``prev``.  Polynomial atoms are not in this first version.
+(``abs(e) <= r`` and ``abs(e) >= r`` with affine ``e``, ``r`` are read as two affine atoms.)
 
 The fragment is only a *reading* of the formula; deciding it on sets is done separately by the
 producer (:mod:`analysis.reach.verdict`, on zonotopes) and by the re-check
@@ -167,8 +168,23 @@ def _nnf(node: s.Node, negate: bool, names: tuple[str, ...], labels: tuple[str, 
     raise NotInFragment(f"{_kind(node)} inside always[a, b] (only and, or, not, implies over state predicates)")
 
 
+def _abs_split(node: s.Compare) -> s.Node | None:
+    """``abs(e) <= r`` as ``e <= r and -e <= r``, ``abs(e) >= r`` as ``e >= r or -e >= r`` (either side)."""
+    op, left, right = node.op, node.left, node.right
+    if isinstance(right, s.Func) and right.name == "abs" and not (isinstance(left, s.Func) and left.name == "abs"):
+        op, left, right = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}[op], right, left
+    if not (isinstance(left, s.Func) and left.name == "abs") or op in ("==", "!="):
+        return None
+    e = left.args[0]
+    both = (s.Compare(op=op, left=e, right=right), s.Compare(op=op, left=s.Neg(arg=e), right=right))
+    return s.And(left=both[0], right=both[1]) if op in ("<", "<=") else s.Or(left=both[0], right=both[1])
+
+
 def _compare(node: s.Compare, negate: bool, names: tuple[str, ...]) -> Nnf:
     """``left op right`` as atoms ``c·x <= d`` / ``< d`` (``==`` two atoms, ``!=`` a disjunction)."""
+    split = _abs_split(node)
+    if split is not None:
+        return _nnf(split, negate, names, ())  # comparisons only: no label inside
     text = s.canonical(node)
     left, lc = _affine(node.left, names, text)
     right, rc = _affine(node.right, names, text)

@@ -63,7 +63,7 @@ def test_fragment_reads_affine_atoms_exactly_and_refuses_the_rest():
     from fractions import Fraction
     assert (lin[1].coefficients, lin[1].bound, lin[1].strict) == ((1,), Fraction(1) + Fraction(0.1), False)
     for text, why in [("eventually[0, 5] T > 1", "not always"), ("always[1, 5] T > 1", "does not start at 0"),
-                      ("always[0, 5] T * T <= 500", "not affine"), ("always[0, 5] abs(T - 20) <= 1", "abs"),
+                      ("always[0, 5] T * T <= 500", "not affine"), ("always[0, 5] abs(T - 20) + T <= 1", "abs"),
                       ("always[0, 5] time <= 5", "not a state"),
                       ("always[0, 5] (T > 1 -> eventually[0, 1] T > 2)", "eventually")]:
         with pytest.raises(NotInFragment, match=why):
@@ -209,3 +209,11 @@ def test_a_deadlock_at_the_invariants_end_proves_nothing():
     # x' = 1, invariant x <= 1 and no transition: the executor's run ends early (deadlock) at t = 1
     proof, decision = reach_proof(deadlock().system, _fragment("always[0, 10] (x < 5)", ("x",)), {"x": (0.0, 0.0)})
     assert not proof.holds and "deadlock" in decision.reason
+
+
+def test_abs_atoms_are_two_affine_atoms():
+    # |T - 20| <= 1.05 is the band [18.95, 21.05]: proven like BAND, the same closed-form slack 0.05
+    proof, decision = reach_proof(ROOM, _fragment("always[0, 30] abs(T - 20) <= 1.05"), {"T": (19.5, 20.5)})
+    assert proof.proven and 0.049 < decision.margin <= 0.05
+    far = _fragment("always[0, 30] not (abs(T - 20) < 1.0 - 1e-9 or mode == 'on')")  # |T-20| >= 1 in off: false
+    assert not reach_proof(ROOM, far, {"T": (19.5, 20.5)})[0].holds
