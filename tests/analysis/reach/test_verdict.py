@@ -217,3 +217,17 @@ def test_abs_atoms_are_two_affine_atoms():
     assert proof.proven and 0.049 < decision.margin <= 0.05
     far = _fragment("always[0, 30] not (abs(T - 20) < 1.0 - 1e-9 or mode == 'on')")  # |T-20| >= 1 in off: false
     assert not reach_proof(ROOM, far, {"T": (19.5, 20.5)})[0].holds
+
+
+def test_a_failed_recheck_keeps_the_verdict_from_proven(monkeypatch):
+    import analysis.reach.verdict as verdict_module
+    from analysis.reach.recheck import RecheckResult
+
+    failed = RecheckResult(passed=False, failure="segments: planted failure", segments=0, jumps=0, margin=None)
+    monkeypatch.setattr(verdict_module, "recheck_flowpipe", lambda *a, **k: failed)
+    proof, _ = reach_proof(ROOM, _fragment(BAND), {"T": (19.5, 20.5)})
+    assert proof.holds and not proof.rechecked and not proof.proven
+    assert "re-check FAILED (segments: planted failure)" in proof.evidence
+    problem = hybrid_problem(name="room", system=ROOM, initial={"T": Parameter(name="T0", low=19.5, high=20.5)},
+                             horizon=30.0, requirements=(Requirement(name="band", formula=BAND),))
+    assert verify(problem, budget=5, seed=0).requirements[0].verdict == "not_falsified"
