@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
@@ -151,7 +151,8 @@ def _evidence(decision: ReachDecision, check: Any, recheck_seconds: float) -> st
 
 def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]], *,
                 initial_mode: str | None = None, time_step: float | None = None,
-                max_jumps: int | None = None) -> tuple[Proof, ReachDecision]:
+                max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None
+                ) -> tuple[Proof, ReachDecision]:
     """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
 
     Parameters
@@ -166,13 +167,21 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
         ``δ`` [s]; default :func:`default_time_step` of the window's end.
     max_jumps : int or None
         Default :func:`default_max_jumps`.
+    cache : dict or None
+        Flowpipes already computed, by their settings (the requirements of one problem with the same
+        window share one flowpipe; each is decided and re-checked on its own).
     """
     end = max(fragment.end, 1e-9)
     step = default_time_step(end) if time_step is None else time_step
     jumps = default_max_jumps(end) if max_jumps is None else max_jumps
     start = time.perf_counter()
-    result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=initial_mode,
-                   max_jumps=jumps, max_segments=MAX_SEGMENTS)
+    key = (end, min(step, end), jumps, initial_mode, tuple(sorted((k, tuple(v)) for k, v in initial.items())))
+    result = None if cache is None else cache.get(key)
+    if result is None:
+        result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=initial_mode,
+                       max_jumps=jumps, max_segments=MAX_SEGMENTS)
+        if cache is not None:
+            cache[key] = result
     holds, margin, reason = decide(result, fragment, affine_model(system))
     decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
                              seconds=time.perf_counter() - start)
@@ -200,6 +209,7 @@ class ReachProof:
     time_step: float | None = None
     max_jumps: int | None = None
     refused: str | None = None
+    cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
 
     def __call__(self) -> Proof:
         """The proof (never raises: a model or option reachability cannot handle gives a proof that does not hold)."""
@@ -210,7 +220,7 @@ class ReachProof:
         try:
             proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
                                    initial_mode=self.initial_mode, time_step=self.time_step,
-                                   max_jumps=self.max_jumps)
+                                   max_jumps=self.max_jumps, cache=self.cache)
         except (ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
         return proof
@@ -273,6 +283,7 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
                                "use reach='auto' or False (falsification still runs)") from None
         return {}
     out: dict[str, Any] = {}
+    shared: dict[Any, ReachResult] = {}
     for p in parsed:
         try:
             fragment = safety_fragment(p.formula.tree, model.state_names, ("mode",))
@@ -287,5 +298,6 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
             why = "not decided by reachability: the initial mode depends on the point (give it as a mode name)"
         box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
         out[p.name] = ReachProof(system=system, fragment=fragment, initial=box, initial_mode=initial_mode,
-                                 time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why)
+                                 time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why,
+                                 cache=shared)
     return out
