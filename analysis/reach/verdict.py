@@ -229,6 +229,29 @@ class ReachProof:
 REACH_CHOICES = ("auto", True, False)
 
 
+def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: str) -> dict[str, Any]:
+    from analysis.verification import ProblemError
+
+    if reach_mode not in REACH_CHOICES or isinstance(reach_mode, int) and not isinstance(reach_mode, bool):
+        raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
+                           "write reach='auto' (the default), True (required) or False (falsification only)")
+    opts = dict(options or {})
+    unknown = sorted(set(opts) - {"time_step", "max_jumps"})
+    if unknown:
+        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s] and max_jumps",
+                           f"remove {unknown}")
+    step = opts.get("time_step")
+    if step is not None and (isinstance(step, bool) or not isinstance(step, (int, float))
+                             or not math.isfinite(step) or step <= 0):
+        raise ProblemError(f"{where}: reach_options['time_step']", step, "a finite step > 0 [s]",
+                           "give e.g. time_step=0.01, or leave it out (the window's end / 1000)")
+    jumps = opts.get("max_jumps")
+    if jumps is not None and (isinstance(jumps, bool) or not isinstance(jumps, int) or jumps < 0):
+        raise ProblemError(f"{where}: reach_options['max_jumps']", jumps, "a whole number >= 0",
+                           "give e.g. max_jumps=100, or leave it out")
+    return opts
+
+
 def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_mode: Any = "auto",
                  initial_mode: Any = None, builder: bool = False, options: Mapping[str, Any] | None = None,
                  where: str = "problem") -> dict[str, Any]:
@@ -260,16 +283,8 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
 
     from .affine import AffineError
     from .fragment import NotInFragment, safety_fragment
-    from .model import affine_model
 
-    if reach_mode not in REACH_CHOICES or isinstance(reach_mode, int) and not isinstance(reach_mode, bool):
-        raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
-                           "write reach='auto' (the default), True (required) or False (falsification only)")
-    opts = dict(options or {})
-    unknown = sorted(set(opts) - {"time_step", "max_jumps"})
-    if unknown:
-        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s] and max_jumps",
-                           f"remove {unknown}")
+    opts = _checked_options(reach_mode, options, where)
     if reach_mode is False:
         return {}
     try:

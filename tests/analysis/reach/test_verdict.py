@@ -231,3 +231,15 @@ def test_a_failed_recheck_keeps_the_verdict_from_proven(monkeypatch):
     problem = hybrid_problem(name="room", system=ROOM, initial={"T": Parameter(name="T0", low=19.5, high=20.5)},
                              horizon=30.0, requirements=(Requirement(name="band", formula=BAND),))
     assert verify(problem, budget=5, seed=0).requirements[0].verdict == "not_falsified"
+
+
+def test_bad_reach_options_are_named():
+    initial = {"T": Parameter(name="T0", low=19.5, high=20.5)}
+    req = (Requirement(name="band", formula=BAND),)
+    for options, name in [({"time_step": -1.0}, "time_step"), ({"time_step": math.nan}, "time_step"),
+                          ({"max_jumps": 1.5}, "max_jumps"), ({"step": 0.1}, "reach_options")]:
+        with pytest.raises(ProblemError, match=name):
+            hybrid_problem(name="room", system=ROOM, initial=initial, horizon=30.0, requirements=req,
+                           reach_options=options)
+    off = hybrid_problem(name="room", system=ROOM, initial=initial, horizon=30.0, requirements=req, reach=False)
+    assert dict(off.proofs) == {}
