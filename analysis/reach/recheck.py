@@ -32,9 +32,11 @@ rounded outward.  Per flowpipe (a mode entered with a box ``X₀`` at times ``[�
     invariant), clipped to it, lies in the ``before`` box of a saved jump of that transition whose
     times cover the segment's; each jump's ``after`` box holds the exact reset image of ``before``.
 
-(d) **Requirement.** On every saved box whose times meet ``[a, b]``, the fragment's atoms
-    ``c·x <= d`` are decided exactly (the rational range of ``c·x`` over the box); label atoms by
-    the segment's mode.
+(d) **Requirement.** On the re-checker's own validated sets of every segment whose saved times
+    meet ``[a, b]`` (each time piece's box and its zonotope ``Y_j ⊕ [0, h]·f(W)``; the entry's start
+    box), which lie inside the saved boxes, the fragment's atoms ``c·x <= d`` are decided exactly
+    (the smaller of the rational maxima of ``c·x`` over the box and over the zonotope); label atoms
+    by the segment's mode.
 
 Anything failing fails the re-check, with the part and the place.  The interval Picard tube
 wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
@@ -371,7 +373,7 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
 
 
 def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
-          covered: Any) -> _Zono:
+          covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
     """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
     the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
 
@@ -393,19 +395,24 @@ def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fractio
             continue
         problem = covered(pieces) or ""
         if not problem:
-            return _taylor_set(mode, z, step, rem, cache)
+            return _taylor_set(mode, z, step, rem, cache), pieces
     raise _Fail(problem)
 
 
-def _value(node: Nnf, box: Box, mode: str) -> tuple[bool, Fraction | None]:
-    """(holds on the whole box, its exact slack; ``None`` for label-only parts)."""
+def _value(node: Nnf, box: Box, mode: str, zono: _Zono | None = None) -> tuple[bool, Fraction | None]:
+    """(holds on the whole set, its exact slack; ``None`` for label-only parts) on ``box`` (∩ ``zono``)."""
     if isinstance(node, LabelAtom):
         return label_holds(node, mode), None
     if isinstance(node, LinearAtom):
-        top = sum((max(a * lo, a * hi) for a, (lo, hi) in zip(node.coefficients, box)), Fraction(0))
+        c = node.coefficients
+        top = sum((max(a * lo, a * hi) for a, (lo, hi) in zip(c, box)), Fraction(0))
+        if zono is not None:
+            around = sum((a * v for a, v in zip(c, zono.center)), Fraction(0))
+            spread = sum((abs(sum((a * v for a, v in zip(c, g)), Fraction(0))) for g in zono.gens), Fraction(0))
+            top = min(top, around + spread + sum((abs(a) * e for a, e in zip(c, zono.err)), Fraction(0)))
         slack = node.bound - top
         return (slack > 0 if node.strict else slack >= 0), slack
-    return _combine(node, [_value(p, box, mode) for p in node.parts])
+    return _combine(node, [_value(p, box, mode, zono) for p in node.parts])
 
 
 def _combine(node: Nnf, results: list[tuple[bool, Fraction | None]]) -> tuple[bool, Fraction | None]:
@@ -509,13 +516,15 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     margin: Fraction | None = None
     count = 0
     for i, pipe in enumerate(pipes):
-        for k, saved_box, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i):
+        for k, sets, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i):
             count += 1
-            if t_lo <= Fraction(fragment.end) and t_hi >= Fraction(fragment.start):
-                ok, slack = _value(fragment.body, saved_box, pipe.mode)
+            if t_lo > Fraction(fragment.end) or t_hi < Fraction(fragment.start):
+                continue
+            for box, zono in sets:
+                ok, slack = _value(fragment.body, box, pipe.mode, zono)
                 if not ok:
-                    raise _Fail(f"requirement: the atoms do not hold on the saved box of flowpipe {i} segment {k} "
-                                f"(mode {pipe.mode!r}, t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s)")
+                    raise _Fail(f"requirement: the atoms do not hold on the re-checked states of flowpipe {i} "
+                                f"segment {k} (mode {pipe.mode!r}, t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s)")
                 if slack is not None:
                     margin = slack if margin is None else min(margin, slack)
     return RecheckResult(passed=True, failure="", segments=count, jumps=len(jumps),
@@ -534,7 +543,8 @@ def _check_reset(model: AffineHybridModel, jump: Mapping[str, Any], j: int) -> N
 
 def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model: AffineHybridModel,
               jumps: Sequence[Mapping[str, Any]], index: int) -> Any:
-    """Yield (k, saved box, t_lo, t_hi) of each segment after checking it (parts a–c)."""
+    """Yield (k, the re-checked sets [(box, zonotope or None)], saved t_lo, t_hi) of each segment after checking it
+    (parts a–c); the saved times cover the step's exact times."""
     entry = pipe.segments[0]
     box = _box_of(entry["box"])
     if entry["mode"] != pipe.mode or not _inside(pipe.start, box) or Fraction(entry["t"][0]) > pipe.t_lo \
@@ -544,7 +554,7 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
         or entry_uncovered(model, pipe.mode, pipe.start)
     if why:
         raise _Fail(why)
-    yield -1, box, Fraction(entry["t"][0]), Fraction(entry["t"][1])
+    yield -1, [(pipe.start, None)], Fraction(entry["t"][0]), Fraction(entry["t"][1])
     x = _Zono.of_box(pipe.start)
     cache: dict[Fraction, Any] = {}
     for k, seg in enumerate(pipe.segments[1:]):
@@ -562,10 +572,10 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
             return None
 
         try:
-            x = _step(mode, x, step, saved, cache, covered)
+            x, pieces = _step(mode, x, step, saved, cache, covered)
         except _Fail as fail:
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
-        yield k, saved, Fraction(seg["t"][0]), Fraction(seg["t"][1])
+        yield k, pieces, Fraction(seg["t"][0]), Fraction(seg["t"][1])
     _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
     if pipe.termination["reason"] == "left_invariant" and (why := exit_uncovered(model, pipe.mode)):
         raise _Fail(f"ends: flowpipe {index}: {why}")
