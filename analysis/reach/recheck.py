@@ -482,9 +482,16 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     RecheckResult
         ``passed`` only when every part (a)–(d) was decided and holds.
     """
-    data = json.loads(saved) if isinstance(saved, str) else saved
     model = affine_model(system)
+    if set(initial) != set(model.state_names) or not all(
+            isinstance(v, (tuple, list)) and len(v) == 2 and all(math.isfinite(float(e)) for e in v) and v[0] <= v[1]
+            for v in initial.values()):
+        from hybrid.errors import ParameterError
+
+        raise ParameterError("initial", dict(initial), f"{{state: (lo, hi)}} for exactly {list(model.state_names)}",
+                             "give the box the flowpipe was computed from")
     try:
+        data = json.loads(saved) if isinstance(saved, str) else saved
         return _run(data, model, initial, fragment, initial_mode or model.initial_mode)
     except _Fail as fail:
         return RecheckResult(passed=False, failure=str(fail), segments=0, jumps=0, margin=None)

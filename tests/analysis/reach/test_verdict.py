@@ -245,3 +245,14 @@ def test_bad_reach_options_are_named():
                            reach_options=options)
     off = hybrid_problem(name="room", system=ROOM, initial=initial, horizon=30.0, requirements=req, reach=False)
     assert dict(off.proofs) == {}
+
+
+def test_the_recheck_refuses_bad_input_by_name():
+    fragment = _fragment(BAND)
+    from hybrid.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="initial"):
+        recheck_flowpipe("{}", ROOM, {"x": (0.0, 1.0)}, fragment)
+    for text in ("not json", "{}", json.dumps({"segments": [], "jumps": [], "terminations": []})):
+        check = recheck_flowpipe(text, ROOM, {"T": (19.5, 20.5)}, fragment)
+        assert not check.passed and check.failure
