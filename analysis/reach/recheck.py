@@ -267,18 +267,25 @@ def _halfspace_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
     return lam >= 0 and all(gi == -lam * ai for gi, ai in zip(g, a)) and -lam * b <= e
 
 
-def exit_uncovered(model: AffineHybridModel, mode: str) -> str | None:
+def exit_uncovered(model: AffineHybridModel, mode: str, boxes: Sequence[Box] | None = None) -> str | None:
     """``None`` when every state where a flow of ``mode`` can leave its invariant enables a transition.
 
     Sufficient check (exact): the invariant is one polyhedron, and for each of its rows ``a·x <= b`` the
     closed outside ``a·x >= b`` lies in the guard of some outgoing transition (a guard polyhedron whose
-    rows all contain it).  Otherwise the message: a flowpipe ending there may be a deadlock, which the
-    executor reports as an early end; reachability then proves nothing.
+    rows all contain it).  With ``boxes`` (boxes holding the flowed states of the mode), only the rows
+    some box reaches (``max a·x >= b`` over it) are checked.  Otherwise the message: a flow reaching
+    that face may deadlock, which the executor reports as an early end; reachability then proves nothing.
     """
     invariant = model.modes[mode].invariant
+    if len(invariant) == 1 and not invariant[0].halfspaces:
+        return None
     if len(invariant) != 1:
         return f"mode {mode!r}: a disjunctive invariant (deadlock freedom at its exits is not checked)"
     for h in invariant[0].halfspaces:
+        if boxes is not None and not any(
+                sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) >= h.offset
+                for box in boxes):
+            continue
         if not any(all(_halfspace_in(h.normal, h.offset, row) for row in poly.halfspaces)
                    for t in model.outgoing(mode) for poly in t.guard):
             return (f"mode {mode!r}: where the flow leaves the invariant ({h.text or 'a face'}) no guard is "
@@ -584,7 +591,9 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
         yield k, pieces, Fraction(seg["t"][0]), Fraction(seg["t"][1])
     _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
-    if pipe.termination["reason"] == "left_invariant" and (why := exit_uncovered(model, pipe.mode)):
+    flowed = [_box_of(seg["box"]) for seg in pipe.segments[1:]]
+    why = exit_uncovered(model, pipe.mode, None if pipe.termination["reason"] == "left_invariant" else flowed)
+    if why:
         raise _Fail(f"ends: flowpipe {index}: {why}")
 
 

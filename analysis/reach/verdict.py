@@ -111,6 +111,15 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None) -> 
             why = exit_uncovered(model, term.mode) if term.reason == "left_invariant" else None
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
+        flowed: dict[str, list[Any]] = {}
+        for seg in result.segments:
+            if not seg.entry:
+                flowed.setdefault(seg.mode, []).append(
+                    [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)])
+        for mode, boxes in flowed.items():
+            why = exit_uncovered(model, mode, boxes)
+            if why:
+                return False, math.nan, f"not decided by reachability: {why}"
         for seg in result.segments:
             box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
             why = entry_uncovered(model, seg.mode, box) if seg.entry else None

@@ -256,3 +256,16 @@ def test_the_recheck_refuses_bad_input_by_name():
     for text in ("not json", "{}", json.dumps({"segments": [], "jumps": [], "terminations": []})):
         check = recheck_flowpipe(text, ROOM, {"T": (19.5, 20.5)}, fragment)
         assert not check.passed and check.failure
+
+
+def test_a_deadlock_of_some_states_before_the_horizon_proves_nothing():
+    from hybrid.examples import deadlock
+
+    # x0 in [0, 0.9]: the states from 0.9 reach x = 1 at t = 0.1 and deadlock there while the others
+    # still flow; a window of 0.5 s ends before the flowpipe leaves the invariant (termination "horizon")
+    proof, decision = reach_proof(deadlock().system, _fragment("always[0, 0.5] (x < 5)", ("x",)), {"x": (0.0, 0.9)})
+    assert {t.reason for t in decision.result.terminations} == {"horizon"}
+    assert not proof.holds and "deadlock" in decision.reason
+    # far from the face, nothing can deadlock: proven
+    far, _ = reach_proof(deadlock().system, _fragment("always[0, 0.5] (x < 5)", ("x",)), {"x": (0.0, 0.4)})
+    assert far.proven
