@@ -334,6 +334,8 @@ def hybrid_problem(
     stability_section: str | None = None,
     source: str = "",
     final_stops: Sequence[str] = (),
+    reach: bool | str = "auto",
+    reach_options: Mapping[str, Any] | None = None,
 ) -> VerificationProblem:
     """A verification problem for a continuous-time hybrid system.
 
@@ -368,6 +370,17 @@ def hybrid_problem(
         does nothing more after them, so the requirements are judged on the run up to there.
         Any other early end (a stop not named here, Zeno, a deadlock, the jump limit) leaves
         the requirements it does not decide *incomplete* (:data:`analysis.falsification.STATUSES`).
+    reach : "auto", True or False
+        Verdicts from reachability (:mod:`analysis.reach.verdict`).  ``"auto"``: each requirement of
+        the STL safety fragment (``always[0, b]`` over affine state predicates and the mode) gets a
+        proof from a zonotope flowpipe over the whole initial box, re-checked independently, when
+        the system is a symbolic affine :class:`HybridSystem`; the search still runs as a
+        cross-check.  ``True``: the same, and a system reachability cannot read is a
+        :class:`ProblemError` (what to write instead).  ``False``: falsification only.  A proof the
+        caller passes in ``proofs`` wins over the reachability one.
+    reach_options : mapping or None
+        ``time_step`` [s] (default: the window's end / 1000) and ``max_jumps`` (default
+        ``max(50, 10·⌈end⌉)``) of the flowpipe.
     """
     build = _builder(system, HybridSystem, f"problem {name!r}")
     probe = build({p.name: p.at(0.0) for p in _box(initial, parameters, list(initial), name)})
@@ -381,7 +394,7 @@ def hybrid_problem(
     simulate = HybridSimulation(build=build, initial=dict(initial), state_names=probe.state_names,
                                 horizon=float(horizon), initial_mode=initial_mode, sample_period=sample_period,
                                 options=dict(options or {}), final_stops=_names(final_stops, "final_stops", name))
-    return VerificationProblem(
+    problem = VerificationProblem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=(*probe.state_names, *memory, *variables), labels={"mode": a.mode_names},
         description=description, proofs=dict(proofs or {}),
@@ -389,6 +402,14 @@ def hybrid_problem(
         stability=_stability(stability, stability_section, probe, initial, box, initial_mode, float(horizon), name),
         source=source, automaton=a,
     )
+    from analysis.reach.verdict import reach_proofs
+
+    found = reach_proofs(probe, problem.parsed, initial, reach_mode=reach, initial_mode=initial_mode,
+                         builder=not isinstance(system, HybridSystem), options=reach_options,
+                         where=f"problem {name!r}")
+    if not found:
+        return problem
+    return replace(problem, proofs={**found, **dict(proofs or {})})
 
 
 def _stability(stability: bool | Callable[[], Any], section: str | None, probe: HybridSystem,

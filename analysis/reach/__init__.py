@@ -3,7 +3,8 @@
 Build a :class:`hybrid.system.HybridSystem` with :mod:`hybrid.symbolic` flows, jump maps, guards and
 invariants; :func:`reach` reads their affine forms exactly from the expression trees and returns a
 :class:`ReachResult` (the flowpipe, the jumps, the reasons it stopped, the distances to unsafe sets).
-The method and the soundness argument are in ``docs/reachability.md``.
+The method and the soundness argument are in ``docs/reachability.md``.  Verdicts of STL safety
+requirements from flowpipes, with an independent re-check: :mod:`analysis.reach.verdict`.
 
 Examples
 --------
@@ -19,10 +20,13 @@ Examples
 
 from .affine import AffineError, AffineForm, Halfspace, Polyhedron, affine_form, affine_vector, condition_polyhedra
 from .engine import ModeInput, reach
+from .fragment import NotInFragment, SafetyFragment, safety_fragment
 from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, affine_model
 from .result import INCONCLUSIVE, ReachJump, ReachResult, ReachSegment, Termination, zonotope_contains
 from .sets import UnsafeSet, unsafe_set
+from .recheck import RecheckResult, recheck_flowpipe
+from .verdict import ReachDecision, ReachProof, decide, reach_proof
 from .zonotope import Zonotope, interval_hull, linear_map, minkowski_sum, reduce_order, support_bounds
 
 __all__ = [
@@ -53,4 +57,13 @@ __all__ = [
     "minkowski_sum",
     "reduce_order",
     "support_bounds",
+    "NotInFragment",
+    "SafetyFragment",
+    "safety_fragment",
+    "RecheckResult",
+    "recheck_flowpipe",
+    "ReachDecision",
+    "ReachProof",
+    "decide",
+    "reach_proof",
 ]

@@ -1,0 +1,636 @@
+"""An independent re-check of a reachability proof from the saved flowpipe (JSON) and the system.
+
+The re-check shares no set code with the producer (:mod:`analysis.reach.zonotope`,
+``flowpipe``, ``series``, ``sets``, ``engine`` are not imported): it reads the exact affine model
+(:func:`analysis.reach.model.affine_model`, rationals), the saved segment *boxes* and jump boxes
+of :meth:`~analysis.reach.result.ReachResult.to_json`, and decides everything on boxes whose
+bounds are floats, computed in exact rational arithmetic (:class:`fractions.Fraction`) and
+rounded outward.  Per flowpipe (a mode entered with a box ``X₀`` at times ``[τ_lo, τ_hi]``):
+
+(a) **Segments.** For step ``k`` (times ``[τ_lo + kδ, τ_hi + (k+1)δ]``), from the re-checker's own
+    box ``X_k`` of the states at ``kδ`` after entry:
+
+    * an a-priori box ``W`` validated by the interval Picard operator,
+      ``X_k + [0, δ]·f(W) ⊂ int W``: every solution from ``X_k`` stays in ``W`` for ``δ``;
+    * a tight tube: ``m`` sub-steps ``s_j = jδ/m``, the Taylor box
+      ``Y_j = M(s_j) X_k + N(s_j) c + [0, s_j^{p+1}/(p+1)!]·A^p f(W)`` (order ``p = 4``,
+      ``M(s) = Σ_{i≤p} (sA)^i/i!``), and the piece ``hull(Y_j, (I + hA) Y_j + hc) + [0, h²/2]·A f(W)``
+      (the first two terms are exact for a point matrix and a box; the last is the Lagrange
+      remainder of order 2);
+    * the tube ``∩ W``, clipped to the invariant (flowing states satisfy it), must lie in the
+      saved segment box, and the saved times must cover the step's times.  ``m`` doubles from 4
+      to 256 when the containment fails.
+    * ``X_{k+1}`` is the Taylor box at ``δ``, clipped to the invariant.
+
+(b) **Chaining and ends.** The entry segment's box holds ``X₀``; the first flowpipe starts from
+    the problem's initial box, flowpipe ``i >= 1`` from the box after jump ``i − 1`` (the engine's
+    order).  A flowpipe ending at the horizon must reach it (``τ_lo + Kδ > horizon``); one ending
+    by leaving the invariant must have an empty ``X_K``; any other end (jump bound, a limit, a
+    blow-up) fails the re-check.
+
+(c) **Jumps.** Each segment box meeting a guard (the entry box: the guard; flowed boxes: guard ∩
+    invariant), clipped to it, lies in the ``before`` box of a saved jump of that transition whose
+    times cover the segment's; each jump's ``after`` box holds the exact reset image of ``before``.
+
+(d) **Requirement.** On the re-checker's own validated sets of every segment whose saved times
+    meet ``[a, b]`` (each time piece's box and its zonotope ``Y_j ⊕ [0, h]·f(W)``; the entry's start
+    box), which lie inside the saved boxes, the fragment's atoms ``c·x <= d`` are decided exactly
+    (the smaller of the rational maxima of ``c·x`` over the box and over the zonotope); label atoms
+    by the segment's mode.
+
+Anything failing fails the re-check, with the part and the place.  The interval Picard tube
+wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
+passes by looseness.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
+from .model import AffineHybridModel, affine_model
+
+__all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncovered", "entry_uncovered"]
+
+Box = list[tuple[Fraction, Fraction]]
+TAYLOR_ORDER = 4
+RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
+                   "no deadlock where a flowpipe leaves its invariant or a jump lands",
+                   "jumps (guards and resets)", "requirement atoms in exact rationals")
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class RecheckResult:
+    """The re-check's answer: ``passed`` and, if not, the first ``failure`` (part and place).
+
+    ``margin`` is the exact smallest slack of the requirement over the saved boxes (a float
+    rounded down; ``None`` when the re-check stopped before the requirement).
+    """
+
+    passed: bool
+    failure: str
+    segments: int
+    jumps: int
+    margin: float | None
+    parts: tuple[str, ...] = RECHECKED_PARTS
+
+
+class _Fail(Exception):
+    pass
+
+
+def _down(q: Fraction) -> Fraction:
+    f = float(q)
+    if Fraction(f) > q:
+        f = math.nextafter(f, -math.inf)
+    return Fraction(f)
+
+
+def _up(q: Fraction) -> Fraction:
+    f = float(q)
+    if Fraction(f) < q:
+        f = math.nextafter(f, math.inf)
+    return Fraction(f)
+
+
+def _outward(box: Box) -> Box:
+    return [(_down(lo), _up(hi)) for lo, hi in box]
+
+
+def _matvec(m: Sequence[Sequence[Fraction]], box: Box) -> Box:
+    """The exact range of ``M x`` over the box (row by row)."""
+    out = []
+    for row in m:
+        lo = sum((min(a * l, a * h) for a, (l, h) in zip(row, box)), Fraction(0))
+        hi = sum((max(a * l, a * h) for a, (l, h) in zip(row, box)), Fraction(0))
+        out.append((lo, hi))
+    return out
+
+
+def _add(a: Box, b: Box) -> Box:
+    return [(p[0] + q[0], p[1] + q[1]) for p, q in zip(a, b)]
+
+
+def _shift(a: Box, v: Sequence[Fraction]) -> Box:
+    return [(p[0] + x, p[1] + x) for p, x in zip(a, v)]
+
+
+def _scale0(a: Box, s: Fraction) -> Box:
+    """``[0, s]·a`` (``s >= 0``): the hull of 0 and ``s a``."""
+    return [(min(Fraction(0), s * lo), max(Fraction(0), s * hi)) for lo, hi in a]
+
+
+def _hull(a: Box, b: Box) -> Box:
+    return [(min(p[0], q[0]), max(p[1], q[1])) for p, q in zip(a, b)]
+
+
+def _meet(a: Box, b: Box) -> Box | None:
+    out = [(max(p[0], q[0]), min(p[1], q[1])) for p, q in zip(a, b)]
+    return None if any(lo > hi for lo, hi in out) else out
+
+
+def _inside(a: Box, b: Box, strict: bool = False) -> bool:
+    if strict:
+        return all(q[0] < p[0] and p[1] < q[1] for p, q in zip(a, b))
+    return all(q[0] <= p[0] and p[1] <= q[1] for p, q in zip(a, b))
+
+
+def _matmul(a: Sequence[Sequence[Fraction]], b: Sequence[Sequence[Fraction]]) -> list[list[Fraction]]:
+    return [[sum((a[i][k] * b[k][j] for k in range(len(b))), Fraction(0)) for j in range(len(b[0]))]
+            for i in range(len(a))]
+
+
+def _clip(box: Box, halfspaces: Sequence[Any]) -> Box | None:
+    """A box holding ``box ∩ {a·x <= b}`` (exact interval propagation); ``None`` when proven empty."""
+    out = list(box)
+    for h in halfspaces:
+        a, b = h.normal, h.offset
+        mins = [min(ai * lo, ai * hi) for ai, (lo, hi) in zip(a, out)]
+        total = sum(mins, Fraction(0))
+        if total > b:
+            return None
+        for i, ai in enumerate(a):
+            if ai == 0:
+                continue
+            room = (b - (total - mins[i])) / ai
+            lo, hi = out[i]
+            out[i] = (lo, min(hi, room)) if ai > 0 else (max(lo, room), hi)
+            if out[i][0] > out[i][1]:
+                return None
+    return out
+
+
+def _clip_union(box: Box, polyhedra: Sequence[Any]) -> Box | None:
+    boxes = [c for p in polyhedra if (c := _clip(box, p.halfspaces)) is not None]
+    if not boxes:
+        return None
+    result = boxes[0]
+    for c in boxes[1:]:
+        result = _hull(result, c)
+    return result
+
+
+@dataclass(slots=True)
+class _Mode:
+    a: list[list[Fraction]]
+    c: list[Fraction]
+    invariant: Any
+    power: list[list[Fraction]]  # A^p
+
+    def f(self, box: Box) -> Box:
+        return _shift(_matvec(self.a, box), self.c)
+
+    def taylor(self, s: Fraction) -> tuple[list[list[Fraction]], list[Fraction]]:
+        """``M(s) = Σ_{i<=p} (sA)^i/i!`` and ``N(s) c`` with ``N(s) = Σ_{1<=i<=p} s^i A^{i-1}/i!``."""
+        n = len(self.a)
+        m = [[Fraction(int(i == j)) for j in range(n)] for i in range(n)]
+        term = [row[:] for row in m]
+        nc = [Fraction(0)] * n
+        cterm = list(self.c)  # A^{i-1} c
+        fact = 1
+        for i in range(1, TAYLOR_ORDER + 1):
+            fact *= i
+            term = _matmul(term, self.a)
+            m = [[x + y * s ** i / fact for x, y in zip(r, t)] for r, t in zip(m, term)]
+            nc = [x + y * s ** i / fact for x, y in zip(nc, cterm)]
+            cterm = [sum((self.a[r][k] * cterm[k] for k in range(n)), Fraction(0)) for r in range(n)]
+        return m, nc
+
+
+@dataclass(slots=True)
+class _Zono:
+    """The re-checker's own set ``{center + Σ gens[j] ξ_j : |ξ| <= 1} ⊕ [-err, err]`` (float-valued rationals)."""
+
+    center: list[Fraction]
+    gens: list[list[Fraction]]  # columns
+    err: list[Fraction]
+
+    @staticmethod
+    def of_box(box: Box) -> "_Zono":
+        n = len(box)
+        center = [(lo + hi) / 2 for lo, hi in box]
+        gens = [[(hi - lo) / 2 if i == j else Fraction(0) for i in range(n)] for j, (lo, hi) in enumerate(box)]
+        return _Zono(center=center, gens=[g for g in gens if any(g)], err=[Fraction(0)] * n).rounded()
+
+    def rounded(self) -> "_Zono":
+        """Every number rounded to the nearest float, the rounding moved into ``err`` (rounded up)."""
+        err = list(self.err)
+        center = []
+        for i, v in enumerate(self.center):
+            f = Fraction(float(v))
+            err[i] += abs(v - f)
+            center.append(f)
+        gens = []
+        for g in self.gens:
+            col = []
+            for i, v in enumerate(g):
+                f = Fraction(float(v))
+                err[i] += abs(v - f)
+                col.append(f)
+            gens.append(col)
+        return _Zono(center=center, gens=gens, err=[_up(e) for e in err])
+
+    def mapped(self, m: Sequence[Sequence[Fraction]], shift: Sequence[Fraction], extra: Box | None = None) -> "_Zono":
+        """``M Z + shift (+ extra box)``, exact, then :meth:`rounded`."""
+        n = len(m)
+        center = [sum((m[i][k] * self.center[k] for k in range(n)), Fraction(0)) + shift[i] for i in range(n)]
+        gens = [[sum((m[i][k] * g[k] for k in range(n)), Fraction(0)) for i in range(n)] for g in self.gens]
+        err = [sum((abs(m[i][k]) * self.err[k] for k in range(n)), Fraction(0)) for i in range(n)]
+        if extra is not None:
+            center = [c + (lo + hi) / 2 for c, (lo, hi) in zip(center, extra)]
+            err = [e + (hi - lo) / 2 for e, (lo, hi) in zip(err, extra)]
+        return _Zono(center=center, gens=gens, err=err).rounded()
+
+    def hull(self) -> Box:
+        """The exact interval hull."""
+        out = []
+        for i, c in enumerate(self.center):
+            r = sum((abs(g[i]) for g in self.gens), Fraction(0)) + self.err[i]
+            out.append((c - r, c + r))
+        return out
+
+
+def _halfspace_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
+    """Whether ``{x : a·x >= b}`` lies in ``{x : g·x <= e}`` (exact: ``g = −λ a`` with ``λ >= 0`` and ``−λ b <= e``)."""
+    g, e = row.normal, row.offset
+    if not any(g):
+        return e >= 0
+    k = next(i for i, v in enumerate(a) if v != 0) if any(a) else None
+    if k is None:
+        return False
+    lam = -g[k] / a[k]
+    return lam >= 0 and all(gi == -lam * ai for gi, ai in zip(g, a)) and -lam * b <= e
+
+
+def exit_uncovered(model: AffineHybridModel, mode: str, boxes: Sequence[Box] | None = None) -> str | None:
+    """``None`` when every state where a flow of ``mode`` can leave its invariant enables a transition.
+
+    Sufficient check (exact): the invariant is one polyhedron, and for each of its rows ``a·x <= b`` the
+    closed outside ``a·x >= b`` lies in the guard of some outgoing transition (a guard polyhedron whose
+    rows all contain it).  With ``boxes`` (boxes holding the flowed states of the mode), only the rows
+    some box reaches (``max a·x >= b`` over it) are checked.  Otherwise the message: a flow reaching
+    that face may deadlock, which the executor reports as an early end; reachability then proves nothing.
+    """
+    invariant = model.modes[mode].invariant
+    if len(invariant) == 1 and not invariant[0].halfspaces:
+        return None
+    if len(invariant) != 1:
+        return f"mode {mode!r}: a disjunctive invariant (deadlock freedom at its exits is not checked)"
+    for h in invariant[0].halfspaces:
+        if boxes is not None and not any(
+                sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) >= h.offset
+                for box in boxes):
+            continue
+        if not any(all(_halfspace_in(h.normal, h.offset, row) for row in poly.halfspaces)
+                   for t in model.outgoing(mode) for poly in t.guard):
+            return (f"mode {mode!r}: where the flow leaves the invariant ({h.text or 'a face'}) no guard is "
+                    "shown enabled (a possible deadlock: the run would end early)")
+    return None
+
+
+def entry_uncovered(model: AffineHybridModel, mode: str, box: Box) -> str | None:
+    """``None`` when a start box of ``mode`` lies in its invariant (exact), or in one guard polyhedron."""
+    def inside(poly: Any) -> bool:
+        return all(sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) <= h.offset
+                   for h in poly.halfspaces)
+    if any(inside(p) for p in model.modes[mode].invariant):
+        return None
+    if any(inside(p) for t in model.outgoing(mode) for p in t.guard):
+        return None
+    return (f"mode {mode!r}: a start box is not inside the invariant nor inside a guard (a possible deadlock "
+            "at entry)")
+
+
+def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
+    """A box ``W`` with ``X + [0, δ] f(W) ⊂ int W`` (raises when none is found in 12 tries)."""
+    w = _hull(x, _add(x, _scale0(mode.f(x), step)))
+    for _ in range(12):
+        grow = [max(hi - lo, Fraction(1, 10 ** 9) * (1 + abs(lo) + abs(hi))) for lo, hi in w]
+        w = _outward([(lo - g / 8, hi + g / 8) for (lo, hi), g in zip(w, grow)])
+        image = _add(x, _scale0(mode.f(w), step))
+        if _inside(image, w, strict=True):
+            return w
+        w = _hull(w, image)
+    raise _Fail("no a-priori box found by the Picard operator (the step is too large for the re-check)")
+
+
+def _taylor_set(mode: _Mode, z: _Zono, s: Fraction, rem: Box, cache: dict[Fraction, Any]) -> _Zono:
+    """The states at ``s`` after the start: ``M(s) Z + N(s) c + [0, s^{p+1}/(p+1)!]·A^p f(W)``."""
+    if s not in cache:
+        cache[s] = mode.taylor(s)
+    m, nc = cache[s]
+    fact = math.factorial(TAYLOR_ORDER + 1)
+    return z.mapped(m, nc, _scale0(rem, s ** (TAYLOR_ORDER + 1) / fact))
+
+
+def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw: Box,
+            cache: dict[Fraction, Any]) -> list[tuple[Box, _Zono]]:
+    """The tube in ``m`` time pieces: (the piece's box ``∩ W`` clipped to the invariant, a set holding the
+    piece: ``Y_j ⊕ [0, h]·f(W)``); empty pieces dropped."""
+    h = step / m
+    n = len(mode.a)
+    one = [[Fraction(int(i == j)) + h * v for j, v in enumerate(row)] for i, row in enumerate(mode.a)]
+    eye = [[Fraction(int(i == j)) for j in range(n)] for i in range(n)]
+    drift = _scale0(mode.f(w), h)
+    out = []
+    for j in range(m):
+        y = _taylor_set(mode, z, j * h, rem, cache)
+        moved = y.mapped(one, [h * v for v in mode.c])
+        piece = _meet(_add(_hull(y.hull(), moved.hull()), _scale0(afw, h * h / 2)), w)
+        clipped = None if piece is None else _clip_union(_outward(piece), mode.invariant)
+        if clipped is not None:
+            out.append((clipped, y.mapped(eye, [Fraction(0)] * n, drift)))
+    return out
+
+
+def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
+    """A box holding ``z ∩ {a·x <= b for each row}``: the generators' weights ``ξ ∈ [-1, 1]`` (and the error
+    box's) are narrowed by interval propagation through each row (3 rounds, exact rationals); ``None``: empty."""
+    n = len(z.center)
+    gens = list(z.gens) + [[e if i == k else Fraction(0) for i in range(n)] for k, e in enumerate(z.err) if e]
+    lo, hi = [Fraction(-1)] * len(gens), [Fraction(1)] * len(gens)
+    for _ in range(3):
+        for row in rows:
+            a, b = row.normal, row.offset
+            g = [sum((ai * col[i] for i, ai in enumerate(a)), Fraction(0)) for col in gens]
+            mins = [min(gj * l, gj * u) for gj, l, u in zip(g, lo, hi)]
+            total = sum((ai * ci for ai, ci in zip(a, z.center)), Fraction(0)) + sum(mins, Fraction(0))
+            if total > b:
+                return None
+            for j, gj in enumerate(g):
+                if gj == 0:
+                    continue
+                room = (b - (total - mins[j])) / gj
+                if gj > 0:
+                    hi[j] = min(hi[j], room)
+                else:
+                    lo[j] = max(lo[j], room)
+                if lo[j] > hi[j]:
+                    return None
+                mins[j] = min(gj * lo[j], gj * hi[j])
+                total = sum((ai * ci for ai, ci in zip(a, z.center)), Fraction(0)) + sum(mins, Fraction(0))
+    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi)), Fraction(0)),
+             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi)), Fraction(0)))
+            for i, c in enumerate(z.center)]
+
+
+def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
+          covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
+    """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
+    the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
+
+    ``covered(pieces)`` returns ``None`` or the first uncovered guard part (a message).  Both checks
+    are retried with ``m = 4, 16, 64, 256`` time pieces before failing.
+    """
+    w = _picard(mode, _outward(z.hull()), step)
+    fw = mode.f(w)
+    rem = _matvec(mode.power, fw)  # A^p f(W)
+    afw = _matvec(mode.a, fw)  # A f(W)
+    problem = ""
+    for m in (4, 16, 64, 256):
+        pieces = _pieces(mode, z, step, m, w, rem, afw, cache)
+        outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
+        if outside is not None:
+            problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, {[float(v[1]) for v in outside]}]"
+                       f" is not inside the saved box [{[float(v[0]) for v in saved]}, "
+                       f"{[float(v[1]) for v in saved]}]")
+            continue
+        problem = covered(pieces) or ""
+        if not problem:
+            return _taylor_set(mode, z, step, rem, cache), pieces
+    raise _Fail(problem)
+
+
+def _value(node: Nnf, box: Box, mode: str, zono: _Zono | None = None) -> tuple[bool, Fraction | None]:
+    """(holds on the whole set, its exact slack; ``None`` for label-only parts) on ``box`` (∩ ``zono``)."""
+    if isinstance(node, LabelAtom):
+        return label_holds(node, mode), None
+    if isinstance(node, LinearAtom):
+        c = node.coefficients
+        top = sum((max(a * lo, a * hi) for a, (lo, hi) in zip(c, box)), Fraction(0))
+        if zono is not None:
+            around = sum((a * v for a, v in zip(c, zono.center)), Fraction(0))
+            spread = sum((abs(sum((a * v for a, v in zip(c, g)), Fraction(0))) for g in zono.gens), Fraction(0))
+            top = min(top, around + spread + sum((abs(a) * e for a, e in zip(c, zono.err)), Fraction(0)))
+        slack = node.bound - top
+        return (slack > 0 if node.strict else slack >= 0), slack
+    return _combine(node, [_value(p, box, mode, zono) for p in node.parts])
+
+
+def _combine(node: Nnf, results: list[tuple[bool, Fraction | None]]) -> tuple[bool, Fraction | None]:
+    """And/or of parts; a slack ``None`` is a part without a numeric constraint (a label atom)."""
+    slacks = [v for _, v in results if v is not None]
+    if isinstance(node, Conj):
+        return all(ok for ok, _ in results), (min(slacks) if slacks else None)
+    ok = any(o for o, _ in results)
+    good = [v for o, v in results if o]
+    if ok and any(v is None for v in good):
+        return True, None  # a label disjunct holds: no numeric constraint on this box
+    return ok, (max(good) if good else (max(slacks) if slacks else None))
+
+
+@dataclass(slots=True)
+class _Pipe:
+    mode: str
+    start: Box
+    t_lo: Fraction
+    t_hi: Fraction
+    segments: list[dict[str, Any]]
+    termination: dict[str, Any]
+
+
+def _box_of(pair: Sequence[Sequence[float]]) -> Box:
+    return [(Fraction(lo), Fraction(hi)) for lo, hi in zip(pair[0], pair[1])]
+
+
+def _pipes(data: Mapping[str, Any], initial: Box, initial_mode: str) -> list[_Pipe]:
+    groups: list[list[dict[str, Any]]] = []
+    for seg in data["segments"]:
+        if seg["entry"]:
+            groups.append([])
+        if not groups:
+            raise _Fail("chaining: the first saved segment is not an entry segment")
+        groups[-1].append(seg)
+    jumps, ends = data["jumps"], data["terminations"]
+    if len(groups) != len(ends) or len(groups) != len(jumps) + 1:
+        raise _Fail(f"chaining: {len(groups)} flowpipes, {len(ends)} terminations and {len(jumps)} jumps do not match "
+                    "(one flowpipe per termination, one per jump plus the initial one)")
+    pipes = [_Pipe(mode=initial_mode, start=initial, t_lo=Fraction(0), t_hi=Fraction(0), segments=groups[0],
+                   termination=ends[0])]
+    for j, group, end in zip(jumps, groups[1:], ends[1:]):
+        pipes.append(_Pipe(mode=j["target"], start=_box_of(j["after"]), t_lo=Fraction(j["t"][0]),
+                           t_hi=Fraction(j["t"][1]), segments=group, termination=end))
+    return pipes
+
+
+def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mapping[str, tuple[float, float]],
+                     fragment: SafetyFragment, *, initial_mode: str | None = None) -> RecheckResult:
+    """Re-check a reachability proof of ``fragment`` from the saved flowpipe (see the module docstring).
+
+    Parameters
+    ----------
+    saved : str or mapping
+        :meth:`ReachResult.to_json` text (or its parsed dict).
+    system : hybrid.system.HybridSystem
+        The symbolic system the flowpipe claims to cover.
+    initial : mapping {state: (lo, hi)}
+        The initial box (the problem's, not the saved one).
+    fragment : SafetyFragment
+    initial_mode : str or None
+        Default: the automaton's initial mode.
+
+    Returns
+    -------
+    RecheckResult
+        ``passed`` only when every part (a)–(d) was decided and holds.
+    """
+    model = affine_model(system)
+    if set(initial) != set(model.state_names) or not all(
+            isinstance(v, (tuple, list)) and len(v) == 2 and all(math.isfinite(float(e)) for e in v) and v[0] <= v[1]
+            for v in initial.values()):
+        from hybrid.errors import ParameterError
+
+        raise ParameterError("initial", dict(initial), f"{{state: (lo, hi)}} for exactly {list(model.state_names)}",
+                             "give the box the flowpipe was computed from")
+    try:
+        data = json.loads(saved) if isinstance(saved, str) else saved
+        return _run(data, model, initial, fragment, initial_mode or model.initial_mode)
+    except _Fail as fail:
+        return RecheckResult(passed=False, failure=str(fail), segments=0, jumps=0, margin=None)
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        return RecheckResult(passed=False, failure=f"the saved flowpipe is malformed: {exc!r}", segments=0, jumps=0,
+                             margin=None)
+
+
+def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str, tuple[float, float]],
+         fragment: SafetyFragment, initial_mode: str) -> RecheckResult:
+    names = model.state_names
+    if tuple(data["state_names"]) != names or tuple(fragment.state_names) != names:
+        raise _Fail(f"the saved states {data['state_names']} are not the system's {list(names)}")
+    step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
+    if horizon < Fraction(fragment.end):
+        raise _Fail(f"the saved horizon {float(horizon)} s ends before the window's end {fragment.end} s")
+    modes = {}
+    for name, m in model.modes.items():
+        a = [list(r) for r in m.a]
+        power = [[Fraction(int(i == j)) for j in range(len(a))] for i in range(len(a))]
+        for _ in range(TAYLOR_ORDER):
+            power = _matmul(power, a)
+        modes[name] = _Mode(a=a, c=list(m.c), invariant=m.invariant, power=power)
+    start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
+    pipes = _pipes(data, start, initial_mode)
+    jumps = data["jumps"]
+    for j, jump in enumerate(jumps):
+        _check_reset(model, jump, j)
+    margin: Fraction | None = None
+    count = 0
+    for i, pipe in enumerate(pipes):
+        for k, sets, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i):
+            count += 1
+            if t_lo > Fraction(fragment.end) or t_hi < Fraction(fragment.start):
+                continue
+            for box, zono in sets:
+                ok, slack = _value(fragment.body, box, pipe.mode, zono)
+                if not ok:
+                    raise _Fail(f"requirement: the atoms do not hold on the re-checked states of flowpipe {i} "
+                                f"segment {k} (mode {pipe.mode!r}, t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s)")
+                if slack is not None:
+                    margin = slack if margin is None else min(margin, slack)
+    return RecheckResult(passed=True, failure="", segments=count, jumps=len(jumps),
+                         margin=None if margin is None else float(_down(margin)))
+
+
+def _check_reset(model: AffineHybridModel, jump: Mapping[str, Any], j: int) -> None:
+    t = next((t for t in model.transitions if t.name == jump["transition"]), None)
+    if t is None or t.source != jump["source"] or t.target != jump["target"]:
+        raise _Fail(f"jump {j}: {jump['transition']!r} from {jump['source']!r} to {jump['target']!r} is not a "
+                    "transition of the system")
+    image = _shift(_matvec(t.r_matrix, _box_of(jump["before"])), t.r_offset)
+    if not _inside(image, _box_of(jump["after"])):
+        raise _Fail(f"jump {j} ({t.name}): the reset image of the box before is not inside the box after")
+
+
+def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model: AffineHybridModel,
+              jumps: Sequence[Mapping[str, Any]], index: int) -> Any:
+    """Yield (k, the re-checked sets [(box, zonotope or None)], saved t_lo, t_hi) of each segment after checking it
+    (parts a–c); the saved times cover the step's exact times."""
+    entry = pipe.segments[0]
+    box = _box_of(entry["box"])
+    if entry["mode"] != pipe.mode or not _inside(pipe.start, box) or Fraction(entry["t"][0]) > pipe.t_lo \
+            or Fraction(entry["t"][1]) < pipe.t_hi:
+        raise _Fail(f"chaining: the entry segment of flowpipe {index} does not hold its start set (mode, box or times)")
+    why = _jumps_from(model, pipe.mode, pipe.start, pipe.t_lo, pipe.t_hi, jumps, index, flowed=False) \
+        or entry_uncovered(model, pipe.mode, pipe.start)
+    if why:
+        raise _Fail(why)
+    yield -1, [(pipe.start, None)], Fraction(entry["t"][0]), Fraction(entry["t"][1])
+    x = _Zono.of_box(pipe.start)
+    cache: dict[Fraction, Any] = {}
+    for k, seg in enumerate(pipe.segments[1:]):
+        t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step
+        if seg["mode"] != pipe.mode or Fraction(seg["t"][0]) > t_lo or Fraction(seg["t"][1]) < t_hi:
+            raise _Fail(f"segments: flowpipe {index} segment {k}: mode or times do not cover "
+                        f"[{float(t_lo):.9g}, {float(t_hi):.9g}] s")
+        saved = _box_of(seg["box"])
+
+        def covered(pieces: list[Box], t_lo: Fraction = t_lo, t_hi: Fraction = t_hi) -> str | None:
+            for piece, zono in pieces:
+                why = _jumps_from(model, pipe.mode, piece, t_lo, t_hi, jumps, index, flowed=True, zono=zono)
+                if why:
+                    return why
+            return None
+
+        try:
+            x, pieces = _step(mode, x, step, saved, cache, covered)
+        except _Fail as fail:
+            raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
+        yield k, pieces, Fraction(seg["t"][0]), Fraction(seg["t"][1])
+    _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
+    flowed = [_box_of(seg["box"]) for seg in pipe.segments[1:]]
+    why = exit_uncovered(model, pipe.mode, None if pipe.termination["reason"] == "left_invariant" else flowed)
+    if why:
+        raise _Fail(f"ends: flowpipe {index}: {why}")
+
+
+def _check_end(pipe: _Pipe, flowed: int, x: Any, step: Fraction, horizon: Fraction, index: int,
+               invariant: Any) -> None:
+    reason = pipe.termination["reason"]
+    if reason == "horizon":
+        if pipe.t_lo + flowed * step <= horizon:
+            raise _Fail(f"ends: flowpipe {index} claims the horizon but its {flowed} steps end at "
+                        f"{float(pipe.t_lo + flowed * step):.9g} s <= {float(horizon):.9g} s")
+    elif reason == "left_invariant":
+        if _clip_union(_outward(x.hull()), invariant) is not None:
+            raise _Fail(f"ends: flowpipe {index} claims to leave the invariant of {pipe.mode!r} after {flowed} steps, "
+                        "but the re-checked states there are not all outside it")
+    else:
+        raise _Fail(f"ends: flowpipe {index} ended with {reason!r}: the flowpipe does not cover every behaviour "
+                    "(a jump bound or a limit); nothing is proven")
+
+
+def _jumps_from(model: AffineHybridModel, mode: str, box: Box, t_lo: Fraction, t_hi: Fraction,
+                jumps: Sequence[Mapping[str, Any]], index: int, *, flowed: bool, zono: _Zono | None = None
+                ) -> str | None:
+    """``None`` when every part of ``box`` in a guard lies in a saved jump's box before; else the message."""
+    invariant = model.modes[mode].invariant
+    for t in model.outgoing(mode):
+        for guard in t.guard:
+            for inv in (invariant if flowed else (None,)):
+                rows = guard.halfspaces + (inv.halfspaces if inv is not None else ())
+                part = _clip(box, rows)
+                if part is not None and zono is not None:
+                    narrow = _contract(zono, rows)
+                    part = None if narrow is None else _meet(part, narrow)
+                if part is None:
+                    continue
+                if not any(j["transition"] == t.name and _inside(part, _box_of(j["before"]))
+                           and Fraction(j["t"][0]) <= t_lo and Fraction(j["t"][1]) >= t_hi for j in jumps):
+                    return (f"jumps: flowpipe {index} (mode {mode!r}) may take {t.name!r} from "
+                            f"[{[float(v[0]) for v in part]}, {[float(v[1]) for v in part]}] at t in "
+                            f"[{float(t_lo):.6g}, {float(t_hi):.6g}] s, which no saved jump covers")
+    return None

@@ -1,0 +1,327 @@
+"""Verdicts from reachability: decide an STL safety requirement on a flowpipe, re-check it, give a Proof.
+
+:func:`decide` runs :func:`analysis.reach.reach` from the problem's box of initial states and
+decides the fragment (:mod:`analysis.reach.fragment`) on every segment whose time interval meets
+the window ``[a, b]``: an atom ``c·x <= d`` holds on a segment when a rigorous upper bound of
+``max c·x`` over the segment (the smaller of the zonotope's and the box's support, rounded
+outward) is at most ``d`` (below ``d`` when strict); a conjunction when all parts hold; a
+disjunction when one part holds on the whole segment; a label atom by the segment's mode.  The
+*margin* is the smallest slack ``d − max c·x`` over the segments (conjunction: the smallest of the
+parts; disjunction: the largest of the parts that hold), in the units of the atoms.  A flowpipe
+that is not complete — inconclusive (a blow-up, a limit) or stopped by the jump bound — proves
+nothing.
+
+:func:`reach_proof` turns that into an :class:`analysis.verification.Proof`: ``holds`` when the
+producer decides the requirement, ``rechecked`` only when the independent re-check
+(:func:`analysis.reach.recheck.recheck_flowpipe`, from the saved JSON) passes too.
+:class:`ReachProof` is the picklable callable that :func:`analysis.problems.hybrid_problem`
+attaches to a requirement (``reach="auto"``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from analysis.verification import Proof
+
+from .engine import reach
+from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
+from .model import affine_model
+from .recheck import entry_uncovered, exit_uncovered, recheck_flowpipe
+from .result import ReachResult, ReachSegment
+from .zonotope import from_box, round_down, support_bounds
+
+__all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "default_time_step",
+           "default_max_jumps", "reach_proofs", "REACH_CHOICES"]
+
+METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+
+
+MAX_SEGMENTS = 50_000
+"""The flowpipe of a verdict stores at most this many segments (about 30 s with its re-check); beyond, it is
+inconclusive (``"segment_limit"``) and proves nothing."""
+
+
+def default_time_step(end: float) -> float:
+    """``end / 1000`` [s] (``end``: the window's end, the reach horizon)."""
+    return end / 1000.0
+
+
+def default_max_jumps(end: float) -> int:
+    """``max(50, 10·⌈end⌉)`` jumps: a bound a flowpipe must not hit (hitting it proves nothing)."""
+    return max(50, 10 * math.ceil(end))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ReachDecision:
+    """The producer's decision: ``holds``, ``margin`` (smallest slack; ``nan`` when nothing decided),
+    ``reason`` in words, the flowpipe, and the seconds taken."""
+
+    holds: bool
+    margin: float
+    reason: str
+    result: ReachResult | None
+    seconds: float
+
+
+def _atom_top(atom: LinearAtom, seg: ReachSegment) -> float:
+    """A rigorous upper bound of ``max c·x`` over ``zonotope ∩ box`` (residual for a non-float ``c``)."""
+    normal = np.array([float(q) for q in atom.coefficients])
+    residual = np.array([abs(float(q - Fraction(f))) * 2 for q, f in zip(atom.coefficients, normal)])
+    _, top_z = support_bounds(seg.zonotope, normal, residual)
+    _, top_b = support_bounds(from_box(seg.lo, seg.hi), normal, residual)
+    return min(top_z, top_b)
+
+
+def _slack(node: Nnf, seg: ReachSegment) -> tuple[bool, float | None]:
+    if isinstance(node, LabelAtom):
+        return label_holds(node, seg.mode), None
+    if isinstance(node, LinearAtom):
+        bound = float(node.bound)
+        if Fraction(bound) > node.bound:
+            bound = float(np.nextafter(bound, -np.inf))
+        slack = float(round_down(np.float64(bound) - np.float64(_atom_top(node, seg))))
+        return (slack > 0 if node.strict else slack >= 0), slack
+    results = [_slack(p, seg) for p in node.parts]
+    slacks = [v for _, v in results if v is not None]
+    if isinstance(node, Conj):
+        return all(ok for ok, _ in results), (min(slacks) if slacks else None)
+    good = [v for ok, v in results if ok]
+    if good and any(v is None for v in good):
+        return True, None  # a label disjunct holds: no numeric constraint on this segment
+    return bool(good), (max(good) if good else (max(slacks) if slacks else None))
+
+
+def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None) -> tuple[bool, float, str]:
+    """Decide the fragment on a flowpipe: (holds, margin, reason).
+
+    With the affine ``model``, a flowpipe that leaves an invariant where no guard is shown enabled, or
+    a jump landing outside the target's invariant and every guard, proves nothing (a possible deadlock:
+    the executor's run would end early).
+    """
+    if model is not None:
+        for term in result.terminations:
+            why = exit_uncovered(model, term.mode) if term.reason == "left_invariant" else None
+            if why:
+                return False, math.nan, f"not decided by reachability: {why}"
+        flowed: dict[str, list[Any]] = {}
+        for seg in result.segments:
+            if not seg.entry:
+                flowed.setdefault(seg.mode, []).append(
+                    [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)])
+        for mode, boxes in flowed.items():
+            why = exit_uncovered(model, mode, boxes)
+            if why:
+                return False, math.nan, f"not decided by reachability: {why}"
+        for seg in result.segments:
+            box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+            why = entry_uncovered(model, seg.mode, box) if seg.entry else None
+            if why:
+                return False, math.nan, f"not decided by reachability: {why}"
+    if not result.complete:
+        bad = next(t for t in result.terminations if not t.conclusive)
+        return False, math.nan, f"the flowpipe is inconclusive: {bad.detail}"
+    capped = [t for t in result.terminations if t.reason == "max_jumps"]
+    if capped:
+        return False, math.nan, f"the flowpipe stopped at the jump bound ({capped[0].detail}): not every behaviour covered"
+    margin = math.inf
+    for seg in result.segments:
+        if seg.t_lo > fragment.end or seg.t_hi < fragment.start:
+            continue
+        ok, slack = _slack(fragment.body, seg)
+        if not ok:
+            return False, (slack if slack is not None else math.nan), (
+                f"not decided on the segment of mode {seg.mode!r} at t in [{seg.t_lo:.6g}, {seg.t_hi:.6g}] s "
+                f"(slack {slack if slack is not None else 'n/a'}): the flowpipe does not prove it")
+        if slack is not None:
+            margin = min(margin, slack)
+    return True, margin, f"holds on all {len(result.segments)} segments"
+
+
+def _evidence(decision: ReachDecision, check: Any, recheck_seconds: float) -> str:
+    r = decision.result
+    size = f"{len(r.segments)} segments, {len(r.jumps)} jumps, step {r.time_step:g} s" if r is not None else ""
+    if check is None:
+        return f"reachability: {decision.reason}; {size}; {decision.seconds:.2f} s; not re-checked (nothing to re-check)"
+    if check.passed:
+        again = (f"re-checked from the saved flowpipe ({check.segments} segments, {check.jumps} jumps: "
+                 f"{'; '.join(check.parts)}), exact margin {check.margin}, {recheck_seconds:.2f} s")
+    else:
+        again = f"re-check FAILED ({check.failure}); {recheck_seconds:.2f} s"
+    return f"reachability: {decision.reason}, margin {decision.margin:.6g}; {size}; {decision.seconds:.2f} s; {again}"
+
+
+def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]], *,
+                initial_mode: str | None = None, time_step: float | None = None,
+                max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None
+                ) -> tuple[Proof, ReachDecision]:
+    """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
+
+    Parameters
+    ----------
+    system : hybrid.system.HybridSystem
+        Symbolic and affine.
+    fragment : SafetyFragment
+    initial : mapping {state: (lo, hi)}
+        The box of initial states.
+    initial_mode : str or None
+    time_step : float or None
+        ``δ`` [s]; default :func:`default_time_step` of the window's end.
+    max_jumps : int or None
+        Default :func:`default_max_jumps`.
+    cache : dict or None
+        Flowpipes already computed, by their settings (the requirements of one problem with the same
+        window share one flowpipe; each is decided and re-checked on its own).
+    """
+    end = max(fragment.end, 1e-9)
+    step = default_time_step(end) if time_step is None else time_step
+    jumps = default_max_jumps(end) if max_jumps is None else max_jumps
+    start = time.perf_counter()
+    key = (end, min(step, end), jumps, initial_mode, tuple(sorted((k, tuple(v)) for k, v in initial.items())))
+    result = None if cache is None else cache.get(key)
+    if result is None:
+        result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=initial_mode,
+                       max_jumps=jumps, max_segments=MAX_SEGMENTS)
+        if cache is not None:
+            cache[key] = result
+    holds, margin, reason = decide(result, fragment, affine_model(system))
+    decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
+                             seconds=time.perf_counter() - start)
+    check = None
+    took = 0.0
+    if holds:
+        start = time.perf_counter()
+        check = recheck_flowpipe(result.to_json(), system, initial, fragment, initial_mode=initial_mode)
+        took = time.perf_counter() - start
+    assumptions = (f"the initial box {dict(initial)}", f"the window [{fragment.start:g}, {fragment.end:g}] s",
+                   "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)")
+    proof = Proof(holds=holds, method=METHOD, evidence=_evidence(decision, check, took),
+                  rechecked=bool(check is not None and check.passed), assumptions=assumptions)
+    return proof, decision
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ReachProof:
+    """``() -> Proof`` for one requirement of a problem (picklable when the system is)."""
+
+    system: Any
+    fragment: SafetyFragment
+    initial: tuple[tuple[str, float, float], ...]
+    initial_mode: str | None = None
+    time_step: float | None = None
+    max_jumps: int | None = None
+    refused: str | None = None
+    cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
+
+    def __call__(self) -> Proof:
+        """The proof (never raises: a model or option reachability cannot handle gives a proof that does not hold)."""
+        from hybrid.errors import ModelDefinitionError, ParameterError
+
+        if self.refused is not None:
+            return Proof(holds=False, method=METHOD, evidence=self.refused, rechecked=False)
+        try:
+            proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
+                                   initial_mode=self.initial_mode, time_step=self.time_step,
+                                   max_jumps=self.max_jumps, cache=self.cache)
+        except (ParameterError, ModelDefinitionError) as exc:
+            return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
+        return proof
+
+
+REACH_CHOICES = ("auto", True, False)
+
+
+def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: str) -> dict[str, Any]:
+    from analysis.verification import ProblemError
+
+    if reach_mode not in REACH_CHOICES or isinstance(reach_mode, int) and not isinstance(reach_mode, bool):
+        raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
+                           "write reach='auto' (the default), True (required) or False (falsification only)")
+    opts = dict(options or {})
+    unknown = sorted(set(opts) - {"time_step", "max_jumps"})
+    if unknown:
+        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s] and max_jumps",
+                           f"remove {unknown}")
+    step = opts.get("time_step")
+    if step is not None and (isinstance(step, bool) or not isinstance(step, (int, float))
+                             or not math.isfinite(step) or step <= 0):
+        raise ProblemError(f"{where}: reach_options['time_step']", step, "a finite step > 0 [s]",
+                           "give e.g. time_step=0.01, or leave it out (the window's end / 1000)")
+    jumps = opts.get("max_jumps")
+    if jumps is not None and (isinstance(jumps, bool) or not isinstance(jumps, int) or jumps < 0):
+        raise ProblemError(f"{where}: reach_options['max_jumps']", jumps, "a whole number >= 0",
+                           "give e.g. max_jumps=100, or leave it out")
+    return opts
+
+
+def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_mode: Any = "auto",
+                 initial_mode: Any = None, builder: bool = False, options: Mapping[str, Any] | None = None,
+                 where: str = "problem") -> dict[str, Any]:
+    """The reachability proofs of a problem's requirements: ``{requirement name: ReachProof}``.
+
+    Parameters
+    ----------
+    system : HybridSystem or other
+        The problem's system (the probe, when ``builder``).
+    parsed : sequence of ParsedRequirement
+        ``problem.parsed``.
+    initial : mapping {state: Parameter or float}
+        The problem's initial states (a Parameter gives its ``[low, high]``).
+    reach_mode : "auto", True or False
+        ``False``: none.  ``"auto"``: a proof for each requirement in the fragment when the system is
+        symbolic and affine.  ``True``: the same, and a non-symbolic or non-affine system raises.
+    builder : bool
+        The problem's system is built by a function of the parameters (not decided by reachability:
+        each requirement in the fragment gets a proof that says so and does not hold).
+    options : mapping or None
+        ``time_step`` [s] and ``max_jumps`` of :func:`reach_proof`.
+
+    Raises
+    ------
+    analysis.verification.ProblemError
+        ``reach=True`` with a system reachability cannot read, or bad options.
+    """
+    from analysis.verification import ProblemError
+
+    from .affine import AffineError
+    from .fragment import NotInFragment, safety_fragment
+
+    opts = _checked_options(reach_mode, options, where)
+    if reach_mode is False:
+        return {}
+    try:
+        model = affine_model(system)
+    except AffineError as exc:
+        if reach_mode is True:
+            raise ProblemError(f"{where}: reach", True, "a symbolic, affine HybridSystem (reachability needs a "
+                               f"symbolic model): {exc}",
+                               "write the flows with hybrid.symbolic.flow_map(...), the resets with jump_map(...), "
+                               "guards and invariants as symbolic conditions (coordinates('x').x >= 1.0); or "
+                               "use reach='auto' or False (falsification still runs)") from None
+        return {}
+    out: dict[str, Any] = {}
+    shared: dict[Any, ReachResult] = {}
+    for p in parsed:
+        try:
+            fragment = safety_fragment(p.formula.tree, model.state_names, ("mode",))
+        except NotInFragment:
+            continue
+        why = None
+        if builder:
+            why = ("not decided by reachability: the system depends on the parameters (it is built by a function "
+                   "of them; parameters as constant states: next step) — pass the HybridSystem itself when the "
+                   "parameters do not change it")
+        elif callable(initial_mode):
+            why = "not decided by reachability: the initial mode depends on the point (give it as a mode name)"
+        box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
+        out[p.name] = ReachProof(system=system, fragment=fragment, initial=box, initial_mode=initial_mode,
+                                 time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why,
+                                 cache=shared)
+    return out
