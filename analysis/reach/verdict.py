@@ -320,6 +320,12 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
                    "parameters do not change it")
         elif callable(initial_mode):
             why = "not decided by reachability: the initial mode depends on the point (give it as a mode name)"
+        elif initial_mode is None and not getattr(system.automaton, "initial_mode_given", True) \
+                and len(system.automaton.modes) > 1:
+            why = ("not decided by reachability: the automaton declares no initial mode, so the invariants decide it "
+                   "per point (declare HybridAutomaton(initial_mode=...) or give the problem's initial_mode)")
+        if why is not None and reach_mode == "auto":
+            continue  # nothing attempted: no proof, so no "proof does not hold" line (reach=True shows why)
         box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
         out[p.name] = ReachProof(system=system, fragment=fragment, initial=box, initial_mode=initial_mode,
                                  time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why,
