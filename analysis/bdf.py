@@ -46,6 +46,7 @@ __all__ = [
     "NEWTON_TOL",
     "NEWTON_MAXITER",
     "RK4_SUBSTEPS",
+    "rk4_step",
     "BdfOrderError",
     "BdfStepSizeError",
     "BdfHistoryError",
@@ -326,7 +327,7 @@ def _validate_step(h: float, n_steps: int) -> tuple[float, int]:
     return h_value, int(n_steps)
 
 
-def _rk4_step(f: Callable, t: float, y: np.ndarray, h: float, substeps: int) -> np.ndarray:
+def rk4_step(f: Callable, t: float, y: np.ndarray, h: float, substeps: int) -> np.ndarray:
     """``substeps`` classical RK4 steps of size ``h / substeps`` from ``(t, y)``."""
     dt = h / substeps
     for i in range(substeps):
@@ -485,7 +486,7 @@ def integrate_bdf(
         if isinstance(rk4_substeps, bool) or not isinstance(rk4_substeps, int) or rk4_substeps < 1:
             raise ValueError(f"rk4_substeps = {rk4_substeps!r}: expected an integer >= 1, e.g. {RK4_SUBSTEPS}")
         for k in range(needed):
-            y[k + 1] = _rk4_step(f, float(t[k]), y[k], h, rk4_substeps)
+            y[k + 1] = rk4_step(f, float(t[k]), y[k], h, rk4_substeps)
     first_bdf = 0 if startup == "ramp" else needed
 
     iterations = 0

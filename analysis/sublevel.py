@@ -112,7 +112,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.certificate import _compile, _enclose, covers
+from analysis.certificate import compile_polynomial, enclose_compiled, covers
 from analysis.interval import Interval, IntervalDomainError, box_bounds
 from analysis.polynomial import Atom, Polynomial
 from hybrid.errors import ParameterError
@@ -605,18 +605,18 @@ class _Scalar:
 
     def __init__(self, poly: Polynomial, cols: _Columns) -> None:
         form = _versine_form(poly, cols)
-        self.natural = _compile(form, cols.all)
-        self.gradient = tuple((cols.all.index(v), _compile(_versine_form(_partial(form, v), cols), cols.all))
+        self.natural = compile_polynomial(form, cols.all)
+        self.gradient = tuple((cols.all.index(v), compile_polynomial(_versine_form(_partial(form, v), cols), cols.all))
                               for v in form.variables)
 
     def enclose(self, box: Box, *, mean_value: bool = True) -> Interval:
-        natural = _enclose(self.natural, box)
+        natural = enclose_compiled(self.natural, box)
         if not mean_value or not self.gradient:
             return natural
         mid = tuple(0.5 * a + 0.5 * b for a, b in box)
-        total = _enclose(self.natural, tuple((m, m) for m in mid))
+        total = enclose_compiled(self.natural, tuple((m, m) for m in mid))
         for j, grad in self.gradient:
-            total = total + _enclose(grad, box) * (Interval(*box[j]) - Interval.point(mid[j]))
+            total = total + enclose_compiled(grad, box) * (Interval(*box[j]) - Interval.point(mid[j]))
         lo, hi = max(natural.lo, total.lo), min(natural.hi, total.hi)
         return Interval(lo, hi) if lo <= hi else natural
 

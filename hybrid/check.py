@@ -84,7 +84,8 @@ import numpy as np
 
 from .errors import ExecutionError, ModelDefinitionError
 from .completeness import check_statuses, incomplete_reasons, state_claims, undecided_cycles, zeno_group
-from .findings import KIND_SEVERITY, SEVERITIES, Finding, SearchBudgetExceeded, Witness, _boxes, _g, _num, _Oracle
+from .findings import (KIND_SEVERITY, SEVERITIES, Finding, Oracle, SearchBudgetExceeded, Witness, checked_boxes,
+                       finding_number, format_g)
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import HybridAutomaton, Transition
@@ -241,7 +242,7 @@ class SearchSummary:
             "samples": self.samples,
             "starts": self.starts,
             "max_cycles": self.max_cycles,
-            "tol": _num(self.tol),
+            "tol": finding_number(self.tol),
             "checks": dict(self.checks),
             "modes": [m.as_dict() for m in self.modes],
             "cycles_found": self.cycles_found,
@@ -499,7 +500,7 @@ class _Point:
 class _Checker:
     """The state-space searches of one model; one instance per :func:`check` call."""
 
-    def __init__(self, oracle: _Oracle, *, samples: int, starts: int, tol: float) -> None:
+    def __init__(self, oracle: Oracle, *, samples: int, starts: int, tol: float) -> None:
         self.o = oracle
         self.a = oracle.automaton
         self.samples = samples
@@ -643,9 +644,9 @@ class _Checker:
                 values[f"invariant {q}"] = found.inv
             within = "" if margin >= 0.0 else f" (within tol = {self.tol:g})"
             detail = (
-                f"at {self.o.where(found.x, found.m)}: guard {t1.name} = {_g(found.raw[i])}, "
-                f"guard {t2.name} = {_g(found.raw[j])}"
-                + (f", invariant = {_g(found.inv)}" if self.o.invariants[q] is not None else "")
+                f"at {self.o.where(found.x, found.m)}: guard {t1.name} = {format_g(found.raw[i])}, "
+                f"guard {t2.name} = {format_g(found.raw[j])}"
+                + (f", invariant = {format_g(found.inv)}" if self.o.invariants[q] is not None else "")
                 + within
                 + _crossing_note((t1, t2))
             )
@@ -837,9 +838,9 @@ class _Checker:
         if self.o.system is not None:
             values[f"d/dt invariant {q}"] = rate
         values.update({f"guard {t.name}": g for t, g in zip(outgoing, found.raw)})
-        guards = ", ".join(f"guard {t.name} = {_g(g)}" for t, g in zip(outgoing, found.raw))
+        guards = ", ".join(f"guard {t.name} = {format_g(g)}" for t, g in zip(outgoing, found.raw))
         leaving = (
-            f"the flow leaves it (d/dt inv = {_g(rate)} < -tol)"
+            f"the flow leaves it (d/dt inv = {format_g(rate)} < -tol)"
             if self.o.system is not None
             else "(no flow: every boundary point counts)"
         )
@@ -854,7 +855,7 @@ class _Checker:
                 severity=KIND_SEVERITY["deadlock"],
                 message=(
                     f"mode {q!r}: deadlock at {self.o.where(found.x, found.m)} on the boundary of the invariant "
-                    f"(inv = {_g(found.inv)}): {leaving} and {enabled}; add a transition enabled there or "
+                    f"(inv = {format_g(found.inv)}): {leaving} and {enabled}; add a transition enabled there or "
                     "widen the invariant"
                 ),
                 modes=(q,),
@@ -928,10 +929,10 @@ class _Checker:
                 severity=KIND_SEVERITY["reset_outside_invariant"],
                 message=(
                     f"transition {t.name!r} ({q} -> {target}): from {self.o.where(found.x, found.m)} "
-                    f"(guard = {_g(found.raw[k])}"
-                    + (f", invariant of {q!r} = {_g(found.inv)}" if self.o.invariants[q] is not None else "")
+                    f"(guard = {format_g(found.raw[k])}"
+                    + (f", invariant of {q!r} = {format_g(found.inv)}" if self.o.invariants[q] is not None else "")
                     + f"{_crossing_note((t,))}) the jump lands at {post} where the invariant of {target!r} is "
-                    f"{_g(inv_after)} < -tol = {-self.tol:g}; fix the reset or the target invariant"
+                    f"{format_g(inv_after)} < -tol = {-self.tol:g}; fix the reset or the target invariant"
                 ),
                 modes=(q, target),
                 transitions=(t.name,),
@@ -1059,8 +1060,8 @@ class _Checker:
         modes = [q] + [u.target for u in [t, *chain]]
         fires = (
             f"transition {t.name!r} ({q} -> {t.target}) fires again at the same instant: from "
-            f"{self.o.where(found.x, found.m)} (guard = {_g(found.raw[k])}) the jumps "
-            f"{' -> '.join(path)} are all enabled, the last with guard {t.name} = {_g(again)} >= 0"
+            f"{self.o.where(found.x, found.m)} (guard = {format_g(found.raw[k])}) the jumps "
+            f"{' -> '.join(path)} are all enabled, the last with guard {t.name} = {format_g(again)} >= 0"
         )
         if exception is None:
             kind = "reset_retriggers"
@@ -1267,12 +1268,12 @@ def check(
         raise ExecutionError(f"check(): tol = {tol!r}; expected a finite number >= 0")
     if method not in CHECK_METHODS:
         raise ExecutionError(f"check(): method = {method!r}; expected one of {list(CHECK_METHODS)}")
-    oracle = _Oracle(model)
+    oracle = Oracle(model)
     a = oracle.automaton
     from .decide import validate_options
 
     validate_options(oracle.coords, rates, timeout_s)
-    boxes = _boxes(oracle, box)
+    boxes = checked_boxes(oracle, box)
 
     findings, cycles, capped = _graph_findings(a, int(max_cycles))
     checks: dict[str, str] = {
@@ -1356,7 +1357,7 @@ CHECK_METHODS = ("auto", "sampled", "smt")
 """How :func:`check` answers the state-space questions."""
 
 
-def _sample_modes(oracle: _Oracle, boxes: dict[str, Box] | None, modes: set[str], *, samples: int, starts: int,
+def _sample_modes(oracle: Oracle, boxes: dict[str, Box] | None, modes: set[str], *, samples: int, starts: int,
                   seed: int, tol: float, undecidable: Mapping[str, str]) -> tuple[list[ModeSearch], list[Finding]]:
     """The sampled searches of the modes in ``modes`` (the others: decided, or not searched).
 
@@ -1406,7 +1407,7 @@ _OUT_OF_TIME = "not searched: the sampled search's time budget"
 """How a mode the sampled search had no time left for is noted (its checks are skipped)."""
 
 
-def _probe(oracle: _Oracle, space: _Space) -> None:
+def _probe(oracle: Oracle, space: _Space) -> None:
     """Evaluate every function of ``space.mode`` at the corners and the centre of its box (raises as the search)."""
     q = space.mode
     centre = np.where(np.isnan(space.lower), 0.0, (space.lower + space.upper) / 2.0)

@@ -64,7 +64,7 @@ from typing import Any
 
 import networkx as nx
 
-from .findings import KIND_SEVERITY, Finding, Witness, _boxes, _g, _num, _Oracle
+from .findings import KIND_SEVERITY, Finding, Oracle, Witness, checked_boxes, finding_number, format_g
 from .errors import ExecutionError, ModelDefinitionError
 from .graph import mode_graph
 from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
@@ -253,7 +253,7 @@ class CycleVerdict:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready copy."""
         return {"modes": list(self.modes), "transitions": list(self.transitions), "verdict": self.verdict,
-                "dwell_s": _num(self.dwell_s), "binding": self.binding,
+                "dwell_s": finding_number(self.dwell_s), "binding": self.binding,
                 "witness": None if self.witness is None else self.witness.as_dict()}
 
 
@@ -293,9 +293,9 @@ class ZenoSummary:
         """JSON-ready copy (``verdicts=False`` leaves out the per-cycle list)."""
         out: dict[str, Any] = {
             "cycles": self.cycles, "counts": dict(self.counts),
-            "min_dwell_s": None if self.min_dwell_s is None else _num(self.min_dwell_s),
+            "min_dwell_s": None if self.min_dwell_s is None else finding_number(self.min_dwell_s),
             "binding": self.binding, "binding_cycle": list(self.binding_cycle), "capped": self.capped,
-            "rates": {q: {k: _num(r) for k, r in rs.items()} for q, rs in self.rates.items()},
+            "rates": {q: {k: finding_number(r) for k, r in rs.items()} for q, rs in self.rates.items()},
         }
         if verdicts:
             out["verdicts"] = [v.as_dict() for v in self.verdicts]
@@ -343,7 +343,7 @@ class Decision:
             "claims": {k: c.as_dict() for k, c in self.claims.items()},
             "pairs": [p.as_dict() for p in self.pairs],
             "zeno": None if self.zeno is None else self.zeno.as_dict(),
-            "memory_hulls": {q: None if h is None else {k: [_num(a), _num(b)] for k, (a, b) in h.items()}
+            "memory_hulls": {q: None if h is None else {k: [finding_number(a), finding_number(b)] for k, (a, b) in h.items()}
                              for q, h in self.memory_hulls.items()},
             "sampled_modes": dict(self.sampled_modes),
             "queries": self.queries,
@@ -356,7 +356,7 @@ class _View:
     """The model's functions as expressions over its coordinates (``None`` where a function is not symbolic)."""
 
     def __init__(self, model: HybridSystem | HybridAutomaton) -> None:
-        self.oracle = _Oracle(model)
+        self.oracle = Oracle(model)
         self.system = self.oracle.system
         self.automaton: HybridAutomaton = self.oracle.automaton
         self.coords = self.oracle.coords
@@ -901,7 +901,7 @@ class _Questions(_Decider):
             return PairVerdict(**base, verdict="undecided", witness=w, detail=f"the parametric witness: {why}")
         return PairVerdict(**base, verdict="overlap", witness=w,
                            detail="witness re-checked with the parameter values " +
-                           ", ".join(f"{n} = {_g(c)}" for n, c in values.items()))
+                           ", ".join(f"{n} = {format_g(c)}" for n, c in values.items()))
 
     # ------------------------------------------------------------------ deadlock
     def deadlock(self, q: str) -> tuple[str, Finding | None, str]:
@@ -943,10 +943,10 @@ class _Questions(_Decider):
             return "undecided", None, f"witness does not re-check ({_approx_note(tr)})"
         text = self.a.mode(q).invariant_text or "inv"
         msg = (f"deadlock in mode {q!r}: at {self.v.oracle.where(x, m)} the state is on the boundary of the "
-               f"invariant ({text} = {_g(value)})"
-               + ("" if rate is None else f", the flow leaves it (d/dt = {_g(rate)})")
+               f"invariant ({text} = {format_g(value)})"
+               + ("" if rate is None else f", the flow leaves it (d/dt = {format_g(rate)})")
                + " and no outgoing transition is enabled (guards "
-               + ", ".join(f"{n} = {_g(g)}" for n, g in guards.items())
+               + ", ".join(f"{n} = {format_g(g)}" for n, g in guards.items())
                + "); SMT witness, re-checked; widen a guard or the invariant")
         return "found", Finding(kind="deadlock", severity=KIND_SEVERITY["deadlock"], message=msg,
                                 modes=(q,), witness=self.witness(x, m, values)), how
@@ -983,7 +983,7 @@ class _Questions(_Decider):
         if not ok:
             return "undecided", None, f"witness does not re-check ({_approx_note(tr)})"
         msg = (f"the jump of {t.name!r} ({t.source} -> {t.target}) from {o.where(x, m)} lands outside the "
-               f"invariant of {t.target!r} ({self.a.mode(t.target).invariant_text or 'inv'} = {_g(landed)} < 0); "
+               f"invariant of {t.target!r} ({self.a.mode(t.target).invariant_text or 'inv'} = {format_g(landed)} < 0); "
                "SMT witness, re-checked; fix the jump map/reset or the guard")
         return "found", Finding(kind="reset_outside_invariant", severity=KIND_SEVERITY["reset_outside_invariant"],
                                 message=msg, modes=(t.source, t.target), transitions=(t.name,),
@@ -1359,7 +1359,7 @@ class _Zeno:
                 path = [self.projection(t, n, entry) for t in cycle]
                 distance = _travel(path + [path[0]])
                 if distance > 0.0:
-                    return distance / rate, f"{n} must travel {_g(distance)} per lap at <= {_g(rate)} per s"
+                    return distance / rate, f"{n} must travel {format_g(distance)} per lap at <= {format_g(rate)} per s"
         return 0.0, ""
 
     def verdict(self, cycle: tuple[Transition, ...]) -> CycleVerdict:
@@ -1381,7 +1381,7 @@ class _Zeno:
                                     binding=where_travel)
             top = max(parts)
             return CycleVerdict(modes=modes, transitions=names, verdict="non_zeno", dwell_s=total,
-                                binding=f"dwell >= {_g(top[0])} s {top[1]}")
+                                binding=f"dwell >= {format_g(top[0])} s {top[1]}")
         return self.instantaneous(cycle, modes, names)
 
     def instantaneous(self, cycle: tuple[Transition, ...], modes: tuple[str, ...], names: tuple[str, ...]
@@ -1479,7 +1479,7 @@ def decide(
     """
     view = _View(model)
     validate_options(view.coords, rates, timeout_s)
-    boxes = _boxes(view.oracle, box)
+    boxes = checked_boxes(view.oracle, box)
     if boxes is None:
         raise ModelDefinitionError("decide(): box = None; give the Box (or a mapping mode -> Box) to decide over")
     with fresh_context():
@@ -1535,7 +1535,7 @@ def exclusive_for_all(
     """
     view = _View(model)
     validate_options(view.coords, None, timeout_s)
-    boxes = _boxes(view.oracle, box)
+    boxes = checked_boxes(view.oracle, box)
     if boxes is None:
         raise ModelDefinitionError("exclusive_for_all(): box = None; give the Box to decide over")
     with fresh_context():
@@ -1668,7 +1668,7 @@ def _claims(qs: _Questions, status: Mapping[str, list[str]], summary: ZenoSummar
             detail = (f"{undecided} of {summary.cycles} cycles undecided, e.g. {' -> '.join(first.transitions)}: "
                       f"{first.binding} ({detail})")
         if summary.min_dwell_s is not None:
-            detail += f"; smallest dwell bound {_g(summary.min_dwell_s)} s ({summary.binding})"
+            detail += f"; smallest dwell bound {format_g(summary.min_dwell_s)} s ({summary.binding})"
         out["zeno"] = Claim(check="zeno", status=zs, method=method, detail=detail,
                             assumptions=assumptions + ("rate bounds |dx/dt| <= R per mode (declared or from the flow)",))
         laps = sum(v.verdict == "undecided" and not v.binding.startswith(NO_LAP) for v in summary.verdicts)
