@@ -755,6 +755,30 @@ class _Checker:
             space.notes.append("deadlock: mode has no invariant, so no boundary to leave through")
             return []
         inside = [pt for pt in points if pt.inv >= 0.0]
+        candidates = self._deadlock_candidates(space, points, rng)
+        if not candidates:
+            space.notes.append(
+                "deadlock: no point of the invariant's boundary in the box (the invariant holds "
+                + ("everywhere" if inside else "nowhere")
+                + " on the samples); widen the box across the boundary to search it"
+            )
+            return []
+        best = min(range(len(candidates)), key=lambda k: candidates[k][0])
+        merit, rate, found, _, _ = candidates[best]
+        if merit >= 0.0:
+            merit, rate, found = self._deadlock_refine(space, candidates, merit, rate, found)
+        if merit >= 0.0:
+            return []
+        return [self._deadlock_finding(space, found, rate)]
+
+    def _deadlock_candidates(
+        self, space: _Space, points: list[_Point], rng: np.random.Generator
+    ) -> list[tuple[float, float, _Point, _Point | None, np.ndarray | None]]:
+        """Boundary points of the invariant of ``space.mode``: the samples within ``tol`` of it, then the
+        boundary located on random segments from a sample inside to one outside; ``(merit, rate, point, inside
+        end or None, outside end or None)`` each."""
+        q = space.mode
+        inside = [pt for pt in points if pt.inv >= 0.0]
         outside = [pt for pt in points if pt.inv < 0.0]
         candidates: list[tuple[float, float, _Point, _Point | None, np.ndarray | None]] = []
         for pt in points:
@@ -792,47 +816,50 @@ class _Checker:
                 "inv < 0); those points were not examined (a discontinuous invariant is only checked where it "
                 "is continuous)"
             )
-        if not candidates:
-            space.notes.append(
-                "deadlock: no point of the invariant's boundary in the box (the invariant holds "
-                + ("everywhere" if inside else "nowhere")
-                + " on the samples); widen the box across the boundary to search it"
-            )
-            return []
-        best = min(range(len(candidates)), key=lambda k: candidates[k][0])
-        merit, rate, found, _, _ = candidates[best]
-        if merit >= 0.0:
-            # refine: move the outside end of the most promising segments, re-locating the boundary each time
-            anchored = sorted(
-                (k for k in range(len(candidates)) if candidates[k][3] is not None), key=lambda k: candidates[k][0]
-            )[: self.starts]
-            for k in anchored:
-                anchor = candidates[k][3]
-                assert anchor is not None
+        return candidates
 
-                def merit_fn(p: np.ndarray, anchor: _Point = anchor) -> float:
-                    x, m = space.split(p)
-                    fy = self.o.invariant(q, x, self.o.signals(x, m), m)
-                    if fy >= 0.0:
-                        return _INFEASIBLE + _squash(fy)
-                    b = self._boundary(space, anchor, p, fy)
-                    return 1.0 if b.inv > self.tol else _squash(self._deadlock_merit(space, b)[0])
+    def _deadlock_refine(
+        self, space: _Space, candidates: list[tuple[float, float, _Point, _Point | None, np.ndarray | None]],
+        merit: float, rate: float, found: _Point,
+    ) -> tuple[float, float, _Point]:
+        """The best deadlock candidate after moving the outside end of the most promising segments (the boundary
+        re-located each time)."""
+        q = space.mode
+        # refine: move the outside end of the most promising segments, re-locating the boundary each time
+        anchored = sorted(
+            (k for k in range(len(candidates)) if candidates[k][3] is not None), key=lambda k: candidates[k][0]
+        )[: self.starts]
+        for k in anchored:
+            anchor = candidates[k][3]
+            assert anchor is not None
 
-                end = candidates[k][4]
-                assert end is not None
-                for p in self.minimise(space, merit_fn, [end]):
-                    x, m = space.split(p)
-                    fy = self.o.invariant(q, x, self.o.signals(x, m), m)
-                    if fy >= 0.0:
-                        continue
-                    b = self._boundary(space, anchor, p, fy)
-                    if b.inv > self.tol:
-                        continue
-                    m_b, r_b = self._deadlock_merit(space, b)
-                    if m_b < merit:
-                        merit, rate, found = m_b, r_b, b
-        if merit >= 0.0:
-            return []
+            def merit_fn(p: np.ndarray, anchor: _Point = anchor) -> float:
+                x, m = space.split(p)
+                fy = self.o.invariant(q, x, self.o.signals(x, m), m)
+                if fy >= 0.0:
+                    return _INFEASIBLE + _squash(fy)
+                b = self._boundary(space, anchor, p, fy)
+                return 1.0 if b.inv > self.tol else _squash(self._deadlock_merit(space, b)[0])
+
+            end = candidates[k][4]
+            assert end is not None
+            for p in self.minimise(space, merit_fn, [end]):
+                x, m = space.split(p)
+                fy = self.o.invariant(q, x, self.o.signals(x, m), m)
+                if fy >= 0.0:
+                    continue
+                b = self._boundary(space, anchor, p, fy)
+                if b.inv > self.tol:
+                    continue
+                m_b, r_b = self._deadlock_merit(space, b)
+                if m_b < merit:
+                    merit, rate, found = m_b, r_b, b
+        return merit, rate, found
+
+    def _deadlock_finding(self, space: _Space, found: _Point, rate: float) -> Finding:
+        """The deadlock finding at ``found``, a boundary point of the invariant of ``space.mode`` that the flow
+        leaves (rate ``rate``) with no outgoing transition enabled."""
+        q = space.mode
         outgoing = self.o.outgoing[q]
         values = {f"invariant {q}": found.inv}
         if self.o.system is not None:
@@ -849,20 +876,18 @@ class _Checker:
             if outgoing
             else "the mode has no outgoing transition"
         )
-        return [
-            Finding(
-                kind="deadlock",
-                severity=KIND_SEVERITY["deadlock"],
-                message=(
-                    f"mode {q!r}: deadlock at {self.o.where(found.x, found.m)} on the boundary of the invariant "
-                    f"(inv = {format_g(found.inv)}): {leaving} and {enabled}; add a transition enabled there or "
-                    "widen the invariant"
-                ),
-                modes=(q,),
-                transitions=tuple(t.name for t in outgoing),
-                witness=self.witness(found, values),
-            )
-        ]
+        return Finding(
+            kind="deadlock",
+            severity=KIND_SEVERITY["deadlock"],
+            message=(
+                f"mode {q!r}: deadlock at {self.o.where(found.x, found.m)} on the boundary of the invariant "
+                f"(inv = {format_g(found.inv)}): {leaving} and {enabled}; add a transition enabled there or "
+                "widen the invariant"
+            ),
+            modes=(q,),
+            transitions=tuple(t.name for t in outgoing),
+            witness=self.witness(found, values),
+        )
 
     # ---------------------------------------------------------------- resets
     def _violation(self, pt: _Point, k: int) -> float:
@@ -1259,15 +1284,7 @@ def check(
     >>> w.values["guard to_a"] >= 0 and w.values["guard to_b"] >= 0
     True
     """
-    for name, value, low in (("samples", samples, 1), ("starts", starts, 0), ("max_cycles", max_cycles, 0)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ExecutionError(f"check(): {name} = {value!r}; expected an int >= {low}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise ExecutionError(f"check(): seed = {seed!r}; expected an int")
-    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol >= 0.0):
-        raise ExecutionError(f"check(): tol = {tol!r}; expected a finite number >= 0")
-    if method not in CHECK_METHODS:
-        raise ExecutionError(f"check(): method = {method!r}; expected one of {list(CHECK_METHODS)}")
+    _check_arguments(samples=samples, starts=starts, max_cycles=max_cycles, seed=seed, tol=tol, method=method)
     oracle = Oracle(model)
     a = oracle.automaton
     from .decide import validate_options
@@ -1303,18 +1320,7 @@ def check(
         findings += [f for f in decision.findings
                      if not (set(f.modes) & set(decision.sampled_modes)) or method == "smt"]
     findings += state_findings
-    if boxes is None:
-        reason = "skipped: no box given; pass a Box (or a mapping mode -> Box) to search the state space"
-        checks.update({c: reason for c in STATE_CHECKS})
-    else:
-        missing = [q for q in a.mode_names if q not in boxes]
-        parts = ([f"modes {missing} not searched (no box)"] if missing else []) + (
-            [f"modes {out_of_time} not searched (the sampled search's time budget of {budget_s:g} s ran out)"]
-            if out_of_time else [])
-        remark = "ran: " + "; ".join(parts) if parts else "ran"
-        checks.update({c: remark for c in STATE_CHECKS})
-        if not any(t.direction == 0 for t in a.transitions):
-            checks["reset_retriggers"] = "ran: no level-triggered transition (crossing guards do not re-fire)"
+    checks.update(_state_check_remarks(a, boxes, out_of_time, budget_s))
     if decision is not None and decision.zeno is not None and not set(boxes or {}) <= sampled_modes:
         z = decision.zeno
         checks["zeno_candidate"] = (f"decided: {z.cycles} cycles of transitions"
@@ -1351,6 +1357,39 @@ def check(
         pairs=() if decision is None else decision.pairs,
         solver="" if decision is None else decision.solver,
     )
+
+
+def _check_arguments(*, samples: Any, starts: Any, max_cycles: Any, seed: Any, tol: Any, method: Any) -> None:
+    """Raise :class:`ExecutionError` on an invalid argument of :func:`check` (the others are checked where used)."""
+    for name, value, low in (("samples", samples, 1), ("starts", starts, 0), ("max_cycles", max_cycles, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ExecutionError(f"check(): {name} = {value!r}; expected an int >= {low}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ExecutionError(f"check(): seed = {seed!r}; expected an int")
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol >= 0.0):
+        raise ExecutionError(f"check(): tol = {tol!r}; expected a finite number >= 0")
+    if method not in CHECK_METHODS:
+        raise ExecutionError(f"check(): method = {method!r}; expected one of {list(CHECK_METHODS)}")
+
+
+def _state_check_remarks(a: HybridAutomaton, boxes: dict[str, Box] | None, out_of_time: list[str],
+                         budget_s: float | None) -> dict[str, str]:
+    """How each state check of :func:`check` ran: skipped without a box, else ran (naming the modes not searched:
+    no box, or the sampled search's time budget ran out)."""
+    checks: dict[str, str] = {}
+    if boxes is None:
+        reason = "skipped: no box given; pass a Box (or a mapping mode -> Box) to search the state space"
+        checks.update({c: reason for c in STATE_CHECKS})
+    else:
+        missing = [q for q in a.mode_names if q not in boxes]
+        parts = ([f"modes {missing} not searched (no box)"] if missing else []) + (
+            [f"modes {out_of_time} not searched (the sampled search's time budget of {budget_s:g} s ran out)"]
+            if out_of_time else [])
+        remark = "ran: " + "; ".join(parts) if parts else "ran"
+        checks.update({c: remark for c in STATE_CHECKS})
+        if not any(t.direction == 0 for t in a.transitions):
+            checks["reset_retriggers"] = "ran: no level-triggered transition (crossing guards do not re-fire)"
+    return checks
 
 
 CHECK_METHODS = ("auto", "sampled", "smt")
