@@ -158,12 +158,14 @@ def real_parameter(where: str, name: str, value: object, ok: Callable[[float], b
 
 
 def event_count(where: str, count: object) -> int:
+    """``count`` as a number of events (an integer >= 0), or :class:`ModelDefinitionError`."""
     if isinstance(count, bool) or not isinstance(count, Integral) or count < 0:
         raise ModelDefinitionError(f"{where}: count = {count!r}; expected an integer >= 0 (number of events)")
     return int(count)
 
 
 def positive_parameter(where: str, name: str, value: object, what: str) -> float:
+    """``value`` as a finite float > 0, or :class:`ModelDefinitionError` naming it and ``what`` it is."""
     return real_parameter(where, name, value, lambda c: c > 0.0, f"a finite {what} > 0")
 
 
@@ -429,6 +431,7 @@ def thermostat_parameters(
     T0: object,
     initially_on: object,
 ) -> tuple[float, float, float, float, float, float, bool]:
+    """The checked parameters of the thermostat ``(ambient, heater, rate, low, high, T0, initially_on)``."""
     a = real_parameter(where, "ambient", ambient, lambda c: True, "a finite temperature")
     u = real_parameter(where, "heater", heater, lambda c: True, "a finite temperature")
     k = positive_parameter(where, "rate", rate, "rate [1/s]")
