@@ -151,15 +151,6 @@ _TINY = 1e-300
 _POLE_CROSSOVER_RTOL = 1e-6
 
 
-# --------------------------------------------------------------------------- errors
-
-
-# --------------------------------------------------------------------------- the loop model
-
-
-# --------------------------------------------------------------------------- breaking loops
-
-
 # --------------------------------------------------------------------------- margins
 
 
@@ -530,9 +521,6 @@ def _min_frequency(min_frequency: float | None, period: float | None) -> float:
     if not (value >= 0.0 and math.isfinite(value)):
         raise FrequencyGridError(f"min_frequency = {min_frequency!r}: expected a finite frequency >= 0 [rad/s]")
     return value
-
-
-# --------------------------------------------------------------------------- helpers: algebra
 
 
 # --------------------------------------------------------------------------- helpers: frequency domain

@@ -156,9 +156,6 @@ _GRID = 256
 """Points per ray of the first-crossing scan (then bisection)."""
 
 
-# --------------------------------------------------------------------------- tracing to exact polynomials
-
-
 # --------------------------------------------------------------------------- validation
 
 
@@ -427,9 +424,6 @@ def _start_level(polys: ModePolynomials, v: Polynomial, sos_level: float, max_ex
         if _TERM_BACKOFF * limit < level:
             level, why = _TERM_BACKOFF * limit, f"{label} (estimated)"
     return level, why
-
-
-# --------------------------------------------------------------------------- exact linear algebra (inner argument)
 
 
 # --------------------------------------------------------------------------- proofs at one level

@@ -770,5 +770,3 @@ def replay_zoh_rk4(window: ReconstructionWindow, substeps: int) -> np.ndarray:
         out.append(np.array(psi, dtype=float).reshape(-1))
     return np.array(out)
 
-
-# --------------------------------------------------------------------------- the study
