@@ -356,9 +356,9 @@ def test_no_private_name_is_imported_across_modules():
     assert not found, "private names used across modules:\n" + "\n".join(found)
 
 
-CODE_GENERATION_SITES = {"hybrid.symbolic:_compile_lambda"}
+CODE_GENERATION_SITES = {"hybrid.symbolic_core:_compile_lambda"}
 """The one place that turns generated source into code: the compiled symbolic evaluator of
-:mod:`hybrid.symbolic` (``_compile_lambda``), which compiles the Python source that ``_source`` writes itself from the
+:mod:`hybrid.symbolic` (``_compile_lambda`` in :mod:`hybrid.symbolic_core`, the expressions' module), which compiles the Python source that ``_source`` writes itself from the
 node types of that module (never text a user supplied) with ``eval(compile(...))`` and an empty ``__builtins__``. No other module calls ``exec``, ``eval`` or
 ``compile``."""
 
