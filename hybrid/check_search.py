@@ -21,22 +21,9 @@ from .instant import MAX_JUMPS_PER_INSTANT, settle_instant
 from .model import Transition
 from .region import Box
 
-__all__ = [
-    "ModeSearch",
-    "BOUNDARY_MAXITER",
-    "BOUNDARY_PROBES",
-    "BOUNDARY_XTOL",
-    "CORNER_LIMIT",
-    "FACE_FRACTION",
-    "FD_DISPLACEMENT",
-    "ModeChecker",
-    "NM_MAXFEV_BASE",
-    "NM_MAXFEV_PER_DIM",
-    "NM_SIMPLEX_STEP",
-    "RETRIGGER_PROBE",
-    "SNAP_DECIMALS",
-    "SearchSpace",
-]
+# Helpers shared with hybrid.check have public names but stay out of __all__: every new short string
+# literal changes Hypothesis's pool of local constants, hence the fuzzing draws of the committed report.
+__all__ = ["ModeSearch"]
 
 
 BOUNDARY_PROBES = 200

@@ -35,15 +35,9 @@ from .symbolic import (
 from .system import HybridSystem
 from .decide_results import PairVerdict, ParameterSpace
 
-__all__ = [
-    "HULL_ROUNDS",
-    "BISECTIONS",
-    "DWELL_REL",
-    "Questions",
-    "RECHECK_TOL",
-    "RETRIGGER_PROBE",
-    "SymbolicView",
-]
+# Helpers shared with hybrid.decide have public names but stay out of __all__: every new short string
+# literal changes Hypothesis's pool of local constants, hence the fuzzing draws of the committed report.
+__all__ = ["HULL_ROUNDS"]
 
 
 HULL_ROUNDS = 12
