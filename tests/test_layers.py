@@ -236,10 +236,10 @@ MODULE_LINE_LIMIT = 1200
 FUNCTION_LINE_LIMIT = 100
 """A function or method has at most this many lines of code (counted as :func:`_code_lines` says)."""
 
-PENDING_OTHER_WORKER: dict[str, str] = {
-}
-"""``module:qualname`` (or ``module`` for a module's length) -> why it is allowed for now. Only files another worker
-is editing at the same time; the coordinator removes these entries after merging (issue 26, pending: other worker)."""
+PENDING_OTHER_WORKER: dict[str, str] = {}
+"""``module:qualname`` (or ``module`` for a module's length) -> why it is allowed for now (issue 26, pending: other
+worker). Only for files another worker is editing at the same time; the coordinator removes the entries after merging.
+Empty: no such file is over a bar on this branch."""
 
 
 def _code_lines(node: ast.FunctionDef | ast.AsyncFunctionDef, source: list[str]) -> int:
@@ -357,10 +357,10 @@ def test_no_private_name_is_imported_across_modules():
 
 
 CODE_GENERATION_SITES = {"hybrid.symbolic_core:_compile_lambda"}
-"""The one place that turns generated source into code: the compiled symbolic evaluator of
-:mod:`hybrid.symbolic` (``_compile_lambda`` in :mod:`hybrid.symbolic_core`, the expressions' module), which compiles the Python source that ``_source`` writes itself from the
-node types of that module (never text a user supplied) with ``eval(compile(...))`` and an empty ``__builtins__``. No other module calls ``exec``, ``eval`` or
-``compile``."""
+"""The one place that turns generated source into code: the compiled symbolic evaluator of :mod:`hybrid.symbolic`
+(``_compile_lambda`` in :mod:`hybrid.symbolic_core`, the expressions' module). It compiles, with
+``eval(compile(...))`` and an empty ``__builtins__``, the Python source that ``_source`` writes itself from the node
+types of that module (never text a user supplied). No other module calls ``exec``, ``eval`` or ``compile``."""
 
 
 def test_at_most_one_place_runs_generated_code():
