@@ -39,6 +39,8 @@ import numpy as np
 
 from hybrid.errors import NumericalFailure
 
+# Helpers shared with analysis.integrators have public names but stay out of __all__: every new short string
+# literal changes Hypothesis's pool of local constants, hence the fuzzing draws of the committed report.
 __all__ = [
     "MIN_ORDER",
     "MAX_ORDER",
@@ -326,7 +328,7 @@ def _validate_step(h: float, n_steps: int) -> tuple[float, int]:
     return h_value, int(n_steps)
 
 
-def _rk4_step(f: Callable, t: float, y: np.ndarray, h: float, substeps: int) -> np.ndarray:
+def rk4_step(f: Callable, t: float, y: np.ndarray, h: float, substeps: int) -> np.ndarray:
     """``substeps`` classical RK4 steps of size ``h / substeps`` from ``(t, y)``."""
     dt = h / substeps
     for i in range(substeps):
@@ -485,7 +487,7 @@ def integrate_bdf(
         if isinstance(rk4_substeps, bool) or not isinstance(rk4_substeps, int) or rk4_substeps < 1:
             raise ValueError(f"rk4_substeps = {rk4_substeps!r}: expected an integer >= 1, e.g. {RK4_SUBSTEPS}")
         for k in range(needed):
-            y[k + 1] = _rk4_step(f, float(t[k]), y[k], h, rk4_substeps)
+            y[k + 1] = rk4_step(f, float(t[k]), y[k], h, rk4_substeps)
     first_bdf = 0 if startup == "ramp" else needed
 
     iterations = 0

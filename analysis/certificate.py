@@ -51,6 +51,8 @@ from typing import Any
 from analysis.interval import Interval
 from analysis.polynomial import Atom, Polynomial
 
+# Helpers shared with analysis.sublevel have public names but stay out of __all__: every new short string
+# literal changes Hypothesis's pool of local constants, hence the fuzzing draws of the committed report.
 __all__ = [
     "CERTIFICATE_FORMAT",
     "STATUSES",
@@ -260,7 +262,7 @@ def _box_from_hex(data: Sequence[Sequence[str]]) -> Box:
 
 
 @dataclass(frozen=True, slots=True)
-class _Compiled:
+class CompiledPolynomial:
     """A polynomial prepared for interval evaluation on boxes over ``variables``."""
 
     variables: tuple[str, ...]
@@ -269,7 +271,9 @@ class _Compiled:
     depends: tuple[int, ...]  # indices of variables the polynomial depends on
 
 
-def _compile(poly: Polynomial, variables: Sequence[str]) -> _Compiled:
+def compile_polynomial(poly: Polynomial, variables: Sequence[str]) -> CompiledPolynomial:
+    """``poly`` prepared for :func:`enclose_compiled` on boxes over ``variables`` (which must bound every variable
+    of ``poly``, else :class:`InvalidRegion`)."""
     if not isinstance(poly, Polynomial):
         raise TypeError(
             f"poly is a {type(poly).__name__}: expected an analysis.polynomial.Polynomial "
@@ -288,7 +292,7 @@ def _compile(poly: Polynomial, variables: Sequence[str]) -> _Compiled:
         (Interval.enclosing(c), tuple((atom_index[a], p) for a, p in monomial))
         for monomial, c in poly.terms.items()
     )
-    return _Compiled(
+    return CompiledPolynomial(
         variables=variables,
         atoms=tuple((a.kind, variables.index(a.variable)) for a in atoms),
         terms=terms,
@@ -296,7 +300,8 @@ def _compile(poly: Polynomial, variables: Sequence[str]) -> _Compiled:
     )
 
 
-def _enclose(compiled: _Compiled, box: Box) -> Interval:
+def enclose_compiled(compiled: CompiledPolynomial, box: Box) -> Interval:
+    """An interval enclosing the compiled polynomial over ``box`` (one ``(lo, hi)`` per variable, in order)."""
     var_ivs: dict[int, Interval] = {}
     atom_ivs: list[Interval] = []
     for kind, index in compiled.atoms:
@@ -335,7 +340,7 @@ def enclose(poly: Polynomial, box: Mapping[str, tuple[float, float]]) -> Interva
     0.0
     """
     variables, region = _check_region(box)
-    return _enclose(_compile(poly, variables), region)
+    return enclose_compiled(compile_polynomial(poly, variables), region)
 
 
 # --------------------------------------------------------------------------- search
@@ -477,7 +482,7 @@ def certify_nonpositive(
             f"min_width = {min_width!r}: expected a finite width >= 0 (e.g. {DEFAULT_MIN_WIDTH})"
         )
     variables, region = _check_region(box)
-    compiled = _compile(poly, variables)
+    compiled = compile_polynomial(poly, variables)
     splits = _normalise_splits(variables, split_at)
     stack = _initial_boxes(variables, region, splits)
     stack.reverse()
@@ -495,13 +500,13 @@ def certify_nonpositive(
             break
         current = stack.pop()
         examined += 1
-        enclosure = _enclose(compiled, current)
+        enclosure = enclose_compiled(compiled, current)
         if enclosure.hi <= 0.0:
             accepted.append(current)
             bounds.append(enclosure.hi)
             continue
         point = tuple(0.5 * lo + 0.5 * hi for lo, hi in current)
-        at_point = _enclose(compiled, tuple((x, x) for x in point))
+        at_point = enclose_compiled(compiled, tuple((x, x) for x in point))
         if at_point.lo > 0.0:
             failed.append(current)
             counterexample, counterexample_bounds = point, (at_point.lo, at_point.hi)
@@ -628,7 +633,7 @@ def recheck_problems(
                 f"{dict(zip(expected_vars, expected))}"
             )
     try:
-        compiled = _compile(poly, variables)
+        compiled = compile_polynomial(poly, variables)
     except InvalidRegion as err:
         return (*problems, str(err))
     for k, box in enumerate(certificate.boxes):
@@ -639,7 +644,7 @@ def recheck_problems(
     if not covers(cert_region, certificate.boxes):
         problems.append("the boxes do not cover the region")
     for k, box in enumerate(certificate.boxes):
-        upper = _enclose(compiled, box).hi
+        upper = enclose_compiled(compiled, box).hi
         if not upper <= 0.0:
             problems.append(f"box {k} = {box}: the enclosure's upper bound is {upper!r} > 0")
     return tuple(problems)

@@ -62,8 +62,8 @@ from analysis.bdf import (
     BdfHistoryError,
     BdfStartupError,
     BdfStepSizeError,
-    _rk4_step,
     integrate_bdf,
+    rk4_step,
     validate_order,
 )
 from hybrid.errors import NumericalFailure
@@ -468,7 +468,7 @@ def _fixed_step(
                 y[k + 1] = y[k] + h * f(float(t[k]), y[k])
         elif scheme == "rk4":
             for k in range(n_steps):
-                y[k + 1] = _rk4_step(f, float(t[k]), y[k], h, 1)
+                y[k + 1] = rk4_step(f, float(t[k]), y[k], h, 1)
         else:
             used_startup = startup
             _abm4(f, t, y, h, startup, start_values, substeps)
@@ -509,7 +509,7 @@ def _abm4(
         y[1 : needed + 1] = values[:needed]
     else:
         for k in range(needed):
-            y[k + 1] = _rk4_step(f, float(t[k]), y[k], h, substeps)
+            y[k + 1] = rk4_step(f, float(t[k]), y[k], h, substeps)
     if n_steps <= 3:
         return
     scale = h / 24.0

@@ -81,19 +81,44 @@ Examples
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
-from hybrid.errors import ParameterError
-from hybrid.jsonable import to_jsonable
-
 from analysis import exact
 from analysis.exact import RationalMatrix
+from analysis.lmi_core import (
+    Boundary,
+    CommonLyapunovLMI,
+    DWELL_STATUSES,
+    DwellTimeLMI,
+    EXACT_METHOD,
+    LMI_STATUSES,
+    LinearCell,
+    LmiError,
+    MARGIN_DISCOUNTS,
+    PiecewiseQuadraticLMI,
+    Recheck,
+    SOLVERS,
+    SolverRun,
+    certified_rate,
+    checked_family,
+    checked_matrix,
+    checked_names,
+    checked_solvers,
+    dual_alternative,
+    exact_lie,
+    failure_text,
+    frozen_copy,
+    primal_lyapunov,
+    rate_text,
+    repaired_dual,
+    solve_first,
+    symmetrised,
+)
 
 __all__ = [
     "LmiError",
@@ -118,19 +143,6 @@ __all__ = [
     "SOLVERS",
 ]
 
-LMI_STATUSES = ("exists", "none", "undecided")
-"""``exists``/``none``: proven by an exact re-check; ``undecided``: neither re-checks."""
-DWELL_STATUSES = ("arbitrary", "certified", "unstable_mode", "undecided")
-"""``arbitrary``: a common quadratic Lyapunov function (dwell time 0); ``certified``: the LMI dwell
-time re-checked; ``unstable_mode``: a mode is not Hurwitz (exactly), so no dwell time helps."""
-SOLVERS = ("CLARABEL", "SCS")
-"""Tried in order: the interior-point Clarabel, then the splitting-cone SCS when Clarabel fails."""
-
-_SOLVER_OPTIONS = {"SCS": {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 20000}}
-_DUAL_SHIFT_SHARE = 0.25
-"""Share of the dual margin ``t`` the shift ``δI`` of the ``Z_i`` may cost (module docstring)."""
-_MARGIN_DISCOUNTS = (1.0 - 2.0**-10, 0.5)
-"""Certified margins: the float estimate times these factors, tried in order, decided exactly."""
 _DWELL_MIN_EPSILON = 1e-7
 """A dwell-time LMI counts as feasible when its margin ``ε*`` exceeds this (the solver's accuracy ~1e-8)."""
 _DWELL_SAFETY = 10.0
@@ -142,421 +154,7 @@ _MULTIPLIER_BOUND = 1e4
 _UNIT_ROUNDOFF = 2.0**-53
 
 
-class LmiError(ParameterError):
-    """Bad input to an LMI analysis: the parameter, the value found (a shape), what was expected, the fix."""
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class SolverRun:
-    """One call of a solver.
-
-    Attributes
-    ----------
-    problem : str
-        Which program (``"primal"``, ``"alternative"``, ``"dwell T=…"``, ``"piecewise"``).
-    solver : str
-        cvxpy's solver name.
-    status : str
-        cvxpy's status (``"optimal"``, ``"optimal_inaccurate"``, ``"infeasible"``, …) or ``"error"``.
-    message : str
-        The solver's error message (``""`` when it answered).
-    """
-
-    problem: str
-    solver: str
-    status: str
-    message: str = ""
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Recheck:
-    """How a certificate was re-checked outside the solver.
-
-    Attributes
-    ----------
-    method : str
-        E.g. ``"exact rational LDLᵀ on the float data"``.
-    passed : bool
-    detail : str
-        What was shown, or the first condition that failed.
-    margin : float
-        The margin certified by the re-check (see the result's ``margin``); ``nan`` when none.
-    """
-
-    method: str
-    passed: bool
-    detail: str
-    margin: float = math.nan
-
-
-_EXACT = "exact rational LDLᵀ (Sylvester pivots) on the float data converted exactly"
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class CommonLyapunovLMI:
-    """Whether a common quadratic Lyapunov function of a family exists: proven either way, or undecided.
-
-    Attributes
-    ----------
-    names : tuple of str
-        The family members.
-    status : str
-        One of :data:`LMI_STATUSES`.
-    proven : bool
-        ``status != "undecided"`` (the re-check passed).
-    P : ndarray or None, shape (n, n)
-        ``V = xᵀPx`` (trace 1, read-only), exactly the matrix re-checked; ``None`` unless ``"exists"``.
-    dual : tuple of ndarray or None, each shape (n, n)
-        The ``Z_i`` of a certificate of absence (repaired, exactly as re-checked, read-only).
-    witness_weights : tuple of float or None
-        When absence is proven by a combination ``Σ w_iA_i`` that is not Hurwitz: the weights ``w_i ≥ 0``.
-    margin : float
-        ``"exists"``: ``α`` [1/s] with ``A_iᵀP + PA_i + αP ≺ 0`` exactly (``V̇ ≤ −αV`` in every mode;
-        ``0`` if only strict decrease re-checks).  ``"none"`` by ``dual``: ``t`` [1/s] with
-        ``Σ(A_iZ_i + Z_iA_iᵀ) ⪰ t·(Σ tr Z_i)·I`` exactly; by a witness: the combination's spectral
-        abscissa (float) [1/s].  ``nan`` (JSON ``null``) when undecided.
-    recheck : Recheck
-    solver : tuple of SolverRun
-    finding : str
-        One sentence.
-    """
-
-    names: tuple[str, ...]
-    status: str
-    proven: bool
-    P: np.ndarray | None
-    dual: tuple[np.ndarray, ...] | None
-    witness_weights: tuple[float, ...] | None
-    margin: float
-    recheck: Recheck
-    solver: tuple[SolverRun, ...]
-    finding: str
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view: every field (``null`` for non-finite numbers); byte-stable across runs."""
-        return to_jsonable(self)
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class DwellTimeLMI:
-    """The smallest dwell time certified by mode-dependent quadratic Lyapunov functions (Geromel–Colaneri).
-
-    Attributes
-    ----------
-    names : tuple of str
-    status : str
-        One of :data:`DWELL_STATUSES`.
-    proven : bool
-        The answer re-checked (exactly for ``"arbitrary"`` and ``"unstable_mode"``; in float64 with a
-        stated error bound for ``"certified"``, see :func:`recheck_dwell_time`).
-    dwell_time_s : float
-        ``T`` [s]: every switching signal that stays ``≥ T`` in each mode is stable (an upper bound on
-        the minimum dwell time); ``0`` for ``"arbitrary"``, ``inf`` (JSON ``null``) when none is certified.
-    lower_bound_s : float
-        The largest ``T`` tried at which the LMIs were not certified (bisection bracket, not a proof).
-    baseline_dwell_time_s : float
-        ``ln μ / λ0`` from the modes' own Lyapunov functions (the formula of
-        :func:`analysis.linearise.common_quadratic_lyapunov`); the LMI ``T`` is never larger.
-    P : tuple of ndarray
-        The ``P_i`` at ``dwell_time_s`` (read-only; empty when none).
-    recheck : Recheck
-    solver : tuple of SolverRun
-        The runs of the certifying solve.
-    solves : int
-        LMIs solved in the bisection.
-    finding : str
-    """
-
-    names: tuple[str, ...]
-    status: str
-    proven: bool
-    dwell_time_s: float
-    lower_bound_s: float
-    baseline_dwell_time_s: float
-    P: tuple[np.ndarray, ...]
-    recheck: Recheck
-    solver: tuple[SolverRun, ...]
-    solves: int
-    finding: str
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view: every field (``null`` for non-finite numbers)."""
-        return to_jsonable(self)
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class LinearCell:
-    """One cell of a state-dependent switched linear system: ``ẋ = A x`` on ``{x : E x ≥ 0}``.
-
-    Attributes
-    ----------
-    A : array_like, shape (n, n)
-        The mode's matrix [1/s].
-    E : array_like, shape (r, n)
-        The cone's inequalities (one row per half-space through the origin; ``r = 0``: all of ``ℝⁿ``).
-    name : str or None
-        Label (``cell<k>`` when ``None``).
-    """
-
-    A: Any
-    E: Any
-    name: str | None = None
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Boundary:
-    """A boundary hyperplane ``hᵀx = 0`` between two cells, across which ``V`` is continuous.
-
-    Attributes
-    ----------
-    cells : tuple of str
-        The two cells.
-    normal : tuple of float
-        ``h``.
-    derived : bool
-        Found from opposite rows of the cells' ``E`` (``False``: given by the caller).
-    """
-
-    cells: tuple[str, str]
-    normal: tuple[float, ...]
-    derived: bool
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class PiecewiseQuadraticLMI:
-    """A piecewise quadratic Lyapunov function (Johansson–Rantzer), re-checked exactly, or undecided.
-
-    Attributes
-    ----------
-    names : tuple of str
-        The cells.
-    status : str
-        ``"exists"`` (re-checked) or ``"undecided"`` (a failed search proves nothing).
-    proven : bool
-    P : tuple of ndarray or None
-        ``V = xᵀP_ix`` on cell ``i`` (floats nearest to the exact rational ``P_i`` of :attr:`exact_P`).
-    U, W : tuple of ndarray or None
-        The S-procedure multipliers, exactly as re-checked (symmetric, ``≥ 0``, zero diagonal).
-    boundaries : tuple of Boundary
-        Where continuity was imposed.
-    margin : float
-        ``α`` [1/s] with ``A_iᵀP_i + P_iA_i + E_iᵀW_iE_i + αP_i ≺ 0`` exactly (``V̇ ≤ −αV`` on every
-        cell; ``0`` if only strict decrease re-checks); ``nan`` when undecided.
-    recheck : Recheck
-    solver : tuple of SolverRun
-    finding : str
-    exact_P : tuple of RationalMatrix or None
-        The re-checked ``P_i`` in exact rationals (not in the JSON view).
-    """
-
-    names: tuple[str, ...]
-    status: str
-    proven: bool
-    P: tuple[np.ndarray, ...] | None
-    U: tuple[np.ndarray, ...] | None
-    W: tuple[np.ndarray, ...] | None
-    boundaries: tuple[Boundary, ...]
-    margin: float
-    recheck: Recheck
-    solver: tuple[SolverRun, ...]
-    finding: str
-    exact_P: tuple[RationalMatrix, ...] | None = field(default=None, metadata={"json": False})
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view: every field but :attr:`exact_P` (``null`` for non-finite numbers)."""
-        return to_jsonable(self)
-
-
-# ----------------------------------------------------------------------------------------- input checks
-
-
-def _matrix(value: Any, parameter: str, *, columns: int | None = None) -> np.ndarray:
-    """A finite float matrix: square when ``columns`` is ``None``, else ``(r, columns)``."""
-    raw = np.asarray(value) if not isinstance(value, (str, bytes)) else None
-    if raw is not None and np.iscomplexobj(raw):
-        raise LmiError(parameter, "complex", "a matrix of real numbers",
-                       "give the real matrix of the mode (complex entries would be cut to their real parts)")
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise LmiError(parameter, type(value).__name__, "a matrix of real numbers",
-                       "give a numpy array or nested lists of numbers") from None
-    if columns is None and (array.ndim != 2 or array.shape[0] != array.shape[1]):
-        raise LmiError(parameter, array.shape, "a square matrix, shape (n, n)",
-                       "give the mode's matrix A with as many rows as columns")
-    if columns is not None and (array.ndim != 2 or array.shape[1] != columns):
-        raise LmiError(parameter, array.shape, f"a matrix of shape (r, {columns}): one column per state",
-                       f"give each inequality row with {columns} coefficients")
-    bad = np.argwhere(~np.isfinite(array))
-    if bad.size:
-        raise LmiError(parameter, array.shape, "finite entries",
-                       f"replace the non-finite entry at {tuple(int(i) for i in bad[0])} (NaN or inf) by a number")
-    array.setflags(write=False)
-    return array
-
-
-def _family(family: Any, parameter: str = "family") -> list[np.ndarray]:
-    if isinstance(family, np.ndarray) and family.ndim != 3:
-        raise LmiError(parameter, family.shape, "a sequence of square matrices (or an array of shape (m, n, n))",
-                       "wrap a single matrix in a list: [A]")
-    if isinstance(family, (str, bytes)) or not hasattr(family, "__len__"):
-        raise LmiError(parameter, type(family).__name__, "a sequence of square matrices", "give a list [A_1, ..., A_m]")
-    if len(family) == 0:
-        raise LmiError(parameter, "empty", "at least one square matrix", "give the matrices A_i of the modes")
-    mats = [_matrix(a, f"{parameter}[{i}]") for i, a in enumerate(family)]
-    n = mats[0].shape[0]
-    for i, a in enumerate(mats):
-        if a.shape != (n, n):
-            raise LmiError(f"{parameter}[{i}]", a.shape, f"shape ({n}, {n}) like {parameter}[0]",
-                           "give every mode the same states")
-    if n == 0:
-        raise LmiError(f"{parameter}[0]", (0, 0), "at least one state", "give matrices of size n >= 1")
-    return mats
-
-
-def _names(names: Any, count: int, prefix: str, parameter: str = "names") -> tuple[str, ...]:
-    if names is None:
-        return tuple(f"{prefix}{i}" for i in range(count))
-    if isinstance(names, (str, bytes)) or not hasattr(names, "__len__"):
-        raise LmiError(parameter, names, f"a sequence of {count} strings", "give one name per mode, e.g. ('a', 'b')")
-    labels = tuple(names)
-    if len(labels) != count or not all(isinstance(s, str) for s in labels):
-        raise LmiError(parameter, labels, f"{count} strings, one per mode", "give one name per mode")
-    if len(set(labels)) != count:
-        raise LmiError(parameter, labels, "distinct names", "rename the duplicates")
-    return labels
-
-
-_SDP_SOLVERS = frozenset({"CLARABEL", "SCS", "MOSEK", "CVXOPT", "SDPA", "COPT"})
-"""cvxpy solvers that take semidefinite constraints (an LP/QP solver such as HiGHS or OSQP cannot)."""
-
-
-def _solvers(solver: Any) -> tuple[str, ...]:
-    if solver is None:
-        return SOLVERS
-    chosen = (solver,) if isinstance(solver, str) else tuple(solver)
-    import cvxpy as cp
-
-    installed = set(cp.installed_solvers()) & _SDP_SOLVERS
-    if not chosen or not all(isinstance(s, str) and s.upper() in installed for s in chosen):
-        raise LmiError("solver", solver, f"None or names of installed SDP solvers {sorted(installed)}",
-                       "leave solver=None (Clarabel, then SCS)")
-    return tuple(s.upper() for s in chosen)
-
-
-# ----------------------------------------------------------------------------------------- solving
-
-
-def _solve(problem: Any, variables: Sequence[Any], solvers: Sequence[str],
-           label: str) -> tuple[list[np.ndarray] | None, tuple[SolverRun, ...]]:
-    """Values of ``variables`` from the first solver that answers ``optimal``, else from an inaccurate one."""
-    import cvxpy as cp
-
-    runs: list[SolverRun] = []
-    fallback = None
-    for name in solvers:
-        try:
-            with warnings.catch_warnings():  # "may be inaccurate": the status says so and the re-check decides
-                warnings.simplefilter("ignore")
-                problem.solve(solver=name, **_SOLVER_OPTIONS.get(name, {}))
-        except (cp.error.SolverError, ArithmeticError, ValueError) as err:
-            runs.append(SolverRun(problem=label, solver=name, status="error", message=str(err)[:300]))
-            continue
-        status = str(problem.status)
-        runs.append(SolverRun(problem=label, solver=name, status=status))
-        if status in ("optimal", "optimal_inaccurate") and all(v.value is not None for v in variables):
-            values = [np.array(v.value, dtype=float) for v in variables]
-            if status == "optimal":
-                return values, tuple(runs)
-            fallback = fallback or values
-    return fallback, tuple(runs)
-
-
-def _failure(what: str, runs: Sequence[SolverRun]) -> str:
-    """``"<what> did not solve (CLARABEL: <status or message>; SCS: …)"``."""
-    last = runs[-1].problem if runs else None
-    told = "; ".join(f"{r.solver}: {r.message or r.status}" for r in runs if r.problem == last)
-    return f"{what} did not solve ({told})" if told else f"{what} did not solve"
-
-
-def _rate(alpha: float) -> str:
-    """``"V̇ <= -α·V"``, or ``"V̇ < 0"`` when no rate was certified."""
-    return f"V̇ <= -{alpha:.4g}·V" if alpha > 0 else "V̇ < 0"
-
-
-def _sym(m: np.ndarray) -> np.ndarray:
-    """``(M + Mᵀ)/2`` in floats: exactly symmetric (IEEE addition commutes)."""
-    return 0.5 * (m + m.T)
-
-
-def _frozen(m: np.ndarray) -> np.ndarray:
-    m = np.array(m, dtype=float)
-    m.setflags(write=False)
-    return m
-
-
-def _primal(scaled: list[np.ndarray], solvers: Sequence[str]) -> tuple[np.ndarray | None, float,
-                                                                          tuple[SolverRun, ...]]:
-    import cvxpy as cp
-
-    n = scaled[0].shape[0]
-    eye = np.eye(n)
-    p, eps = cp.Variable((n, n), symmetric=True), cp.Variable()
-    cons = [p << eye, p >> eps * eye] + [a.T @ p + p @ a << -eps * eye for a in scaled]
-    values, runs = _solve(cp.Problem(cp.Maximize(eps), cons), [p, eps], solvers, "primal")
-    if values is None:
-        return None, math.nan, runs
-    return values[0], float(values[1]), runs
-
-
-def _alternative(scaled: list[np.ndarray], solvers: Sequence[str]) -> tuple[list[np.ndarray] | None, float,
-                                                                              tuple[SolverRun, ...]]:
-    import cvxpy as cp
-
-    n = scaled[0].shape[0]
-    zs = [cp.Variable((n, n), PSD=True) for _ in scaled]
-    t = cp.Variable()
-    total = sum(a @ z + z @ a.T for a, z in zip(scaled, zs))
-    cons = [total >> t * np.eye(n), sum(cp.trace(z) for z in zs) == 1]
-    values, runs = _solve(cp.Problem(cp.Maximize(t), cons), [*zs, t], solvers, "alternative")
-    if values is None:
-        return None, math.nan, runs
-    return values[:-1], float(values[-1]), runs
-
-
-def _repair_dual(scaled: list[np.ndarray], zs: list[np.ndarray], t: float,
-                 scales: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Symmetrise, clip to the cone, shift by ``δI`` (module docstring), map to the unscaled family, trace 1."""
-    spread = sum(float(np.linalg.norm(a + a.T, 2)) for a in scaled)
-    delta = _DUAL_SHIFT_SHARE * t / spread if spread > 0 else _DUAL_SHIFT_SHARE * t
-    n = scaled[0].shape[0]
-    out = []
-    for z, c in zip(zs, scales):
-        values, vectors = np.linalg.eigh(_sym(z))
-        z = (vectors * np.maximum(values, 0.0)) @ vectors.T + delta * np.eye(n)
-        out.append(_sym(z) / c)  # Ã_i = A_i / c_i: the certificate of the A_i is Z_i / c_i
-    total = sum(float(np.trace(z)) for z in out)
-    return tuple(_frozen(_sym(z / total)) for z in out)
-
-
 # ----------------------------------------------------------------------------------------- exact re-checks
-
-
-def _lie(a: RationalMatrix, p: RationalMatrix) -> RationalMatrix:
-    """``AᵀP + PA`` exactly."""
-    return a.T @ p + p @ a
-
-
-def _certify_rate(lies: list[RationalMatrix], p: RationalMatrix, estimate: float) -> float:
-    """The largest of ``estimate·discounts`` with ``L_i + αP ≺ 0`` for all ``i`` exactly; 0 if none."""
-    if not (estimate > 0 and math.isfinite(estimate)):
-        return 0.0
-    for factor in _MARGIN_DISCOUNTS:
-        alpha = float(estimate * factor)
-        shifted = p.scaled(alpha)
-        if all(exact.is_negative_definite(lie + shifted) for lie in lies):
-            return alpha
-    return 0.0
 
 
 def recheck_common_lyapunov(family: Sequence[Any], P: Any) -> Recheck:
@@ -580,29 +178,29 @@ def recheck_common_lyapunov(family: Sequence[Any], P: Any) -> Recheck:
     """
     from scipy.linalg import eigh
 
-    mats = _family(family)
-    p_float = _matrix(P, "P")
+    mats = checked_family(family)
+    p_float = checked_matrix(P, "P")
     if p_float.shape != mats[0].shape:
         raise LmiError("P", p_float.shape, f"shape {mats[0].shape} like the family", "give an n×n matrix")
     p = exact.as_rational(p_float)
     if not p.is_symmetric():
-        return Recheck(method=_EXACT, passed=False, detail="P is not symmetric")
+        return Recheck(method=EXACT_METHOD, passed=False, detail="P is not symmetric")
     test = exact.pivot_test(p)
     if not test.positive_definite:
-        return Recheck(method=_EXACT, passed=False,
+        return Recheck(method=EXACT_METHOD, passed=False,
                        detail=f"P is not positive definite (pivot {test.failed_at} is {test.smallest_pivot:.3g})")
     lies = []
     for i, a in enumerate(mats):
-        lie = _lie(exact.as_rational(a), p)
+        lie = exact_lie(exact.as_rational(a), p)
         test = exact.pivot_test(-lie)
         if not test.positive_definite:
-            return Recheck(method=_EXACT, passed=False,
+            return Recheck(method=EXACT_METHOD, passed=False,
                            detail=f"A_{i}ᵀP + PA_{i} is not negative definite (pivot {test.failed_at} of its "
                                   f"negative is {test.smallest_pivot:.3g})")
         lies.append(lie)
     estimate = min(float(eigh(-(a.T @ p_float + p_float @ a), p_float, eigvals_only=True).min()) for a in mats)
-    alpha = _certify_rate(lies, p, estimate)
-    return Recheck(method=_EXACT, passed=True, margin=alpha,
+    alpha = certified_rate(lies, p, estimate)
+    return Recheck(method=EXACT_METHOD, passed=True, margin=alpha,
                    detail=f"P ≻ 0 and A_iᵀP + PA_i + αP ≺ 0 with α = {alpha:.6g} 1/s for all {len(mats)} "
                           "members, in exact arithmetic")
 
@@ -622,8 +220,8 @@ def recheck_no_common_lyapunov(family: Sequence[Any], dual: Sequence[Any]) -> Re
         (``0`` when only ``⪰ 0`` re-checks, which is still a proof).
     """
     method = "exact rational LDLᵀ / inertia of the alternative certificate on the float data"
-    mats = _family(family)
-    zs_float = _family(dual, "dual")
+    mats = checked_family(family)
+    zs_float = checked_family(dual, "dual")
     if len(zs_float) != len(mats) or zs_float[0].shape != mats[0].shape:
         raise LmiError("dual", [z.shape for z in zs_float], f"{len(mats)} matrices of shape {mats[0].shape}",
                        "give one Z_i per member")
@@ -641,7 +239,7 @@ def recheck_no_common_lyapunov(family: Sequence[Any], dual: Sequence[Any]) -> Re
         total = term if total is None else total + term
     t_float = float(np.linalg.eigvalsh(sum(a @ z + z @ a.T for a, z in zip(mats, zs_float))).min()) / float(tau)
     eye = RationalMatrix.identity(mats[0].shape[0]).scaled(tau)
-    for t in ([t_float * f for f in _MARGIN_DISCOUNTS] if t_float > 0 else []):
+    for t in ([t_float * f for f in MARGIN_DISCOUNTS] if t_float > 0 else []):
         if exact.is_positive_definite(total - eye.scaled(float(t))):
             return Recheck(method=method, passed=True, margin=float(t),
                            detail=f"Z_i ⪰ 0 and Σ(A_iZ_i + Z_iA_iᵀ) ⪰ t·(Σ tr Z_i)·I with t = {float(t):.6g} "
@@ -730,30 +328,30 @@ def common_quadratic_lyapunov_lmi(family: Sequence[Any], names: Sequence[str] | 
     LmiError
         An empty family, a non-square, non-finite or mismatched matrix, names of the wrong length.
     """
-    mats = _family(family)
-    labels = _names(names, len(mats), "A")
-    solvers = _solvers(solver)
+    mats = checked_family(family)
+    labels = checked_names(names, len(mats), "A")
+    solvers = checked_solvers(solver)
     scales = np.array([float(np.linalg.norm(a, 2)) or 1.0 for a in mats])
     scaled = [a / c for a, c in zip(mats, scales)]  # positive scaling of a member changes nothing
     reasons = []
-    p, eps, runs = _primal(scaled, solvers)
+    p, eps, runs = primal_lyapunov(scaled, solvers)
     if p is not None and eps > 0:
-        p = _sym(p)
-        p = _frozen(_sym(p / np.trace(p)))
+        p = symmetrised(p)
+        p = frozen_copy(symmetrised(p / np.trace(p)))
         check = recheck_common_lyapunov(mats, p)
         if check.passed:
             return CommonLyapunovLMI(
                 names=labels, status="exists", proven=True, P=p, dual=None, witness_weights=None,
                 margin=check.margin, recheck=check, solver=runs,
                 finding=(f"a common quadratic Lyapunov function exists (proven exactly): V = xᵀPx decreases in every "
-                         f"mode, {_rate(check.margin)}: exponentially stable under arbitrary switching"))
+                         f"mode, {rate_text(check.margin)}: exponentially stable under arbitrary switching"))
         reasons.append(f"the primal P (solver margin {eps:.3g}) fails the exact re-check: {check.detail}")
     else:
-        reasons.append(_failure("the primal", runs) if p is None else f"the primal margin is {eps:.3g} <= 0")
-    zs, t, dual_runs = _alternative(scaled, solvers)
+        reasons.append(failure_text("the primal", runs) if p is None else f"the primal margin is {eps:.3g} <= 0")
+    zs, t, dual_runs = dual_alternative(scaled, solvers)
     runs = runs + dual_runs
     if zs is not None and t > 0:
-        repaired = _repair_dual(scaled, zs, t, scales)
+        repaired = repaired_dual(scaled, zs, t, scales)
         check = recheck_no_common_lyapunov(mats, repaired)
         if check.passed:
             return CommonLyapunovLMI(
@@ -764,7 +362,7 @@ def common_quadratic_lyapunov_lmi(family: Sequence[Any], names: Sequence[str] | 
                          "state-dependent switching)"))
         reasons.append(f"the dual certificate (solver margin {t:.3g}) fails the exact re-check: {check.detail}")
     else:
-        reasons.append(_failure("the alternative", dual_runs) if zs is None else f"the dual margin is {t:.3g} <= 0")
+        reasons.append(failure_text("the alternative", dual_runs) if zs is None else f"the dual margin is {t:.3g} <= 0")
     weights = _unstable_combination(mats, scales, zs)
     if weights is not None:
         abscissa = _abscissa(mats, weights)
@@ -781,7 +379,7 @@ def common_quadratic_lyapunov_lmi(family: Sequence[Any], names: Sequence[str] | 
              else "the family is at the border of the solvers' accuracy")
     return CommonLyapunovLMI(
         names=labels, status="undecided", proven=False, P=None, dual=None, witness_weights=None, margin=math.nan,
-        recheck=Recheck(method=_EXACT, passed=False, detail=why), solver=runs,
+        recheck=Recheck(method=EXACT_METHOD, passed=False, detail=why), solver=runs,
         finding=f"undecided: neither a common quadratic Lyapunov function nor a proof of its absence re-checks "
                 f"({why}); {cause}")
 
@@ -798,7 +396,7 @@ def _baseline_dwell(mats: list[np.ndarray]) -> float:
     from scipy.linalg import solve_continuous_lyapunov
 
     n = mats[0].shape[0]
-    eigs = [np.linalg.eigvalsh(_sym(solve_continuous_lyapunov(a.T, -np.eye(n)))) for a in mats]
+    eigs = [np.linalg.eigvalsh(symmetrised(solve_continuous_lyapunov(a.T, -np.eye(n)))) for a in mats]
     if any(e.min() <= 0 for e in eigs):
         return math.inf
     mu = max(ei.max() / ej.min() for ei in eigs for ej in eigs)
@@ -821,7 +419,7 @@ def _dwell_lmi(scaled: list[np.ndarray], expms: list[np.ndarray], solvers: Seque
     cons = [c for p in ps for c in (p << eye, p >> eps * eye)]
     cons += [a.T @ p + p @ a << -eps * eye for a, p in zip(scaled, ps)]
     cons += [e.T @ ps[j] @ e - ps[i] << -eps * eye for i, e in enumerate(expms) for j in range(m) if j != i]
-    values, runs = _solve(cp.Problem(cp.Maximize(eps), cons), [*ps, eps], solvers, label)
+    values, runs = solve_first(cp.Problem(cp.Maximize(eps), cons), [*ps, eps], solvers, label)
     if values is None:
         return None, math.nan, runs
     return values[:-1], float(values[-1]), runs
@@ -854,8 +452,8 @@ def recheck_dwell_time(family: Sequence[Any], P: Sequence[Any], dwell_time_s: fl
     """
     from scipy.linalg import expm
 
-    mats = _family(family)
-    ps = _family(P, "P")
+    mats = checked_family(family)
+    ps = checked_family(P, "P")
     if len(ps) != len(mats) or ps[0].shape != mats[0].shape:
         raise LmiError("P", [p.shape for p in ps], f"{len(mats)} matrices of shape {mats[0].shape}",
                        "give one P_i per mode")
@@ -935,7 +533,7 @@ def _dwell_search(mats: Sequence[np.ndarray], solvers: tuple[str, ...], baseline
         ps, eps, runs = _dwell_lmi(scaled, [expm(a * t) for a in mats], solvers, f"dwell T={t:.6g}")
         if ps is None or not eps > _DWELL_MIN_EPSILON:
             return None, runs
-        ps = tuple(_frozen(_sym(p)) for p in ps)
+        ps = tuple(frozen_copy(symmetrised(p)) for p in ps)
         check = recheck_dwell_time(mats, ps, t)
         return ((ps, check) if check.passed else None), runs
 
@@ -988,9 +586,9 @@ def dwell_time_lyapunov(family: Sequence[Any], names: Sequence[str] | None = Non
     LmiError
         As :func:`common_quadratic_lyapunov_lmi`, or ``rel_tol`` / ``max_doublings`` out of range.
     """
-    mats = _family(family)
-    labels = _names(names, len(mats), "A")
-    solvers = _solvers(solver)
+    mats = checked_family(family)
+    labels = checked_names(names, len(mats), "A")
+    solvers = checked_solvers(solver)
     if isinstance(rel_tol, bool) or not isinstance(rel_tol, (int, float)) or not 0.0 < rel_tol < 1.0:
         raise LmiError("rel_tol", rel_tol, "a number in (0, 1)", "give e.g. rel_tol=1e-3")
     if isinstance(max_doublings, bool) or not isinstance(max_doublings, int) or max_doublings < 0:
@@ -1041,13 +639,13 @@ def _cells(cells: Any) -> tuple[list[np.ndarray], list[np.ndarray], tuple[str, .
         else:
             raise LmiError(f"cells[{k}]", type(cell).__name__, "a LinearCell(A=..., E=...) or a pair (A, E)",
                            "describe the cell by its matrix A and its cone {x : E x >= 0}")
-        a = _matrix(a, f"cells[{k}].A")
+        a = checked_matrix(a, f"cells[{k}].A")
         n = mats[0].shape[0] if mats else a.shape[0]
         if a.shape != (n, n):
             raise LmiError(f"cells[{k}].A", a.shape, f"shape ({n}, {n}) like cells[0].A",
                            "give every cell the same states")
         mats.append(a)
-        es.append(_matrix(e, f"cells[{k}].E", columns=n))
+        es.append(checked_matrix(e, f"cells[{k}].E", columns=n))
         labels.append(f"cell{k}" if name is None else name)
     if not all(isinstance(s, str) for s in labels) or len(set(labels)) != len(labels):
         raise LmiError("cells names", tuple(labels), "distinct strings", "name every cell once")
@@ -1184,7 +782,7 @@ def _pwq_program(scaled: list[np.ndarray], es: list[np.ndarray], basis: np.ndarr
         ws.append(w)
         cons += [p - u_term >> eps * eye, a.T @ p + p @ a + w_term << -eps * eye, p << eye]
     free = [v for v in us + ws if v is not None]
-    values, runs = _solve(cp.Problem(cp.Maximize(eps), cons), [theta, eps, *free], solvers, "piecewise")
+    values, runs = solve_first(cp.Problem(cp.Maximize(eps), cons), [theta, eps, *free], solvers, "piecewise")
     if values is None:
         return None, runs
     it = iter(values[2:])
@@ -1198,10 +796,10 @@ def _pwq_program(scaled: list[np.ndarray], es: list[np.ndarray], basis: np.ndarr
 def _clean_multiplier(v: np.ndarray | None, r: int, factor: float = 1.0) -> np.ndarray:
     """Symmetric, elementwise ``>= 0``, zero diagonal: exactly (the repair before the exact re-check)."""
     if v is None:
-        return _frozen(np.zeros((r, r)))
-    v = np.maximum(_sym(factor * v), 0.0)
+        return frozen_copy(np.zeros((r, r)))
+    v = np.maximum(symmetrised(factor * v), 0.0)
     np.fill_diagonal(v, 0.0)
-    return _frozen(v)
+    return frozen_copy(v)
 
 
 def _multiplier_fault(name: str, v: RationalMatrix, r: int) -> str | None:
@@ -1226,7 +824,7 @@ def _pwq_conditions(mats: list[np.ndarray], es: list[np.ndarray], ps: list[Ratio
         er = exact.as_rational(e) if e.shape[0] else None
         if not exact.is_positive_definite(p if er is None else p - er.T @ u @ er):
             return None, f"P_{i} − E_{i}ᵀU_{i}E_{i} is not positive definite"
-        lie = _lie(exact.as_rational(a), p) if er is None else _lie(exact.as_rational(a), p) + er.T @ w @ er
+        lie = exact_lie(exact.as_rational(a), p) if er is None else exact_lie(exact.as_rational(a), p) + er.T @ w @ er
         if not exact.is_negative_definite(lie):
             return None, f"A_{i}ᵀP_{i} + P_{i}A_{i} + E_{i}ᵀW_{i}E_{i} is not negative definite"
         lies.append(lie)
@@ -1280,7 +878,7 @@ def recheck_piecewise_quadratic(cells: Sequence[Any], P: Sequence[Any], U: Seque
     estimate = min(float(np.linalg.eigvalsh(-lie.to_array()).min()) / max(float(np.linalg.eigvalsh(p).max()), 1e-300)
                    for lie, p in zip(lies, floats))  # −L ⪰ μI and P ⪯ λI: L + αP ≺ 0 for α < μ/λ
     alpha = 0.0
-    for factor in _MARGIN_DISCOUNTS:
+    for factor in MARGIN_DISCOUNTS:
         trial = float(estimate * factor)
         if trial > 0 and all(exact.is_negative_definite(lie + p.scaled(trial)) for lie, p in zip(lies, ps)):
             alpha = trial
@@ -1318,7 +916,7 @@ def piecewise_quadratic_lyapunov(cells: Sequence[Any], *, boundaries: Sequence[A
         No cells, a non-square or non-finite ``A``, an ``E`` with the wrong number of columns, a bad boundary.
     """
     mats, es, labels = _cells(cells)
-    solvers = _solvers(solver)
+    solvers = checked_solvers(solver)
     n, m = mats[0].shape[0], len(mats)
     bounds = _boundaries(boundaries, es, labels, n)
     shown = tuple(Boundary(cells=(labels[i], labels[j]), normal=tuple(float(x) for x in h), derived=dv)
@@ -1338,7 +936,7 @@ def piecewise_quadratic_lyapunov(cells: Sequence[Any], *, boundaries: Sequence[A
     scales = np.array([float(np.linalg.norm(a, 2)) or 1.0 for a in mats])
     solved, runs = _pwq_program([a / c for a, c in zip(mats, scales)], es, basis, solvers)
     if solved is None:
-        return undecided(_failure("the program", runs), runs)
+        return undecided(failure_text("the program", runs), runs)
     theta, eps, us_raw, ws_raw = solved
     if not eps > 0:
         return undecided(f"the best margin is {eps:.3g} <= 0", runs)
@@ -1358,10 +956,10 @@ def piecewise_quadratic_lyapunov(cells: Sequence[Any], *, boundaries: Sequence[A
     if not check.passed:
         return undecided(f"the solver's answer (margin {eps:.3g}) fails the exact re-check: {check.detail}", runs)
     return PiecewiseQuadraticLMI(
-        names=labels, status="exists", proven=True, P=tuple(_frozen(p.to_array()) for p in ps), U=us, W=ws,
+        names=labels, status="exists", proven=True, P=tuple(frozen_copy(p.to_array()) for p in ps), U=us, W=ws,
         boundaries=shown, margin=check.margin, recheck=check, solver=runs, exact_P=tuple(ps),
         finding=(f"a piecewise quadratic Lyapunov function exists (proven exactly) on {m} cells: V continuous, "
-                 f"{_rate(check.margin)} on every cell: the origin is exponentially stable for solutions that "
+                 f"{rate_text(check.margin)} on every cell: the origin is exponentially stable for solutions that "
                  "cross the boundaries (no sliding)"))
 
 
@@ -1404,7 +1002,7 @@ def planted_common_lyapunov(rng: np.random.Generator, n: int, m: int, *,
     """
     _check_sizes(n, m, 1, 1)
     q, _ = np.linalg.qr(rng.standard_normal((n, n)))
-    p = _sym(q @ np.diag(np.exp(rng.uniform(0.0, math.log(condition), n))) @ q.T)
+    p = symmetrised(q @ np.diag(np.exp(rng.uniform(0.0, math.log(condition), n))) @ q.T)
     family = tuple(10.0 ** rng.uniform(-1.0, 1.0) * np.linalg.solve(p, _skew_minus_pd(rng, n)) for _ in range(m))
     return family, p
 

@@ -77,20 +77,18 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
-import casadi as ca
 import cvxpy as cp
 import numpy as np
 import scipy.linalg as la
 from scipy.optimize import minimize
 
 from analysis import exact
-from analysis.certificate import enclose
 from analysis.equilibria import mode_equilibrium
-from analysis.polynomial import Atom, Polynomial, PolynomialError, UnsupportedExpression, normal_form
+from analysis.polynomial import Atom, Polynomial
 from analysis.sos import (
     SosPoly,
     SosProgram,
@@ -106,15 +104,24 @@ from analysis.sublevel import (
     SublevelCertificate,
     bound_on_sublevel,
     certify_sublevel,
-    enclose_batch,
     lie_derivative,
-    partial_derivative,
     recheck_bound,
     recheck_sublevel,
 )
-from hybrid import Conjunction, HybridSystem
+from hybrid import HybridSystem
 from hybrid.errors import ParameterError
-from hybrid.system import state_vector
+from analysis.mode_polynomials import (
+    ModePolynomials,
+    NotPolynomialError,
+    check_system_mode,
+    linear_part,
+    mode_memory,
+    mode_polynomials,
+    quadratic_matrix,
+    state_point,
+    substitute_exact,
+)
+from analysis.mode_region_bounds import Matrix, inner_data, inner_problems, sharpen_layers, time_bound, time_problems
 
 __all__ = [
     "MODE_REGION_FORMAT",
@@ -135,8 +142,6 @@ MODE_REGION_STATUSES = ("proven", "not proven", "not applicable")
 DEFAULT_MAX_BOXES = 200_000
 """Default budget of box evaluations of each branch-and-bound search."""
 
-_SHIFT = "Δ"
-"""Prefix of the shifted coordinates ``Δx = x − x*`` of the certificates."""
 _LADDER = (1.0, 0.9, 0.75, 0.55, 0.35, 0.2, 0.1)
 """Fractions of the estimated level tried in turn until the proofs hold."""
 _SOS_BACKOFF = 0.97
@@ -149,312 +154,9 @@ _SEED = 20240607
 """Seed of the ray directions (determinism)."""
 _GRID = 256
 """Points per ray of the first-crossing scan (then bisection)."""
-_SHARPEN_ROUNDS = 40
-"""Rounds of refinement of the boxes that limit the entry-time bound."""
-_SHARPEN_BOXES = 2_000
-"""Boxes the refinement may add."""
-_LAYERS = 32
-"""Geometric layers of the annulus ``c_in <= V <= c`` of the entry-time bound."""
-_OPS = {"div": "division by a state-dependent expression", "inv": "division by a state-dependent expression",
-        "fabs": "abs", "fmin": "min", "fmax": "max", "pow": "a non-integer or state-dependent power",
-        "constpow": "a non-integer power", "sqrt": "sqrt", "exp": "exp", "log": "log"}
-
-
-class NotPolynomialError(ParameterError):
-    """A flow, invariant or guard of the mode is not a polynomial in the state (or depends on time)."""
-
-
-# --------------------------------------------------------------------------- tracing to exact polynomials
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ModePolynomials:
-    """The exact polynomial data of one mode about ``x*``, in the shifted coordinates ``Δx = x − x*``.
-
-    Attributes
-    ----------
-    mode : str
-    state_names : tuple of str
-        ``n`` names of the state.
-    variables : tuple of str
-        The shifted coordinates, ``"Δ" + name`` (the variables of every polynomial and certificate).
-    equilibrium : tuple of float, shape (n,)
-        ``x*`` (each float is taken at its exact binary value).
-    memory : dict
-        The memory values the functions were traced with.
-    rates : Mapping[str, Polynomial]
-        ``dΔx_i/dt = f_i(x* + Δx)``, keyed by the shifted names.
-    invariant_terms : tuple of (str, Polynomial)
-        ``(label, h(x* + Δx))`` per term of the mode's invariant (the mode may be kept where all are ``>= 0``).
-    guards : tuple of (str, tuple of (str, Polynomial))
-        Per outgoing transition: its name and its guard terms (enabled where all are ``>= 0``).
-    """
-
-    mode: str
-    state_names: tuple[str, ...]
-    variables: tuple[str, ...]
-    equilibrium: tuple[float, ...]
-    memory: dict[str, float]
-    rates: Mapping[str, Polynomial]
-    invariant_terms: tuple[tuple[str, Polynomial], ...]
-    guards: tuple[tuple[str, tuple[tuple[str, Polynomial], ...]], ...]
-
-
-def _symbolic_types() -> tuple[type, type, Callable[..., Any]]:
-    from hybrid.symbolic import Expr, SymbolicVector, to_casadi
-
-    return Expr, SymbolicVector, to_casadi
-
-
-def _float_conversion(what: str, mode: str) -> NotPolynomialError:
-    return NotPolynomialError(
-        f"{what} of mode {mode!r}", "NaN for a symbolic state", "a polynomial in the state traced by CasADi",
-        "the function converts the state to a float (a math.* function such as math.sin or math.exp, float(), "
-        "or a numpy conversion); write it with + - * and integer powers")
-
-
-def _as_sx(value: Any, what: str, mode: str) -> ca.SX:
-    """A traced scalar as SX; a NaN float means the function converted a symbol to a float."""
-    if isinstance(value, ca.SX) and value.shape == (1, 1):
-        return value
-    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
-        if not math.isfinite(float(value)):
-            raise _float_conversion(what, mode)
-        return ca.SX(float(value))
-    raise NotPolynomialError(f"{what} of mode {mode!r}", type(value).__name__,
-                             "a number or CasADi expression per component", "return one scalar per component")
-
-
-def _call_traced(function: Callable[..., Any], args: Sequence[Any], what: str, mode: str) -> Any:
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return function(*args)
-    except Exception as err:  # noqa: BLE001 - any failure on symbols means "does not trace"
-        hint = ("it compares or branches on the state (min, max, if); write an invariant or guard as "
-                "hybrid.all_of(term, ...)" if "truth value" in str(err) else "it does not accept CasADi symbols")
-        raise NotPolynomialError(f"{what} of mode {mode!r}", f"{type(err).__name__}: {err}"[:200],
-                                 "a polynomial in the state traced by CasADi", hint) from None
-
-
-def _components(value: Any) -> list[Any]:
-    """The components of a traced vector: a CasADi column, a numpy array of SX, a tuple or list."""
-    if isinstance(value, ca.SX):
-        return [value[i] for i in range(value.numel())]
-    try:
-        return list(value)
-    except TypeError:
-        return [value]
-
-
-def _normal(expr: ca.SX, xs: list[ca.SX], t: ca.SX, what: str, mode: str) -> Polynomial:
-    """Exact polynomial of ``expr`` in the state symbols, or :class:`NotPolynomialError` naming the function."""
-    if ca.depends_on(expr, t):
-        raise NotPolynomialError(f"{what} of mode {mode!r}", "depends on the time t",
-                                 "an autonomous polynomial in the state",
-                                 "a region of attraction needs a time-invariant mode")
-    try:
-        poly = normal_form(expr, xs)
-    except UnsupportedExpression as err:
-        used = _OPS.get(err.operation, err.operation)
-        raise NotPolynomialError(f"{what} of mode {mode!r}", f"uses {used}", "a polynomial in the state",
-                                 f"rewrite it with + - * and integer powers ({err})") from None
-    except PolynomialError as err:
-        if "not finite" in str(err):
-            raise _float_conversion(what, mode) from None
-        raise NotPolynomialError(f"{what} of mode {mode!r}", str(err)[:200], "a polynomial in the state",
-                                 "write it with + - * and integer powers") from None
-    trig = sorted({a.kind for a in poly.atoms if a.kind != "var"})
-    if trig:
-        raise NotPolynomialError(f"{what} of mode {mode!r}", f"uses {', '.join(trig)}", "a polynomial in the state",
-                                 "a sine or cosine of the state is not polynomial; polynomialise the model first")
-    return poly
-
-
-def _split_terms(function: Any) -> list[Any]:
-    """Terms of a conjunction: :class:`hybrid.Conjunction` terms, or a symbolic ``min(...)`` flattened."""
-    expr_type, _, _ = _symbolic_types()
-    from hybrid.symbolic import Apply
-
-    out: list[Any] = []
-    for term in (function.terms if isinstance(function, Conjunction) else (function,)):
-        if isinstance(term, expr_type) and isinstance(term, Apply) and term.op == "min":
-            out.extend(_split_terms(Conjunction(tuple(term.args))))
-        else:
-            out.append(term)
-    return out
-
-
-def _trace_mode(system: HybridSystem, mode: str, memory: Mapping[str, float]
-                ) -> tuple[list[Polynomial], list[tuple[str, Any, Polynomial]],
-                           list[tuple[str, list[tuple[str, Any, Polynomial]]]]]:
-    """Flow components, invariant terms and guard terms as exact polynomials in the (unshifted) state."""
-    expr_type, vector_type, to_casadi = _symbolic_types()
-    from hybrid.symbolic import render
-
-    names = system.state_names
-    xs, t = [ca.SX.sym(n) for n in names], ca.SX.sym("t")
-    flow = system.flows[mode]
-    if isinstance(flow, vector_type):
-        comps = [_call_traced(to_casadi, (c, dict(zip(names, xs)), dict(memory), t), "flow", mode)
-                 for c in flow.components]
-    else:
-        comps = _components(_call_traced(flow, (t, xs, dict(memory)), "flow", mode))
-    if len(comps) != len(names):
-        raise NotPolynomialError(f"flow of mode {mode!r}", f"{len(comps)} components", f"{len(names)}",
-                                 "return one rate per state")
-    rates = [_normal(_as_sx(c, f"flow (component d{n}/dt)", mode), xs, t, f"flow (component d{n}/dt)", mode)
-             for c, n in zip(comps, names)]
-    out = system.output
-    if out is None:
-        signals = list(xs)
-    elif isinstance(out, vector_type):
-        signals = [_call_traced(to_casadi, (c, dict(zip(names, xs)), {}, t), "output map", mode)
-                   for c in out.components]
-    else:
-        signals = _components(_call_traced(out, (t, xs), "output map", mode))
-    signals = [_as_sx(v, "output map", mode) for v in signals]
-    variables = dict(zip(system.automaton.variables, signals))
-
-    def terms(function: Any, label: str, text: str) -> list[tuple[str, Any, Polynomial]]:
-        found = []
-        split = _split_terms(function)
-        for k, term in enumerate(split):
-            what = f"{label} term {k}" if len(split) > 1 else label
-            shown = f"{render(term)} >= 0" if isinstance(term, expr_type) else text
-            what += f" ({shown})" if shown else ""
-            value = (_call_traced(to_casadi, (term, variables, dict(memory)), what, mode)
-                     if isinstance(term, expr_type) else _call_traced(term, (signals, dict(memory)), what, mode))
-            found.append((what, term, _normal(_as_sx(value, what, mode), xs, t, what, mode)))
-        return found
-
-    q = system.automaton.mode(mode)
-    inv = [] if q.invariant is None else terms(q.invariant, "invariant", q.invariant_text)
-    guards = [(tr.name, terms(tr.guard, f"guard of transition {tr.name!r}", tr.guard_text))
-              for tr in system.automaton.outgoing(mode)]
-    return rates, inv, guards
-
-
-def _probe_points(xstar: np.ndarray) -> list[np.ndarray]:
-    n = xstar.size
-    pattern = np.array([0.37, -0.61, 0.83, -0.29, 0.53, -0.71, 0.19, -0.47])
-    scale = 0.5 * (1.0 + np.abs(xstar))
-    return [xstar + scale * np.resize(pattern, n), xstar - 0.7 * scale * np.resize(pattern[::-1], n)]
-
-
-def _close(a: float, b: float) -> bool:
-    return abs(a - b) <= 1e-9 * (1.0 + abs(a) + abs(b))
-
-
-def _probe_check(system: HybridSystem, mode: str, memory: Mapping[str, float], rates: list[Polynomial],
-                 inv: list[tuple[str, Any, Polynomial]], guards: list[tuple[str, list[tuple[str, Any, Polynomial]]]],
-                 xstar: np.ndarray) -> None:
-    """The traced polynomials must equal the user's float functions at two probe points."""
-    names = system.state_names
-    for p in _probe_points(xstar):
-        point = dict(zip(names, p.tolist()))
-        state = tuple(p.tolist())
-        try:
-            flow = system.flow(mode, 0.0, state, dict(memory))
-            signals = system.signals(0.0, state, mode)
-        except Exception:  # noqa: BLE001 - the function is undefined there: nothing to compare
-            continue
-        checks = [(f"flow (component d{n}/dt)", r.evaluate_at(point), flow[i]) for i, (n, r) in
-                  enumerate(zip(names, rates))]
-        for what, term, poly in inv + [item for _, terms in guards for item in terms]:
-            checks.append((what, poly.evaluate_at(point), float(term(signals, dict(memory)))))
-        for what, traced, value in checks:
-            if not _close(traced, float(value)):
-                raise NotPolynomialError(
-                    f"{what} of mode {mode!r}", f"traced {traced!r} but evaluates to {float(value)!r} at x = {state}",
-                    "one polynomial expression for every state",
-                    "the function branches on the state or the time; write it as one polynomial")
-
-
-def _substitute(poly: Polynomial, table: Mapping[str, Polynomial]) -> Polynomial:
-    """``poly`` with every variable ``v`` replaced by ``table[v]`` (exact)."""
-    out = Polynomial({})
-    powers: dict[tuple[str, int], Polynomial] = {}
-    for monomial, c in poly.terms.items():
-        term = Polynomial.constant(c)
-        for atom, p in monomial:
-            key = (atom.variable, p)
-            if key not in powers:
-                powers[key] = table[atom.variable] ** p
-            term = term * powers[key]
-        out = out + term
-    return out
-
-
-def mode_polynomials(system: HybridSystem, mode: str, equilibrium: Sequence[float], *,
-                     memory: Mapping[str, float] | None = None) -> ModePolynomials:
-    """Trace ``mode``'s flow, invariant terms and outgoing guard terms to exact polynomials about ``x*``.
-
-    Parameters
-    ----------
-    system : HybridSystem
-    mode : str
-    equilibrium : sequence of float, shape (n,)
-        ``x*``, the origin of the shifted coordinates ``Δx = x − x*`` (exact binary values).
-    memory : Mapping or None
-        Memory values (default: the automaton's initial memory).
-
-    Returns
-    -------
-    ModePolynomials
-
-    Raises
-    ------
-    NotPolynomialError
-        A function is not a polynomial in the state (naming it, the component and the operation:
-        ``sin``, ``exp``, division, ``abs``, ``min`` ...), depends on time, or does not trace.
-    ParameterError
-        Unknown mode, wrong-length or non-finite equilibrium, bad memory.
-    """
-    _check_system_mode(system, mode)
-    xstar = _point("equilibrium", equilibrium, system)
-    mem = _memory(system, memory)
-    rates, inv, guards = _trace_mode(system, mode, mem)
-    _probe_check(system, mode, mem, rates, inv, guards, xstar)
-    shifted = tuple(_SHIFT + n for n in system.state_names)
-    table = {n: Polynomial.atom(z) + Fraction(float(c)) for n, z, c in zip(system.state_names, shifted, xstar)}
-    return ModePolynomials(
-        mode=mode, state_names=system.state_names, variables=shifted, equilibrium=tuple(float(c) for c in xstar),
-        memory=mem, rates={z: _substitute(r, table) for z, r in zip(shifted, rates)},
-        invariant_terms=tuple((label, _substitute(p, table)) for label, _, p in inv),
-        guards=tuple((name, tuple((label, _substitute(p, table)) for label, _, p in terms)) for name, terms in guards))
 
 
 # --------------------------------------------------------------------------- validation
-
-
-def _check_system_mode(system: Any, mode: Any) -> None:
-    if not isinstance(system, HybridSystem):
-        raise ParameterError("system", type(system).__name__, "a hybrid.HybridSystem",
-                             "build the system with hybrid.HybridSystem")
-    if mode not in system.automaton.mode_names:
-        raise ParameterError("mode", mode, f"one of the modes {list(system.automaton.mode_names)}",
-                             "name a mode of the automaton")
-
-
-def _point(name: str, value: Any, system: HybridSystem) -> np.ndarray:
-    return state_vector(name, value, system.state_names)
-
-
-def _memory(system: HybridSystem, memory: Mapping[str, float] | None) -> dict[str, float]:
-    mem = system.automaton.initial_memory()
-    if memory is None:
-        return mem
-    if not isinstance(memory, Mapping):
-        raise ParameterError("memory", memory, "a mapping {memory variable: value}", "pass a dict or None")
-    for key, value in memory.items():
-        if key not in mem:
-            raise ParameterError("memory", dict(memory), f"names among the memory variables {sorted(mem)}",
-                                 f"drop {key!r}")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ParameterError(f"memory[{key!r}]", value, "a finite number", "give a finite value")
-        mem[key] = float(value)
-    return mem
 
 
 def _check_int(name: str, value: Any, minimum: int, fix: str, *, even: bool = False) -> int:
@@ -490,23 +192,6 @@ def _numeric(poly: Polynomial, variables: Sequence[str]) -> Callable[[np.ndarray
         return out
 
     return evaluate
-
-
-def _coefficient(poly: Polynomial, powers: Mapping[str, int]) -> Fraction:
-    key = tuple((Atom.var(v), p) for v, p in sorted(powers.items()) if p)
-    return poly.terms.get(key, Fraction(0))
-
-
-def _linear_part(rates: Mapping[str, Polynomial], variables: Sequence[str]) -> list[list[Fraction]]:
-    """Exact Jacobian ``A`` of the rates at the origin."""
-    return [[_coefficient(rates[zi], {zj: 1}) for zj in variables] for zi in variables]
-
-
-def _quadratic_matrix(v: Polynomial, variables: Sequence[str]) -> list[list[Fraction]]:
-    """``P`` with ``zᵀPz`` the quadratic part of ``v`` (exact)."""
-    n = len(variables)
-    return [[_coefficient(v, {variables[i]: 2}) if i == j else _coefficient(v, {variables[i]: 1, variables[j]: 1}) / 2
-             for j in range(n)] for i in range(n)]
 
 
 def _quadratic_form(p: np.ndarray, variables: Sequence[str]) -> Polynomial:
@@ -741,124 +426,6 @@ def _start_level(polys: ModePolynomials, v: Polynomial, sos_level: float, max_ex
     return level, why
 
 
-# --------------------------------------------------------------------------- exact linear algebra (inner argument)
-
-
-Matrix = list[list[Fraction]]
-
-
-def _positive_definite(m: Matrix) -> bool:
-    """Exactly ``m ≻ 0`` (:func:`analysis.exact.is_positive_definite`)."""
-    return exact.is_positive_definite(m)
-
-
-def _inverse_diagonal(m: Matrix) -> list[Fraction]:
-    """Diagonal of ``m⁻¹`` (exact cofactors, :func:`analysis.exact.determinant`)."""
-    det, n = exact.determinant(m), len(m)
-    return [exact.determinant([[m[r][c] for c in range(n) if c != i] for r in range(n) if r != i]) / det if n > 1
-            else 1 / m[0][0] for i in range(n)]
-
-
-def _shifted(m: Matrix, mu: Fraction) -> Matrix:
-    return [[x - (mu if i == j else 0) for j, x in enumerate(row)] for i, row in enumerate(m)]
-
-
-def _sqrt_up(x: Fraction) -> Fraction:
-    """A dyadic rational ``>= sqrt(x)``."""
-    s = math.sqrt(float(x))
-    while Fraction(s) ** 2 < x:
-        s = math.nextafter(s, math.inf)
-    return Fraction(s)
-
-
-def _perturbation(polys: ModePolynomials, p: Matrix) -> list[list[Polynomial]]:
-    """Entries of ``P·E(z) + E(z)ᵀ·P``, ``E = Df − A`` (exact; every entry vanishes at the origin)."""
-    z, n = polys.variables, len(polys.variables)
-    e = [[partial_derivative(polys.rates[z[i]], z[j]) - _coefficient(polys.rates[z[i]], {z[j]: 1}) for j in range(n)]
-         for i in range(n)]
-    pe = [[sum((e[k][j] * p[i][k] for k in range(n)), Polynomial({})) for j in range(n)] for i in range(n)]
-    return [[pe[i][j] + pe[j][i] for j in range(n)] for i in range(n)]
-
-
-def _sigma_squared(entries: list[list[Polynomial]], r: Fraction) -> Fraction:
-    """``Σ_ij (Σ_α |c_α| r^|α|)²``: a bound of the squared Frobenius norm on the cube ``|z_i| <= r``."""
-    total = Fraction(0)
-    for row in entries:
-        for poly in row:
-            b = sum((abs(c) * r ** sum(p for _, p in m) for m, c in poly.terms.items()), Fraction(0))
-            total += b * b
-    return total
-
-
-def _inner_data(polys: ModePolynomials, w: Polynomial, r_start: float) -> dict[str, Any] | str:
-    """Search the rationals of the inner argument (module docstring, step 3); every claim is checked exactly."""
-    z = polys.variables
-    p = _quadratic_matrix(w, z)
-    a = _linear_part(polys.rates, z)
-    n = len(z)
-    m = [[-sum(a[k][i] * p[k][j] + p[i][k] * a[k][j] for k in range(n)) for j in range(n)] for i in range(n)]
-    mu = Fraction(0.9 * float(np.linalg.eigvalsh(np.array(m, dtype=float)).min()))
-    while mu > 0 and not _positive_definite(_shifted(m, mu)):
-        mu /= 2
-    if not (mu > 0 and _positive_definite(p)):
-        return "the quadratic W of the linearisation is not proven (P > 0, -(A'P + PA) > 0 failed exactly)"
-    entries = _perturbation(polys, p)
-    r = Fraction(float(r_start))
-    for _ in range(200):
-        if _sqrt_up(_sigma_squared(entries, r)) <= mu / 2:
-            break
-        r /= 2
-    for _ in range(6):  # grow r back while the bound allows
-        if _sqrt_up(_sigma_squared(entries, r * Fraction(5, 4))) > mu / 2:
-            break
-        r *= Fraction(5, 4)
-    sigma = _sqrt_up(_sigma_squared(entries, r))
-    if not sigma < mu:
-        return f"inner argument: no cube |z_i| <= r found on which the flow contracts (sigma = {float(sigma):.3g})"
-    lam = Fraction(1.01 * float(np.linalg.eigvalsh(np.array(p, dtype=float)).max()))
-    while not _positive_definite(_shifted([[-x for x in row] for row in p], -lam)):
-        lam *= 2
-    c_w = r * r / max(_inverse_diagonal(p))
-    f0 = [_coefficient(polys.rates[v], {}) for v in z]
-    pf0 = sum((sum(p[i][k] * f0[k] for k in range(n)) ** 2 for i in range(n)), Fraction(0))
-    rate = mu - sigma
-    radius = Fraction(0) if pf0 == 0 else _sqrt_up(4 * pf0 / rate ** 2)
-    return {"W": w, "r": r, "mu": mu, "sigma": sigma, "lambda_max": lam, "c_w": c_w,
-            "kappa": Fraction(math.nextafter(float(rate / lam), 0.0)) if float(rate / lam) > 0 else Fraction(0),
-            "epsilon": radius}
-
-
-def _inner_problems(polys: ModePolynomials, data: Mapping[str, Any]) -> list[str]:
-    """Exact re-check of the inner argument's rationals (empty: it holds)."""
-    z, n, w = polys.variables, len(polys.variables), data["W"]
-    if any(a.kind != "var" or a.variable not in z for a in w.atoms) or any(
-            sum(e for _, e in mono) != 2 for mono in w.terms):
-        return ["W is not a quadratic form in the shifted coordinates"]
-    p = _quadratic_matrix(w, z)
-    a = _linear_part(polys.rates, z)
-    m = [[-sum(a[k][i] * p[k][j] + p[i][k] * a[k][j] for k in range(n)) for j in range(n)] for i in range(n)]
-    r, mu, sigma, lam, c_w = (data[k] for k in ("r", "mu", "sigma", "lambda_max", "c_w"))
-    problems = []
-    if not _positive_definite(p):
-        problems.append("P is not positive definite")
-    if not (mu > 0 and _positive_definite(_shifted(m, mu))):
-        problems.append(f"-(A'P + PA) - mu I is not positive definite (mu = {mu})")
-    if not (r > 0 and 0 <= sigma < mu and sigma ** 2 >= _sigma_squared(_perturbation(polys, p), r)):
-        problems.append(f"sigma = {sigma} does not bound the perturbation on |z_i| <= {r} below mu")
-    if not _positive_definite(_shifted([[-x for x in row] for row in p], -lam)):
-        problems.append(f"lambda_max = {lam} is not above the eigenvalues of P")
-    if not (c_w > 0 and all(c_w * d <= r * r for d in _inverse_diagonal(p))):
-        problems.append(f"the ellipsoid W <= {c_w} is not inside the cube |z_i| <= {r}")
-    f0 = [_coefficient(polys.rates[v], {}) for v in z]
-    pf0 = sum((sum(p[i][k] * f0[k] for k in range(n)) ** 2 for i in range(n)), Fraction(0))
-    rate, eps, kappa = mu - sigma, data["epsilon"], data["kappa"]
-    if not (eps >= 0 and (eps * rate / 2) ** 2 >= pf0):
-        problems.append(f"epsilon = {eps} is below 2 |P f(x*)| / (mu - sigma)")
-    if not (kappa >= 0 and kappa * lam <= rate):
-        problems.append(f"kappa = {kappa} exceeds (mu - sigma)/lambda_max")
-    return problems
-
-
 # --------------------------------------------------------------------------- proofs at one level
 
 
@@ -960,151 +527,6 @@ def _sublevel_reason(cert: SublevelCertificate) -> str:
     return f"invariance not decided ({cert.status}, {cert.boxes_examined} boxes)"
 
 
-def _layers(c_in: float, c: float) -> list[float]:
-    """``_LAYERS + 1`` increasing levels from ``c_in`` to ``c`` (geometric: ``V̇`` is smallest near ``c_in``)."""
-    ratio = c / c_in
-    inner = [c_in * ratio ** (k / _LAYERS) for k in range(1, _LAYERS)]
-    levels = [c_in] + [x for x in inner if c_in < x < c] + [c]
-    return sorted(set(levels))
-
-
-def _layer_rates(v: Polynomial, cert: SublevelCertificate, layers: Sequence[float]) -> list[float]:
-    """Per layer the least ``−rate bound`` of the decreasing boxes whose ``V`` enclosure meets it (``inf``: none).
-
-    ``V`` is enclosed box by box by :func:`analysis.certificate.enclose` (scalar, outward rounded): every
-    point with ``V`` in a layer lies in a decreasing box whose enclosure meets the layer, so ``V̇`` is at
-    most ``−m_k`` there.
-    """
-    picked = [(box, bound) for box, label, bound in zip(cert.boxes, cert.labels, cert.rate_bounds)
-              if label == "decreasing" and bound is not None]
-    if not picked:
-        return [math.inf] * (len(layers) - 1)
-    ivs = [enclose(v, dict(zip(cert.variables, box))) for box, _ in picked]
-    vlo, vhi = np.array([iv.lo for iv in ivs]), np.array([iv.hi for iv in ivs])
-    edges = np.array(layers, dtype=float)
-    meets = (vlo[:, None] <= edges[None, 1:]) & (vhi[:, None] >= edges[None, :-1])
-    speed = -np.array([bound for _, bound in picked], dtype=float)
-    return np.where(meets, speed[:, None], np.inf).min(axis=0).tolist()
-
-
-def _layer_time(layers: Sequence[float], rates: Sequence[float]) -> Fraction | None:
-    """``Σ (ρ_{k+1} − ρ_k)/m_k`` exactly (layers no box meets take no time); ``None`` if some ``m_k <= 0``."""
-    total = Fraction(0)
-    for k, m in enumerate(rates):
-        if math.isinf(m):
-            continue
-        if not m > 0:
-            return None
-        total += (Fraction(layers[k + 1]) - Fraction(layers[k])) / Fraction(m)
-    return total
-
-
-def _float_up(x: Fraction) -> float:
-    y = float(x)
-    return y if Fraction(y) >= x else math.nextafter(y, math.inf)
-
-
-def _children(v: Polynomial, rate: Polynomial, cert: SublevelCertificate, lo: np.ndarray, hi: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bisect boxes along their relatively widest side; label the halves as :func:`certify_sublevel` would.
-
-    Returns the halves (``2N`` boxes: lower halves then upper halves), their labels, rate bounds and
-    per parent whether both halves have a claim (else the parent is kept).
-    """
-    region = dict(zip(cert.variables, cert.region))
-    widths = np.array([b - a for a, b in cert.region])
-    j = np.argmax((hi - lo) / widths, axis=1)
-    rows = np.arange(lo.shape[0])
-    mid = 0.5 * lo[rows, j] + 0.5 * hi[rows, j]
-    upper_lo, lower_hi = lo.copy(), hi.copy()
-    upper_lo[rows, j], lower_hi[rows, j] = mid, mid
-    clo, chi = np.vstack((lo, upper_lo)), np.vstack((lower_hi, hi))
-    vlo, vhi = enclose_batch(v, region, clo, chi)
-    top = cert.rho_out + 1e-9 * max(1.0, cert.rho_out)
-    bottom = cert.rho_in - 1e-9 * max(1.0, cert.rho_in)
-    labels = np.where(vlo > top, "outside", np.where(vhi < bottom, "inside", "decreasing")).astype(object)
-    whi = enclose_batch(rate, region, clo, chi)[1]
-    bound = whi + 1e-9 * np.abs(whi)
-    ok = (labels != "decreasing") | (bound < 0.0)
-    n = lo.shape[0]
-    return clo, chi, labels, np.where(labels == "decreasing", bound, np.nan), ok[:n] & ok[n:]
-
-
-def _layer_contributions(v: Polynomial, cert: SublevelCertificate, lo: np.ndarray, hi: np.ndarray,
-                         rates: np.ndarray, layers: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per layer ``Δρ_k/m_k`` and ``m_k`` over the decreasing boxes given, and which boxes meet which layer."""
-    vlo, vhi = enclose_batch(v, dict(zip(cert.variables, cert.region)), lo, hi)
-    meets = (vlo[:, None] <= layers[None, 1:]) & (vhi[:, None] >= layers[None, :-1])
-    m = np.where(meets, -rates[:, None], np.inf).min(axis=0)
-    return np.where(np.isfinite(m), np.diff(layers) / np.where(np.isfinite(m), m, 1.0), 0.0), m, meets
-
-
-def _sharpen(v: Polynomial, rate: Polynomial, cert: SublevelCertificate) -> SublevelCertificate:
-    """The same certificate with the boxes that limit the layered entry-time bound bisected (sharper rates)."""
-    lo = np.array([[a for a, _ in b] for b in cert.boxes])
-    hi = np.array([[b for _, b in box] for box in cert.boxes])
-    labels = np.array(cert.labels, dtype=object)
-    rates = np.array([np.nan if r is None else r for r in cert.rate_bounds])
-    layers, limit = np.array(_layers(cert.rho_in, cert.rho_out)), lo.shape[0] + _SHARPEN_BOXES
-    history: list[float] = []
-    for _ in range(_SHARPEN_ROUNDS):
-        dec = np.nonzero(labels == "decreasing")[0]
-        contrib, m, meets = _layer_contributions(v, cert, lo[dec], hi[dec], rates[dec], layers)
-        history.append(float(contrib.sum()))
-        if lo.shape[0] >= limit or (len(history) > 3 and not history[-1] < 0.99 * history[-4]):
-            break
-        hot = contrib >= 0.25 * contrib.max()
-        pick = dec[(meets[:, hot] & (-rates[dec][:, None] <= 2.0 * m[hot][None, :])).any(axis=1)]
-        pick = pick[: max(0, limit - lo.shape[0])]
-        clo, chi, clab, crate, ok = _children(v, rate, cert, lo[pick], hi[pick])
-        keep = np.ones(lo.shape[0], dtype=bool)
-        keep[pick[ok]] = False
-        both = np.concatenate((ok, ok))
-        lo, hi = np.vstack((lo[keep], clo[both])), np.vstack((hi[keep], chi[both]))
-        labels, rates = np.concatenate((labels[keep], clab[both])), np.concatenate((rates[keep], crate[both]))
-    known = rates[labels == "decreasing"]
-    max_rate = float(known.max()) if known.size else None
-    entry = None if max_rate is None else float(np.nextafter((cert.rho_out - cert.rho_in) / -max_rate, np.inf))
-    claim = cert.claim
-    if cert.entry_time_bound is not None and entry is not None:
-        claim = claim.replace(f"within {cert.entry_time_bound:.6g} time units", f"within {entry:.6g} time units")
-    return replace(cert, boxes=tuple(tuple(zip(a.tolist(), b.tolist())) for a, b in zip(lo, hi)),
-                   labels=tuple(str(x) for x in labels),
-                   rate_bounds=tuple(None if x != "decreasing" else float(r) for x, r in zip(labels, rates)),
-                   max_rate=max_rate, entry_time_bound=entry, claim=claim,
-                   method=cert.method + "; decreasing boxes that limit the layered entry-time bound bisected further")
-
-
-def _time_bound(v: Polynomial, cert: SublevelCertificate) -> dict[str, Any]:
-    """The layered entry-time bound (never above the certificate's own ``(c − c_in)/m``)."""
-    layers = _layers(cert.rho_in, cert.rho_out)
-    rates = _layer_rates(v, cert, layers)
-    exact = _layer_time(layers, rates)
-    bound = cert.entry_time_bound if exact is None else min(_float_up(exact), cert.entry_time_bound)
-    return {"layers": [float.hex(x) for x in layers],
-            "rates": [None if math.isinf(m) else float.hex(m) for m in rates], "bound": bound}
-
-
-def _time_problems(v: Polynomial, cert: SublevelCertificate, data: Mapping[str, Any], claimed: Any) -> list[str]:
-    """Re-check of the layered entry-time bound from the sublevel certificate's boxes (empty: it holds)."""
-    if not isinstance(claimed, (int, float)) or isinstance(claimed, bool) or not claimed > 0:
-        return [f"time bound {claimed!r} is not a positive number"]
-    if cert.entry_time_bound is not None and claimed >= cert.entry_time_bound:
-        return []
-    layers = [float.fromhex(x) for x in data["layers"]]
-    rates = [math.inf if m is None else float.fromhex(m) for m in data["rates"]]
-    if (len(rates) != len(layers) - 1 or layers[0] != cert.rho_in or layers[-1] != cert.rho_out
-            or any(b <= a for a, b in zip(layers, layers[1:]))):
-        return ["the time layers do not partition [rho_in, rho_out]"]
-    actual = _layer_rates(v, cert, layers)
-    problems = [f"time layer {k}: rate {m!r} exceeds the boxes' {a!r}" for k, (m, a) in enumerate(zip(rates, actual))
-                if m > a]
-    exact = _layer_time(layers, rates)
-    if exact is None or Fraction(claimed) < exact:
-        problems.append(f"time bound {claimed!r} is below the layered sum {None if exact is None else float(exact)}")
-    return problems
-
-
 def _attempt(ctx: _Context, c: float) -> _Proof | str:
     """All proofs at level ``c`` (module docstring), or why one failed."""
     names = ctx.polys.variables
@@ -1124,12 +546,12 @@ def _attempt(ctx: _Context, c: float) -> _Proof | str:
             break
     if not sub.certified:
         return "sublevel: " + _sublevel_reason(sub)
-    sub = _sharpen(ctx.lyapunov, ctx.rate, sub)
+    sub = sharpen_layers(ctx.lyapunov, ctx.rate, sub)
     terms = _term_certificates(ctx, c, region)
     if isinstance(terms, str):
         return terms
     return _Proof(level=c, inner_level=c_in, region=region, sublevel=sub, inner=inner, invariant=terms[0],
-                  guards=terms[1], time=_time_bound(ctx.lyapunov, sub))
+                  guards=terms[1], time=time_bound(ctx.lyapunov, sub))
 
 
 def _prove(ctx: _Context, c0: float, refine: int) -> tuple[_Proof | None, list[dict[str, Any]]]:
@@ -1294,7 +716,7 @@ def _state_box(polys: ModePolynomials, region: Mapping[str, tuple[float, float]]
 def _state_lyapunov(polys: ModePolynomials, v: Polynomial) -> str:
     table = {z: Polynomial.atom(n) - Fraction(x) for z, n, x in zip(polys.variables, polys.state_names,
                                                                       polys.equilibrium)}
-    return str(_substitute(v, table))
+    return str(substitute_exact(v, table))
 
 
 def _shown(polys: ModePolynomials, poly: Polynomial, *, define: bool = True) -> str:
@@ -1411,13 +833,13 @@ def _recheck_core(polys: ModePolynomials, data: Mapping[str, Any], arithmetic: s
         region = dict(zip(sub["variables"], SublevelCertificate.from_dict(sub).region))
         if float.fromhex(sub["rho_out"]) != level or float.fromhex(sub["rho_in"]) != inner_level:
             problems.append("sublevel: its levels differ from the claim's level and inner level")
-        problems += _time_problems(v, SublevelCertificate.from_dict(sub), certs["time"], data["time_bound_s"])
+        problems += time_problems(v, SublevelCertificate.from_dict(sub), certs["time"], data["time_bound_s"])
     except (KeyError, TypeError, ValueError, ParameterError) as err:
         return problems + [f"unreadable sublevel certificate: {err}"]
     if tuple(region) != z:
         problems.append(f"sublevel: variables {tuple(region)} differ from {z}")
     inner = _inner_from(certs["inner"], z)
-    problems += [f"inner: {p}" for p in _inner_problems(polys, inner)]
+    problems += [f"inner: {p}" for p in inner_problems(polys, inner)]
     problems += _recheck_bound_entry(inner["W"], [(v, inner_level)], certs["inner"]["certificate"], region, "inner",
                                      inner["c_w"], arithmetic)
     seen = {int(e["index"]): e for e in certs["invariant"]}
@@ -1580,14 +1002,14 @@ def mode_region_of_attraction(
         bad ``memory``, odd or ``< 2`` ``degree``, bad ``max_dimension``, ``max_boxes``, ``max_extent``,
         ``iterations``, ``refine`` or ``arithmetic``.
     """
-    _check_system_mode(system, mode)
+    check_system_mode(system, mode)
     options = _check_options(degree, max_dimension, max_boxes, max_extent, iterations, refine, arithmetic)
-    x_eq = None if equilibrium is None else _point("equilibrium", equilibrium, system)
-    x_guess = None if guess is None else _point("guess", guess, system)
+    x_eq = None if equilibrium is None else state_point("equilibrium", equilibrium, system)
+    x_guess = None if guess is None else state_point("guess", guess, system)
     if x_eq is not None and x_guess is not None:
         raise ParameterError("guess", tuple(x_guess.tolist()), "None when equilibrium is given",
                              "give either equilibrium= (checked) or guess= (Newton's start)")
-    mem = _memory(system, memory)
+    mem = mode_memory(system, memory)
     known = {"memory": mem, "degree": degree, "state_names": system.state_names}
     if system.dimension > max_dimension:
         return _refused(mode, "not applicable", (
@@ -1607,7 +1029,7 @@ def mode_region_of_attraction(
 
 def _region(polys: ModePolynomials, options: _Options, known: dict[str, Any]) -> ModeRegion:
     known["variables"] = polys.variables
-    a = np.array(_linear_part(polys.rates, polys.variables), dtype=float)
+    a = np.array(linear_part(polys.rates, polys.variables), dtype=float)
     if not np.linalg.eigvals(a).real.max() < 0:
         return _refused(polys.mode, "not applicable", "the exact Jacobian at x* is not Hurwitz", **known)
     p = _lyapunov_matrix(a)
@@ -1630,7 +1052,7 @@ def _region(polys: ModePolynomials, options: _Options, known: dict[str, Any]) ->
         return _refused(polys.mode, "not proven", f"the set {{V <= {c0:.6g}}} is unbounded along some direction",
                         **known)
     w = _quadratic_form(p, polys.variables)
-    inner = _inner_data(polys, w, float(np.abs(extent).max()))
+    inner = inner_data(polys, w, float(np.abs(extent).max()))
     if isinstance(inner, str):
         return _refused(polys.mode, "not proven", inner, **known)
     ctx = _Context(polys=polys, lyapunov=v, rate=lie_derivative(v, polys.rates), vfun=vfun, inner=inner,
@@ -1651,8 +1073,8 @@ def _inner_ratio(v: Polynomial, w: Polynomial, variables: Sequence[str]) -> floa
     """``c_in / c_w`` to try first: ``{V <= c_in}`` inside ``{W < c_w}`` for the quadratic parts, with margin."""
     if v == w:
         return 0.9
-    pv = np.array(_quadratic_matrix(v, variables), dtype=float)
-    pw = np.array(_quadratic_matrix(w, variables), dtype=float)
+    pv = np.array(quadratic_matrix(v, variables), dtype=float)
+    pw = np.array(quadratic_matrix(w, variables), dtype=float)
     if not np.linalg.eigvalsh(pv).min() > 0:
         return 0.01
     gamma = float(np.linalg.eigvals(np.linalg.solve(pv, pw)).real.max())

@@ -71,7 +71,6 @@ True
 
 from __future__ import annotations
 
-import itertools
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -85,7 +84,7 @@ import scipy.sparse as sparse
 
 from analysis.interval import box_bounds
 from analysis.polynomial import Atom, Polynomial
-from hybrid.errors import ParameterError
+from analysis.sos_poly import Exponent, SosError, SosPoly, check_exponent, checked_names, is_real_number, monomial_basis
 
 __all__ = [
     "DEFAULT_SOLVERS",
@@ -119,316 +118,8 @@ ROUNDING_BITS = 30
 SOLVE_STATUSES = ("solved", "inaccurate", "infeasible", "unbounded", "solver_error")
 """Statuses of :class:`SolveOutcome`."""
 
-Exponent = tuple[int, ...]
-"""Exponents of a monomial, one per variable of the polynomial, in its variable order."""
-
-
-class SosError(ParameterError):
-    """A bad input to :mod:`analysis.sos` (degree, variable names, coefficients, box)."""
-
 
 # --------------------------------------------------------------------------- polynomials
-
-
-def _is_numeric(c: Any) -> bool:
-    return isinstance(c, np.ndarray)
-
-
-def _apply(matrix: sparse.spmatrix, c: Any) -> Any:
-    """``matrix @ c`` for a numeric array or a cvxpy vector expression."""
-    if _is_numeric(c):
-        return np.asarray(matrix @ c, dtype=float).reshape(-1)
-    return cp.Constant(matrix) @ c
-
-
-def _selection(target: Sequence[Exponent], source: Sequence[Exponent]) -> sparse.csr_matrix:
-    index = {m: i for i, m in enumerate(target)}
-    rows = [index[m] for m in source]
-    return sparse.csr_matrix((np.ones(len(source)), (rows, list(range(len(source))))),
-                             shape=(len(target), len(source)))
-
-
-def _is_number(x: object) -> bool:
-    return isinstance(x, (int, float, Fraction, np.floating, np.integer)) and not isinstance(x, bool)
-
-
-@dataclass(frozen=True, slots=True)
-class SosPoly:
-    """A polynomial over named variables whose coefficients are numbers or cvxpy expressions.
-
-    Parameters
-    ----------
-    variables : tuple of str
-        Variable names; every exponent tuple has one entry per name.
-    monomials : tuple of Exponent
-        Distinct exponent tuples, ``n`` of them, each of length ``len(variables)``.
-    coefficients : numpy.ndarray or cvxpy.Expression, shape (n,)
-        Coefficient of each monomial: a float array (a *numeric* polynomial) or an
-        affine cvxpy expression in the decision variables of a :class:`SosProgram`.
-
-    Notes
-    -----
-    Arithmetic is by sparse matrices acting on the coefficient vector, so a
-    polynomial with hundreds of unknown coefficients costs a handful of cvxpy
-    operations.  A product is defined when at least one factor is numeric
-    (the product of two unknown polynomials is not affine).
-    """
-
-    variables: tuple[str, ...]
-    monomials: tuple[Exponent, ...]
-    coefficients: Any
-
-    # ---- construction
-
-    @classmethod
-    def from_terms(cls, variables: Sequence[str], terms: Mapping[Exponent, Any]) -> SosPoly:
-        """From ``{exponent tuple: coefficient}``: numbers give a numeric polynomial, else cvxpy scalars.
-
-        Raises
-        ------
-        SosError
-            Exponents of the wrong length or negative, NaN/inf coefficients.
-        """
-        variables = _check_names(variables)
-        monomials = tuple(_check_exponent(m, len(variables)) for m in terms) or ((0,) * len(variables),)
-        values = list(terms.values()) or [0.0]
-        if all(_is_number(v) for v in values):
-            coefficients = np.array([float(v) for v in values], dtype=float)
-            if not np.all(np.isfinite(coefficients)):
-                bad = [m for m, v in zip(monomials, coefficients) if not math.isfinite(v)]
-                raise SosError("coefficients", bad, "finite numbers", "remove NaN/inf coefficients")
-            return _collect(cls(variables, monomials, coefficients))
-        exprs = [v if isinstance(v, cp.Expression) else cp.Constant(float(v)) for v in values]
-        return _collect(cls(variables, monomials, cp.hstack([cp.reshape(e, (1,), order="F") for e in exprs])))
-
-    @classmethod
-    def constant(cls, value: float, variables: Sequence[str]) -> SosPoly:
-        """The constant polynomial ``value``."""
-        variables = _check_names(variables)
-        return cls.from_terms(variables, {(0,) * len(variables): value})
-
-    @classmethod
-    def variable(cls, name: str, variables: Sequence[str]) -> SosPoly:
-        """The polynomial ``name`` (one of ``variables``)."""
-        variables = _check_names(variables)
-        if name not in variables:
-            raise SosError("name", name, f"one of the variables {list(variables)}", "use a declared variable name")
-        return cls.from_terms(variables, {tuple(int(v == name) for v in variables): 1.0})
-
-    # ---- queries
-
-    @property
-    def is_numeric(self) -> bool:
-        """True when every coefficient is a number."""
-        return _is_numeric(self.coefficients)
-
-    @property
-    def degree(self) -> int:
-        """Total degree (0 for the zero polynomial)."""
-        if self.is_numeric:
-            return max((sum(m) for m, c in zip(self.monomials, self.coefficients) if c != 0.0), default=0)
-        return max((sum(m) for m in self.monomials), default=0)
-
-    def degree_in(self, name: str) -> int:
-        """Largest exponent of ``name``."""
-        i = self._index_of(name)
-        if self.is_numeric:
-            return max((m[i] for m, c in zip(self.monomials, self.coefficients) if c != 0.0), default=0)
-        return max((m[i] for m in self.monomials), default=0)
-
-    def terms(self) -> dict[Exponent, Any]:
-        """``{exponent: coefficient}`` (nonzero floats, or cvxpy scalar expressions)."""
-        if self.is_numeric:
-            return {m: float(c) for m, c in zip(self.monomials, self.coefficients) if c != 0.0}
-        return {m: self.coefficients[i] for i, m in enumerate(self.monomials)}
-
-    def value(self) -> SosPoly:
-        """The numeric polynomial of the solved decision variables (``expression.value``)."""
-        if self.is_numeric:
-            return self
-        values = self.coefficients.value
-        if values is None:
-            raise SosError("polynomial", "unsolved", "a polynomial of a solved program", "solve the program first")
-        return _collect(SosPoly(self.variables, self.monomials, np.asarray(values, dtype=float).reshape(-1)))
-
-    def evaluate(self, point: Mapping[str, float]) -> Any:
-        """Value at a point: a float, or a cvxpy scalar affine in the unknown coefficients."""
-        missing = [v for v in self.variables if v not in point]
-        if missing:
-            raise SosError("point", dict(point), f"a value for each of {list(self.variables)}",
-                           f"add values for {missing}")
-        row = np.array([math.prod(float(point[v]) ** e for v, e in zip(self.variables, m)) for m in self.monomials])
-        if self.is_numeric:
-            return float(row @ self.coefficients)
-        return row @ self.coefficients
-
-    def _index_of(self, name: str) -> int:
-        if name not in self.variables:
-            raise SosError("variable", name, f"one of {list(self.variables)}", "use a variable of the polynomial")
-        return self.variables.index(name)
-
-    # ---- arithmetic
-
-    def _same_space(self, other: SosPoly) -> None:
-        if other.variables != self.variables:
-            raise SosError("variables", other.variables, f"the same variables {self.variables}",
-                           "build every polynomial of one program over one variable tuple")
-
-    def _lift(self, other: object) -> SosPoly:
-        if isinstance(other, SosPoly):
-            return other
-        if _is_number(other):
-            return SosPoly.constant(float(other), self.variables)  # type: ignore[arg-type]
-        return NotImplemented  # type: ignore[return-value]
-
-    def __add__(self, other: object) -> SosPoly:
-        other = self._lift(other)
-        if other is NotImplemented:
-            return NotImplemented
-        self._same_space(other)
-        monomials = tuple(dict.fromkeys(self.monomials + other.monomials))
-        a, b = _selection(monomials, self.monomials), _selection(monomials, other.monomials)
-        return SosPoly(self.variables, monomials, _apply(a, self.coefficients) + _apply(b, other.coefficients))
-
-    __radd__ = __add__
-
-    def __neg__(self) -> SosPoly:
-        return SosPoly(self.variables, self.monomials, -self.coefficients)
-
-    def __sub__(self, other: object) -> SosPoly:
-        other = self._lift(other)
-        if other is NotImplemented:
-            return NotImplemented
-        return self + (-other)
-
-    def __rsub__(self, other: object) -> SosPoly:
-        return (-self) + other
-
-    def __mul__(self, other: object) -> SosPoly:
-        if _is_number(other):
-            if not math.isfinite(float(other)):  # type: ignore[arg-type]
-                raise SosError("factor", other, "a finite number", "remove NaN/inf")
-            return SosPoly(self.variables, self.monomials, self.coefficients * float(other))  # type: ignore[arg-type]
-        if not isinstance(other, SosPoly):
-            return NotImplemented
-        self._same_space(other)
-        if self.is_numeric and not other.is_numeric:
-            return _product(other, self)
-        if not other.is_numeric:
-            raise SosError("factor", "a polynomial with unknown coefficients",
-                           "at least one numeric factor (a product of unknowns is not affine)",
-                           "fix one factor, or use a multiplier from SosProgram")
-        return _product(self, other)
-
-    __rmul__ = __mul__
-
-    def __pow__(self, n: int) -> SosPoly:
-        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
-            raise SosError("exponent", n, "an integer >= 0", "use a nonnegative integer power")
-        if not self.is_numeric and n > 1:
-            raise SosError("exponent", n, "0 or 1 for a polynomial with unknown coefficients",
-                           "raise only numeric polynomials to powers")
-        result = SosPoly.constant(1.0, self.variables)
-        for _ in range(n):
-            result = result * self
-        return result
-
-    def derivative(self, name: str) -> SosPoly:
-        """``∂/∂name``."""
-        i = self._index_of(name)
-        keep = [(k, m) for k, m in enumerate(self.monomials) if m[i] > 0]
-        if not keep:
-            return SosPoly.constant(0.0, self.variables)
-        monomials = tuple(m[:i] + (m[i] - 1,) + m[i + 1:] for _, m in keep)
-        matrix = sparse.csr_matrix(([float(m[i]) for _, m in keep], (list(range(len(keep))), [k for k, _ in keep])),
-                                   shape=(len(keep), len(self.monomials)))
-        return SosPoly(self.variables, monomials, _apply(matrix, self.coefficients))
-
-    def lie_derivative(self, rates: Mapping[str, SosPoly]) -> SosPoly:
-        """``Σ_x ∂self/∂x · rates[x]`` over the variables ``self`` may depend on (``rates`` numeric)."""
-        total = SosPoly.constant(0.0, self.variables)
-        for name in self.variables:
-            if all(m[self.variables.index(name)] == 0 for m in self.monomials):
-                continue
-            if name not in rates:
-                raise SosError("rates", sorted(rates), f"a rate for the variable {name!r}",
-                               f"add rates[{name!r}] (every variable V depends on needs a rate)")
-            total = total + rates[name] * self.derivative(name)
-        return total
-
-
-def _collect(p: SosPoly) -> SosPoly:
-    """Merge repeated monomials (keeps the order of first occurrence)."""
-    unique = tuple(dict.fromkeys(p.monomials))
-    if len(unique) == len(p.monomials):
-        return p
-    return SosPoly(p.variables, unique, _apply(_selection(unique, p.monomials), p.coefficients))
-
-
-def _product(a: SosPoly, b: SosPoly) -> SosPoly:
-    """``a * b`` with ``b`` numeric."""
-    out: dict[Exponent, int] = {}
-    rows, cols, vals = [], [], []
-    for j, mb in enumerate(b.monomials):
-        cb = float(b.coefficients[j])
-        if cb == 0.0:
-            continue
-        for i, ma in enumerate(a.monomials):
-            m = tuple(x + y for x, y in zip(ma, mb))
-            rows.append(out.setdefault(m, len(out)))
-            cols.append(i)
-            vals.append(cb)
-    if not out:
-        return SosPoly.constant(0.0, a.variables)
-    matrix = sparse.csr_matrix((vals, (rows, cols)), shape=(len(out), len(a.monomials)))
-    return SosPoly(a.variables, tuple(out), _apply(matrix, a.coefficients))
-
-
-def _check_names(variables: Sequence[str]) -> tuple[str, ...]:
-    names = (variables,) if isinstance(variables, str) else tuple(variables)
-    if not names or not all(isinstance(n, str) and n for n in names) or len(set(names)) != len(names):
-        raise SosError("variables", variables, "a non-empty sequence of distinct non-empty names",
-                       "name every variable once, e.g. ('x', 'y')")
-    return names
-
-
-def _check_exponent(m: object, n: int) -> Exponent:
-    if not (isinstance(m, tuple) and len(m) == n
-            and all(isinstance(e, int) and not isinstance(e, bool) and e >= 0 for e in m)):
-        raise SosError("exponent", m, f"a tuple of {n} integers >= 0", "give one exponent per variable")
-    return m
-
-
-def monomial_basis(variables: Sequence[str], degree: int, *, min_degree: int = 0,
-                   only: Sequence[str] | None = None, max_exponents: Mapping[str, int] | None = None
-                   ) -> tuple[Exponent, ...]:
-    """Exponent tuples of total degree in ``[min_degree, degree]``.
-
-    Parameters
-    ----------
-    variables : sequence of str
-        The variables of the polynomial space.
-    degree, min_degree : int
-    only : sequence of str, optional
-        Variables allowed to appear (the others get exponent 0).
-    max_exponents : Mapping[str, int], optional
-        Per-variable caps (e.g. ``{"c": 1}`` after reducing ``c² = 1 − s²``).
-
-    Returns
-    -------
-    tuple of Exponent
-        Sorted by total degree, then lexicographically (higher powers of earlier variables first).
-    """
-    variables = _check_names(variables)
-    if isinstance(degree, bool) or not isinstance(degree, int) or degree < 0:
-        raise SosError("degree", degree, "an integer >= 0", "give a nonnegative degree")
-    allowed = set(variables if only is None else only)
-    unknown = sorted(allowed - set(variables)) + sorted(set(max_exponents or {}) - set(variables))
-    if unknown:
-        raise SosError("only", unknown, f"names among {list(variables)}", "use declared variable names")
-    caps = [0 if v not in allowed else min(degree, (max_exponents or {}).get(v, degree)) for v in variables]
-    out = [m for m in itertools.product(*(range(c + 1) for c in caps)) if min_degree <= sum(m) <= degree]
-    return tuple(sorted(out, key=lambda m: (sum(m), tuple(-e for e in m))))
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -504,7 +195,7 @@ class SosProgram:
     """
 
     def __init__(self, variables: Sequence[str], *, gram_caps: Mapping[str, int] | None = None) -> None:
-        self.variables = _check_names(variables)
+        self.variables = checked_names(variables)
         caps = dict(gram_caps or {})
         bad = {k: x for k, x in caps.items() if k not in self.variables or not isinstance(x, int) or x < 0}
         if bad:
@@ -517,14 +208,14 @@ class SosProgram:
 
     def free_polynomial(self, basis: Sequence[Exponent]) -> SosPoly:
         """A polynomial with unknown coefficients on ``basis``."""
-        basis = tuple(_check_exponent(m, len(self.variables)) for m in basis)
+        basis = tuple(check_exponent(m, len(self.variables)) for m in basis)
         if not basis:
             raise SosError("basis", basis, "at least one monomial", "give a non-empty basis")
         return SosPoly(self.variables, basis, cp.Variable(len(basis)))
 
     def sos_polynomial(self, half_basis: Sequence[Exponent]) -> SosPoly:
         """``zᵀ Q z`` with a new ``Q ⪰ 0`` over the monomials ``z = half_basis``."""
-        z = tuple(_check_exponent(m, len(self.variables)) for m in half_basis)
+        z = tuple(check_exponent(m, len(self.variables)) for m in half_basis)
         n = len(z)
         if n == 0:
             raise SosError("half_basis", z, "at least one monomial", "give a non-empty basis")
@@ -702,7 +393,7 @@ def to_polynomial(p: SosPoly | Mapping[Exponent, Fraction], variables: Sequence[
     else:
         if variables is None:
             raise SosError("variables", None, "the variable names of the exponent tuples", "pass variables")
-        variables, terms = _check_names(variables), dict(p)
+        variables, terms = checked_names(variables), dict(p)
     atoms = dict(atoms or {})
     unknown = sorted(set(atoms) - set(variables))
     if unknown:
@@ -724,7 +415,7 @@ def from_polynomial(poly: Polynomial, variables: Sequence[str], atoms: Mapping[A
 
     Coefficients are rounded to floats (a search needs no exactness).
     """
-    variables = _check_names(variables)
+    variables = checked_names(variables)
     table = {Atom(*a): n for a, n in atoms.items()}
     terms: dict[Exponent, float] = {}
     for monomial, c in poly.terms.items():
@@ -917,7 +608,7 @@ def _lyapunov_result(program_v: SosPoly, outcome: SolveOutcome, degree: int, wha
 
 
 def _check_epsilon(epsilon: object) -> float:
-    if not (_is_number(epsilon) and math.isfinite(float(epsilon)) and float(epsilon) >= 0):  # type: ignore[arg-type]
+    if not (is_real_number(epsilon) and math.isfinite(float(epsilon)) and float(epsilon) >= 0):  # type: ignore[arg-type]
         raise SosError("epsilon", epsilon, "a finite number >= 0", "use e.g. 1e-3")
     return float(epsilon)  # type: ignore[arg-type]
 
@@ -980,7 +671,7 @@ def box_moments(box: Mapping[str, tuple[float, float]], monomials: Sequence[Expo
 
     Variables absent from ``box`` are integrated over ``[0, 1]``.
     """
-    variables = _check_names(variables)
+    variables = checked_names(variables)
     region = _check_box(box, variables)
     out = []
     for m in monomials:
@@ -1040,7 +731,7 @@ def invariant_region(rates: Mapping[str, SosPoly], *, degree: int, boundary: Seq
     epsilon = _check_epsilon(epsilon)
     variables = _check_rates(rates)
     region = _check_box(box, variables) if box is not None else None
-    if not (_is_number(shrink) and 0.0 < shrink <= 1.0):
+    if not (is_real_number(shrink) and 0.0 < shrink <= 1.0):
         raise SosError("shrink", shrink, "a number in (0, 1]", "use e.g. 0.98")
     if boundary is None:
         if region is None:
@@ -1177,7 +868,7 @@ def bounding_region(rates: Mapping[str, SosPoly], *, points: Sequence[Mapping[st
     if any(t.evaluate(origin) != 0.0 for t in targets):
         raise SosError("targets", [t.evaluate(origin) for t in targets], "targets vanishing at the origin",
                        "bound the deviation from the equilibrium value")
-    if not (_is_number(min_gamma) and math.isfinite(float(min_gamma)) and min_gamma >= 0):
+    if not (is_real_number(min_gamma) and math.isfinite(float(min_gamma)) and min_gamma >= 0):
         raise SosError("min_gamma", min_gamma, "a finite number >= 0", "use 0 for no limit")
     gamma = cp.Variable()
     if not points:
@@ -1189,7 +880,7 @@ def bounding_region(rates: Mapping[str, SosPoly], *, points: Sequence[Mapping[st
     for b in boundary:
         program.add_nonnegative(v - b, on=domain, degree=certificate_degree, zero_at_origin=b.evaluate(origin) == 0)
     program.add_nonnegative(-vdot - epsilon * phi, on=domain, degree=certificate_degree, zero_at_origin=True)
-    if not (_is_number(regularisation) and math.isfinite(float(regularisation)) and regularisation >= 0):
+    if not (is_real_number(regularisation) and math.isfinite(float(regularisation)) and regularisation >= 0):
         raise SosError("regularisation", regularisation, "a finite number >= 0", "use 0 or e.g. 1e-3")
     goal = gamma - float(regularisation) * cp.norm1(v.coefficients) if regularisation else gamma
     outcome = program.solve(goal, sense="maximize", solvers=solvers)
@@ -1201,4 +892,4 @@ def bounding_region(rates: Mapping[str, SosPoly], *, points: Sequence[Mapping[st
 
 def _gamma_poly(gamma: Any, variables: Sequence[str]) -> SosPoly:
     """The constant polynomial with the cvxpy scalar ``gamma`` as coefficient."""
-    return SosPoly.from_terms(variables, {(0,) * len(_check_names(variables)): gamma})
+    return SosPoly.from_terms(variables, {(0,) * len(checked_names(variables)): gamma})

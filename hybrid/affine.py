@@ -446,16 +446,7 @@ def affine_form(
 
     # Second differences along chords: opposite corners, then random chords within the box
     # (discrete coordinates held fixed so that the midpoint stays in the box).
-    corners = domain.corners(MAX_CORNERS)
-    chords = [(c, domain.clip(domain.lo + domain.hi - c)) for c in corners]
-    for i in domain.sets:
-        for a, b in chords:
-            b[i] = a[i]
-    starts = domain.random(rng, samples)
-    ends = domain.random(rng, samples)
-    for i in domain.sets:
-        ends[:, i] = starts[:, i]
-    chords += list(zip(starts, ends))
+    corners, chords = _chords(domain, rng, samples)
     for a, b in chords:
         mid, half = 0.5 * (a + b), 0.5 * (b - a)
         if not np.any(half):
@@ -474,6 +465,33 @@ def affine_form(
             return non_finite(z, fz)
         record(z, fz)
 
+    return _verdict(domain, matrix, offset, seconds, residuals, size, float(tol), evaluations)
+
+
+def _chords(
+    domain: _Domain, rng: np.random.Generator, samples: int
+) -> tuple[Any, list[tuple[np.ndarray, np.ndarray]]]:
+    """The corners of :func:`affine_form`'s box and the chords of its second differences: opposite corners, then
+    ``samples`` random chords (discrete coordinates held fixed so that the midpoint stays in the box)."""
+    corners = domain.corners(MAX_CORNERS)
+    chords = [(c, domain.clip(domain.lo + domain.hi - c)) for c in corners]
+    for i in domain.sets:
+        for a, b in chords:
+            b[i] = a[i]
+    starts = domain.random(rng, samples)
+    ends = domain.random(rng, samples)
+    for i in domain.sets:
+        ends[:, i] = starts[:, i]
+    chords += list(zip(starts, ends))
+    return corners, chords
+
+
+def _verdict(domain: _Domain, matrix: np.ndarray, offset: np.ndarray,
+             seconds: list[tuple[np.ndarray, np.ndarray, np.ndarray]], residuals: list[tuple[np.ndarray, np.ndarray]],
+             size: np.ndarray, tol: float, evaluations: int) -> AffineForm | NotAffine:
+    """:func:`affine_form`'s answer from its defects: the worst second difference, then the worst residual,
+    relative to ``size`` (per output component); the form when both are within ``tol``."""
+
     def relative(defect: np.ndarray) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(defect == 0.0, 0.0, defect / size)
@@ -488,7 +506,7 @@ def affine_form(
             defect, mid, half = seconds[j]
             return NotAffine(names=domain.names, kind="second difference", point=_floats(mid),
                              direction=_floats(half), second_difference=float(defect[k]), relative=worst,
-                             component=k, tol=float(tol))
+                             component=k, tol=tol)
     rel = [relative(defect) for defect, _ in residuals]
     j = max(range(len(residuals)), key=lambda i: float(rel[i].max()))
     k = int(np.argmax(rel[j]))
@@ -496,7 +514,7 @@ def affine_form(
         defect, z = residuals[j]
         return NotAffine(names=domain.names, kind="residual", point=_floats(z), direction=None,
                          second_difference=float(defect[k]), relative=float(rel[j][k]), component=k,
-                         tol=float(tol))
+                         tol=tol)
     worst = max(worst, float(rel[j][k]))
     return AffineForm(
         matrix=tuple(_floats(row) for row in matrix),

@@ -4,8 +4,8 @@ Shared by the sampled search (:mod:`hybrid.check`) and the SMT-decided checks
 (:mod:`hybrid.decide`), so that neither imports the other's internals:
 
 * :data:`KIND_SEVERITY`, :class:`Finding`, :class:`Witness`: what a check reports;
-* ``_Oracle``: every call into the model (counted, checked for NaN and bools,
-  errors re-raised with the state), and ``_boxes``: the declared region per mode,
+* ``Oracle``: every call into the model (counted, checked for NaN and bools,
+  errors re-raised with the state), and ``checked_boxes``: the declared region per mode,
   validated against the model.
 """
 
@@ -23,6 +23,8 @@ from .model import HybridAutomaton, Transition, real_number
 from .region import Box
 from .system import HybridSystem
 
+# Helpers shared with hybrid.check and hybrid.decide have public names but stay out of __all__: every new short string
+# literal changes Hypothesis's pool of local constants, hence the fuzzing draws of the committed report.
 __all__ = ["KIND_SEVERITY", "SEVERITIES", "SIGNIFICANT_DIGITS", "Witness", "Finding", "SearchBudgetExceeded"]
 
 KIND_SEVERITY: Mapping[str, str] = MappingProxyType(
@@ -84,7 +86,7 @@ class Witness:
     def as_dict(self) -> dict[str, dict[str, float | str]]:
         """JSON-ready copy, numbers rounded to :data:`SIGNIFICANT_DIGITS`."""
         return {
-            name: {k: _num(v) for k, v in getattr(self, name).items()}
+            name: {k: finding_number(v) for k, v in getattr(self, name).items()}
             for name in ("state", "memory", "signals", "values")
         }
 
@@ -135,14 +137,16 @@ class Finding:
 
 
 
-def _num(x: float) -> float | str:
+def finding_number(x: float) -> float | str:
+    """``x`` rounded to :data:`SIGNIFICANT_DIGITS` for a finding's JSON; a non-finite ``x`` as its string."""
     x = float(x)
     if not math.isfinite(x):
         return str(x)
     return float(f"{x + 0.0:.{SIGNIFICANT_DIGITS}g}")
 
 
-def _g(x: float) -> str:
+def format_g(x: float) -> str:
+    """``x`` in ``%.10g`` for a finding's message (``-0.0`` shown as ``0``)."""
     return f"{x + 0.0:.10g}"  # + 0.0 turns -0.0 into 0.0
 
 
@@ -152,7 +156,7 @@ class SearchBudgetExceeded(Exception):
     """The sampled search ran past its wall-clock budget (raised by the oracle's next call into the model)."""
 
 
-class _Oracle:
+class Oracle:
     """Every call into the model: counted, checked for NaN, errors re-raised with context; past ``deadline``
     (``time.monotonic()``) the next call raises :class:`SearchBudgetExceeded`."""
 
@@ -183,10 +187,10 @@ class _Oracle:
 
     # ---------------------------------------------------------------- messages
     def where(self, x: Sequence[float], m: Mapping[str, float]) -> str:
-        state = ", ".join(f"{n}={_g(c)}" for n, c in zip(self.coords, x))
+        state = ", ".join(f"{n}={format_g(c)}" for n, c in zip(self.coords, x))
         text = f"{'x' if self.system is not None else 'v'} = ({state})"
         if m:
-            text += ", memory {" + ", ".join(f"{k}={_g(c)}" for k, c in m.items()) + "}"
+            text += ", memory {" + ", ".join(f"{k}={format_g(c)}" for k, c in m.items()) + "}"
         return text
 
     def _raised(self, what: str, x: Sequence[float], m: Mapping[str, float], err: Exception) -> ExecutionError:
@@ -277,7 +281,9 @@ class _Oracle:
 
 
 
-def _boxes(o: _Oracle, box: Box | Mapping[str, Box] | None) -> dict[str, Box] | None:
+def checked_boxes(o: Oracle, box: Box | Mapping[str, Box] | None) -> dict[str, Box] | None:
+    """The per-mode boxes of a check's ``box`` argument (one box for every mode, or a mapping), validated against
+    the model of ``o``; ``None`` when no box was given. Raises :class:`ModelDefinitionError` on a bad box."""
     a = o.automaton
     if box is None:
         return None

@@ -46,6 +46,8 @@ from .symbolic import (
     unsupported_terms,
 )
 
+# Helpers shared with hybrid.system have public names but stay out of __all__: every new short string
+# literal changes Hypothesis's pool of local constants, hence the fuzzing draws of the committed report.
 __all__ = [
     "initial_mode_of",
     "symbolic_text",
@@ -73,7 +75,8 @@ BOOL_GUARD_HINT = (
 )
 
 
-_BOOL_TYPES = (bool, np.bool_)
+BOOL_TYPES = (bool, np.bool_)
+"""Types a level function must not return (a truth value, not a level)."""
 
 
 _TEXT_TYPES = (str, bytes, bytearray)
@@ -89,7 +92,7 @@ def not_a_number(value: Any) -> str | None:
     """
     if value.__class__ is float:
         return None
-    if isinstance(value, _BOOL_TYPES):
+    if isinstance(value, BOOL_TYPES):
         return "a bool"
     if isinstance(value, _TEXT_TYPES):
         return f"text ({type(value).__name__}), not a number: return the number itself, e.g. 1.0 rather than '1'"
@@ -131,7 +134,7 @@ def real_number(value: Any, what: str, where: str, *, bool_what: str | None = No
 
 def refuse_bool(value: Any, what: str) -> None:
     """Raise :class:`ExecutionError` when a guard or invariant returned a bool (it would read as 0.0 or 1.0)."""
-    if isinstance(value, _BOOL_TYPES):
+    if isinstance(value, BOOL_TYPES):
         raise ExecutionError(f"{what} returned the bool {value!r}; {BOOL_GUARD_HINT}")
 
 
@@ -447,7 +450,7 @@ class HybridAutomaton:
                 value = function(zeros, memory)
             except Exception:  # noqa: BLE001 - a probe only looks for bools
                 continue
-            if isinstance(value, _BOOL_TYPES):
+            if isinstance(value, BOOL_TYPES):
                 raise ModelDefinitionError(f"automaton {self.name!r}: {what} returns a bool ({value!r}); "
                                            f"{BOOL_GUARD_HINT}")
             if isinstance(value, _TEXT_TYPES):

@@ -476,25 +476,7 @@ def simulate_sampled(
         When user code raises :class:`NumericalFailure` or a value becomes NaN.
     """
     n_samples = sample_count(period, duration, t0=t0, max_samples=max_samples)
-    if len(x0) != len(plant.state_names):
-        raise SampledArgumentError(
-            "x0", tuple(x0),
-            f"one value per plant state: x0 has {len(x0)} components, plant state has {len(plant.state_names)} "
-            f"({', '.join(plant.state_names)})",
-            "give x0 in the order of plant.state_names",
-        )
-    if isinstance(max_jumps_per_sample, bool) or not isinstance(max_jumps_per_sample, numbers.Integral) or (
-            max_jumps_per_sample < 1):
-        raise SampledArgumentError("max_jumps_per_sample", max_jumps_per_sample, "an integer >= 1",
-                                   f"use the default {MAX_JUMPS_PER_INSTANT}")
-    mode = initial_mode or automaton.initial_mode
-    automaton.mode(mode)
-    memory = automaton.initial_memory()
-    if initial_memory:
-        unknown = set(initial_memory) - set(memory)
-        if unknown:
-            raise ExecutionError(f"simulate_sampled: initial_memory names unknown variable(s) {sorted(unknown)}")
-        memory.update({k: float(val) for k, val in initial_memory.items()})
+    mode, memory = _start(automaton, plant, x0, initial_mode, initial_memory, max_jumps_per_sample)
 
     x = tuple(float(c) for c in x0)
     mode_index = {name: i for i, name in enumerate(automaton.mode_names)}
@@ -568,6 +550,43 @@ def simulate_sampled(
             except NumericalFailure as err:
                 raise DivergenceError(t, mode, err.cause) from err
 
+    return _trace(automaton, plant, controller, period, (times, jumps, modes, states, signals, inputs, records),
+                  events, termination, x, mode, memory)
+
+
+def _start(automaton: HybridAutomaton, plant: Plant, x0: Sequence[float], initial_mode: str | None,
+           initial_memory: Mapping[str, float] | None, max_jumps_per_sample: int) -> tuple[str, dict[str, float]]:
+    """The checked initial mode and memory of :func:`simulate_sampled` (its ``x0`` and ``max_jumps_per_sample``
+    checked too)."""
+    if len(x0) != len(plant.state_names):
+        raise SampledArgumentError(
+            "x0", tuple(x0),
+            f"one value per plant state: x0 has {len(x0)} components, plant state has {len(plant.state_names)} "
+            f"({', '.join(plant.state_names)})",
+            "give x0 in the order of plant.state_names",
+        )
+    if isinstance(max_jumps_per_sample, bool) or not isinstance(max_jumps_per_sample, numbers.Integral) or (
+            max_jumps_per_sample < 1):
+        raise SampledArgumentError("max_jumps_per_sample", max_jumps_per_sample, "an integer >= 1",
+                                   f"use the default {MAX_JUMPS_PER_INSTANT}")
+    mode = initial_mode or automaton.initial_mode
+    automaton.mode(mode)
+    memory = automaton.initial_memory()
+    if initial_memory:
+        unknown = set(initial_memory) - set(memory)
+        if unknown:
+            raise ExecutionError(f"simulate_sampled: initial_memory names unknown variable(s) {sorted(unknown)}")
+        memory.update({k: float(val) for k, val in initial_memory.items()})
+    return mode, memory
+
+
+def _trace(automaton: HybridAutomaton, plant: Plant, controller: SampledController, period: float,
+           columns: tuple[list, ...], events: list[SampledEvent], termination: str, x: tuple[float, ...], mode: str,
+           memory: dict[str, float]) -> SampledTrace:
+    """The :class:`SampledTrace` of a run of :func:`simulate_sampled` from its per-sample ``columns`` (times, jump
+    counts, mode indices, states, signals, inputs, records)."""
+    times, jumps, modes, states, signals, inputs, records = columns
+    n_vars = len(automaton.variables)
     return SampledTrace(
         automaton=automaton.name,
         mode_names=automaton.mode_names,

@@ -63,7 +63,7 @@ from .errors import (
     UserFunctionError,
     format_time,
 )
-from .model import _BOOL_TYPES, HybridAutomaton, Transition, real_number
+from .model import BOOL_TYPES, HybridAutomaton, Transition, real_number
 
 __all__ = ["FlowMap", "JumpMap", "OutputMap", "HybridSystem", "call_user", "real_value", "format_state", "state_vector"]
 
@@ -436,7 +436,7 @@ def state_vector(name: str, value: Any, state_names: Sequence[str], *,
     expected = f"{len(state_names)} finite values ({', '.join(state_names)})"
     fix = "give one number per state, in the order of the state names"
     items = None if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") else list(value)
-    if items is None or any(isinstance(c, _BOOL_TYPES) or isinstance(c, complex) or np.iscomplexobj(c)
+    if items is None or any(isinstance(c, BOOL_TYPES) or isinstance(c, complex) or np.iscomplexobj(c)
                             for c in items):
         raise error(name, value, expected, fix)
     try:

@@ -226,3 +226,157 @@ def _is_docstring(tree: ast.AST, node: ast.Constant) -> bool:
         if isinstance(body, list) and body and isinstance(body[0], ast.Expr) and body[0].value is node:
             return True
     return False
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Structure bars (issue 26): module length, function length, private names, generated code.
+
+MODULE_LINE_LIMIT = 1200
+"""A module of ``hybrid``, ``analysis`` or ``visnav`` has at most this many physical lines (``wc -l``)."""
+FUNCTION_LINE_LIMIT = 100
+"""A function or method has at most this many lines of code (counted as :func:`_code_lines` says)."""
+
+PENDING_OTHER_WORKER: dict[str, str] = {}
+"""``module:qualname`` (or ``module`` for a module's length) -> why it is allowed for now (issue 26, pending: other
+worker). Only for files another worker is editing at the same time; the coordinator removes the entries after merging.
+Empty: no such file is over a bar on this branch."""
+
+
+def _code_lines(node: ast.FunctionDef | ast.AsyncFunctionDef, source: list[str]) -> int:
+    """Lines of code of a function: the physical lines from its ``def`` (decorators excluded) to the last line of its
+    body, minus the lines of its docstring and minus the lines that are blank or hold only a comment once stripped.
+
+    Nested functions and classes count in the function that holds them (they are part of its body); the lines of a
+    nested function's docstring are not subtracted. A line continued over several physical lines counts as several.
+    """
+    lines = set(range(node.lineno, node.end_lineno + 1))
+    first = node.body[0]
+    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+        lines -= set(range(first.lineno, first.end_lineno + 1))
+    return sum(1 for n in lines if source[n - 1].strip() and not source[n - 1].strip().startswith("#"))
+
+
+def _functions(tree: ast.AST):
+    """``(qualname, node)`` of every function and method of ``tree``, nested ones included."""
+    def walk(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                yield prefix + child.name, child
+                yield from walk(child, prefix + child.name + ".")
+            elif isinstance(child, ast.ClassDef):
+                yield from walk(child, prefix + child.name + ".")
+            else:
+                yield from walk(child, prefix)
+    yield from walk(tree, "")
+
+
+def test_no_module_is_over_the_line_limit():
+    """``wc -l`` of every module of ``hybrid``, ``analysis`` and ``visnav`` is at most 1,200."""
+    over = [f"{m}: {n} lines" for m, p in MODULES.items()
+            if (n := len(p.read_text().splitlines())) > MODULE_LINE_LIMIT and m not in PENDING_OTHER_WORKER]
+    assert not over, "modules over 1,200 lines:\n" + "\n".join(over)
+
+
+def test_no_function_is_over_the_line_limit():
+    """Every function and method has at most 100 lines of code, counted as :func:`_code_lines` says: from its
+    ``def`` line to the end of its body, without its docstring and without blank or comment-only lines."""
+    over = []
+    for module, path in MODULES.items():
+        text = path.read_text()
+        source = text.splitlines()
+        for qualname, node in _functions(ast.parse(text, filename=str(path))):
+            key = f"{module}:{qualname}"
+            if (n := _code_lines(node, source)) > FUNCTION_LINE_LIMIT and key not in PENDING_OTHER_WORKER:
+                over.append(f"{key}: {n} lines")
+    assert not over, "functions over 100 lines of code:\n" + "\n".join(over)
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def _dotted(node: ast.AST) -> str | None:
+    """``a.b.c`` of a chain of attributes on a name, else ``None``."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return None
+    return ".".join([node.id, *reversed(parts)])
+
+
+def _private_imports(module: str, path: Path) -> list[str]:
+    """``from X import _name`` of a project module ``X`` other than ``module``, and ``X._name`` where ``X`` names a
+    project module (bound by ``import`` or ``from ... import module``) other than ``module``."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    bound: dict[str, str] = {}  # local name -> project module it names
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.asname and alias.name in MODULES:
+                    bound[alias.asname] = alias.name
+                elif alias.name.split(".")[0] in PACKAGES:
+                    bound[alias.name.split(".")[0]] = alias.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                source = ".".join(base + ([node.module] if node.module else []))
+            else:
+                source = node.module or ""
+            if source not in MODULES:
+                continue
+            for alias in node.names:
+                if f"{source}.{alias.name}" in MODULES:
+                    bound[alias.asname or alias.name] = f"{source}.{alias.name}"
+                if _is_private(alias.name) and source != module:
+                    found.append(f"{module}:{node.lineno}: from {source} import {alias.name}")
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _is_private(node.attr):
+            dotted = _dotted(node.value)
+            if dotted is None:
+                continue
+            head, _, rest = dotted.partition(".")
+            target = bound.get(head)
+            if target is None:
+                continue
+            target = f"{target}.{rest}" if rest else target
+            if target in MODULES and target != module:
+                found.append(f"{module}:{node.lineno}: {target}.{node.attr}")
+    return found
+
+
+def test_no_private_name_is_imported_across_modules():
+    """A name starting with ``_`` (dunders aside) is its module's own: no other module of the project imports it
+    (``from X import _name``) or reaches it as an attribute of a project module (``X._name``)."""
+    found = [f for m, p in MODULES.items() for f in _private_imports(m, p)]
+    assert not found, "private names used across modules:\n" + "\n".join(found)
+
+
+CODE_GENERATION_SITES = {"hybrid.symbolic_core:_compile_lambda"}
+"""The one place that turns generated source into code: the compiled symbolic evaluator of :mod:`hybrid.symbolic`
+(``_compile_lambda`` in :mod:`hybrid.symbolic_core`, the expressions' module). It compiles, with
+``eval(compile(...))`` and an empty ``__builtins__``, the Python source that ``_source`` writes itself from the node
+types of that module (never text a user supplied). No other module calls ``exec``, ``eval`` or ``compile``."""
+
+
+def test_at_most_one_place_runs_generated_code():
+    """Calls of the builtins ``exec``, ``eval`` and ``compile`` (``re.compile`` and other methods aside) are counted
+    per enclosing function; the only such function is :data:`CODE_GENERATION_SITES`."""
+    sites = set()
+    for module, path in MODULES.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        for qualname, function in _functions(tree):
+            for node in ast.walk(function):
+                if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in (
+                        "exec", "eval", "compile"):
+                    sites.add(f"{module}:{qualname}")
+        top = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
+               and n.func.id in ("exec", "eval", "compile")]
+        if any(not any(f.lineno <= n.lineno <= f.end_lineno for _, f in _functions(tree)) for n in top):
+            sites.add(f"{module}:<module level>")
+    assert sites <= CODE_GENERATION_SITES, f"code generation outside the symbolic evaluator: {sorted(sites)}"
+    assert len(sites) <= 1

@@ -494,7 +494,38 @@ def image_measurement(
     x_lim, y_lim, f = camera.x_limit, camera.y_limit, camera.focal_px
     in_view = tuple([z > 0.0 and -x_lim <= xx <= x_lim and -y_lim <= yy <= y_lim for xx, yy, z in features])
 
-    # exact occlusion test of every point by every tall obstacle
+    occluded, tall = _occlusions(cx, cy, world_points, obstacles, occluding)
+    if True in occluded:
+        visible = tuple([iv and not oc for iv, oc in zip(in_view, occluded)])
+    else:
+        visible = in_view
+
+    best = _occluder(tall, features, visible, c, s, f)
+    if best is None:
+        return _make_measurement(
+            in_view, tuple(occluded), visible, -1, _NAN, _NAN, _NAN, _NAN, _INF, _INF, 0, -1, 0, 0
+        )
+    d_occ, k, (y_minus, y_plus, z_minus, z_plus), side, nearest, border, sign = best
+    if side > 0:
+        d_bord = f * (y_plus + y_lim)
+    else:
+        d_bord = f * (y_lim - y_minus)
+    if d_bord < 0.0:
+        d_bord = 0.0
+    return _make_measurement(
+        in_view, tuple(occluded), visible, k, y_minus, y_plus, z_minus, z_plus, d_occ, d_bord, side, nearest,
+        border, sign,
+    )
+
+
+def _occlusions(
+    cx: float, cy: float, world_points: tuple[tuple[float, float, float], ...], obstacles: tuple[Obstacle, ...],
+    occluding: tuple[bool, ...],
+) -> tuple[list[bool], list[tuple[int, float, float, float, float, list[bool]]]]:
+    """The exact occlusion test of :func:`image_measurement`: per world point, whether a tall obstacle hides it
+    from the optical centre ``(cx, cy)``; and per tall obstacle ``(index, px, py, |p|^2, radius, hidden points)``
+    with ``p`` its centre relative to the optical centre [m]."""
+    n = len(world_points)
     occluded = [False] * n
     tall = []
     rel = None
@@ -526,12 +557,17 @@ def image_measurement(
                 occluded[j] = True
             hidden.append(h)
         tall.append((k, px, py, pp, r, hidden))
-    if True in occluded:
-        visible = tuple([iv and not oc for iv, oc in zip(in_view, occluded)])
-    else:
-        visible = in_view
+    return occluded, tall
 
-    # the occluder: the tall obstacle in front with the smallest d_occ
+
+def _occluder(
+    tall: list[tuple[int, float, float, float, float, list[bool]]], features: tuple[tuple[float, float, float], ...],
+    visible: tuple[bool, ...], c: float, s: float, f: float,
+) -> tuple | None:
+    """The occluder of :func:`image_measurement`: the tall obstacle in front with the smallest ``d_occ``, as
+    ``(d_occ, index, interval, side, nearest, border, sign)``; ``None`` when none is in front. ``c``, ``s``: cosine
+    and sine of the camera's heading; ``f``: focal length [px]."""
+    n = len(features)
     best = None  # (d_occ, k, interval, side, nearest, border, sign)
     if tall:
         ys = [ft[1] for ft in features]
@@ -566,19 +602,4 @@ def image_measurement(
             cand = (f * d, k, interval, side, nearest, border, sign)
         if best is None or cand[0] < best[0]:
             best = cand
-
-    if best is None:
-        return _make_measurement(
-            in_view, tuple(occluded), visible, -1, _NAN, _NAN, _NAN, _NAN, _INF, _INF, 0, -1, 0, 0
-        )
-    d_occ, k, (y_minus, y_plus, z_minus, z_plus), side, nearest, border, sign = best
-    if side > 0:
-        d_bord = f * (y_plus + y_lim)
-    else:
-        d_bord = f * (y_lim - y_minus)
-    if d_bord < 0.0:
-        d_bord = 0.0
-    return _make_measurement(
-        in_view, tuple(occluded), visible, k, y_minus, y_plus, z_minus, z_plus, d_occ, d_bord, side, nearest,
-        border, sign,
-    )
+    return best

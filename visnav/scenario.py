@@ -39,7 +39,6 @@ import difflib
 import functools
 import hashlib
 import importlib.resources
-import itertools
 import math
 import os
 import re
@@ -69,6 +68,15 @@ from visnav.parameters import (
     Scenario,
     SupervisorSettings,
     Target,
+)
+from visnav.scenario_errors import (
+    MAX_KEY_PARTS,
+    MISSING_VALUE,
+    ScenarioError,
+    deepest_line,
+    long_dotted_key,
+    short_key,
+    syntax_hint,
 )
 
 __all__ = [
@@ -108,11 +116,6 @@ MAX_OBSTACLES = 100
 MAX_REQUIREMENTS = 1000
 #: Largest scenario file or text [bytes] (the commented paper scenario is about 20 kB).
 MAX_SCENARIO_BYTES = 1_048_576
-#: Most parts of one dotted key or table header (``a.b.c = 1``: 3; a scenario needs 2).  Checked
-#: before parsing: ``tomllib`` takes time quadratic in the parts (20,000 parts: 17 s).
-MAX_KEY_PARTS = 64
-
-_MISSING = object()
 
 # Tables holding one dataclass each, in canonical order.
 _SECTIONS: dict[str, type] = {
@@ -133,108 +136,6 @@ _REQUIREMENT_KEYS = ("name", "formula", "description")
 _TARGET_POINTS_KEYS = ("points_m",)
 _TARGET_SQUARE_KEYS = ("center_m", "normal_rad", "side_m", "n_points")
 _TARGET_KEYS = (*_TARGET_POINTS_KEYS, *_TARGET_SQUARE_KEYS)
-
-
-class ScenarioError(ValueError):
-    """A scenario file or mapping that cannot describe a run.
-
-    Attributes
-    ----------
-    source : str
-        The file, built-in name or label the scenario came from.
-    key : str or None
-        Dotted path of the offending entry (``"envelopes.d_zero_m"``,
-        ``"obstacles[1].radius_m"``); ``None`` for problems with the file itself.
-    value : object
-        The value found (``None`` when the key is missing or for file problems).
-    expected : str
-        What a valid entry looks like.
-    fix : str
-        How to correct it.
-    line, column : int or None
-        Position of a TOML syntax error (1-based), else ``None``.
-    """
-
-    def __init__(
-        self,
-        source: str,
-        key: str | None,
-        value: object,
-        expected: str,
-        fix: str,
-        *,
-        line: int | None = None,
-        column: int | None = None,
-    ) -> None:
-        self.source = source
-        self.key = key
-        self.value = value
-        self.expected = expected
-        self.fix = fix
-        self.line = line
-        self.column = column
-        if key is None:
-            where = ""
-        elif value is _MISSING:
-            where = f"{key} is missing: "
-        else:
-            where = f"{key} = {_show(value)}: "
-        super().__init__(f"scenario {source!r}: {where}expected {expected}; fix: {fix}")
-        if value is _MISSING:
-            self.value = None
-
-    def __reduce__(self):  # keep the exception picklable (multiprocessing campaigns)
-        return (
-            _rebuild_error,
-            (self.source, self.key, self.value, self.expected, self.fix, self.line, self.column),
-        )
-
-
-def _rebuild_error(source, key, value, expected, fix, line, column) -> ScenarioError:
-    return ScenarioError(source, key, value, expected, fix, line=line, column=column)
-
-
-_SHOW_ITEMS = 8  # array entries / table keys shown in a message
-_SHOW_DEPTH = 4  # nesting levels shown in a message
-_SHOW_CHARS = 200  # longest value shown in a message
-
-
-def _show(value: object) -> str:
-    """The value as the message shows it: TOML-like, at most :data:`_SHOW_CHARS` characters (and the count)."""
-    text = _show_part(value, _SHOW_DEPTH)
-    if len(text) <= _SHOW_CHARS:
-        return text
-    count = f" ({len(value):,} entries)" if isinstance(value, (list, tuple, Mapping)) else ""
-    return text[: _SHOW_CHARS - 1] + "…" + count
-
-
-def _show_part(value: object, depth: int) -> str:
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 200:
-        try:
-            digits = f"{len(str(abs(value)))}"
-        except ValueError:  # beyond Python's int-to-str digit limit
-            digits = f"about {int(value.bit_length() * math.log10(2)) + 1}"
-        return f"<an integer of {digits} digits>"
-    if isinstance(value, str) and len(value) > _SHOW_CHARS:
-        return repr(value[:_SHOW_CHARS]) + f"… ({len(value)} characters)"
-    if isinstance(value, (list, tuple, Mapping)):
-        if depth <= 0:
-            return "[…]" if not isinstance(value, Mapping) else "{…}"
-        head = (list(itertools.islice(value.items(), _SHOW_ITEMS)) if isinstance(value, Mapping)
-                else list(value[:_SHOW_ITEMS]))
-        more = f", … ({len(value):,} entries)" if len(value) > _SHOW_ITEMS else ""
-        if isinstance(value, Mapping):
-            return "{" + ", ".join(f"{_short_key(k)} = {_show_part(v, depth - 1)}" for k, v in head) + more + "}"
-        return "[" + ", ".join(_show_part(v, depth - 1) for v in head) + more + "]"
-    return repr(value)
-
-
-def _short_key(key: object, limit: int = 60) -> str:
-    """A key as messages show it (a key of a hostile file may be very long)."""
-    text = str(key)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _num(x: float) -> str:
@@ -441,7 +342,7 @@ def scenario_from_toml(text: str, source: str = "<string>") -> Scenario:
             "save the file as UTF-8 without BOM (most editors offer 'UTF-8' next to 'UTF-8 with BOM')",
             line=1, column=1,
         )
-    _long_dotted_key(text, source)
+    long_dotted_key(text, source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -452,7 +353,7 @@ def scenario_from_toml(text: str, source: str = "<string>") -> Scenario:
             last = text.rsplit("\n", 1)[-1]
             line, column = text.count("\n") + 1, len(last) + 1
         at = f"line {line}, column {column}" if line is not None else "an unknown position"
-        expected, fix = _syntax_hint(text, message, line, column)
+        expected, fix = syntax_hint(text, message, line, column)
         raise ScenarioError(
             source,
             None,
@@ -463,7 +364,7 @@ def scenario_from_toml(text: str, source: str = "<string>") -> Scenario:
             column=column,
         ) from err
     except RecursionError as err:
-        where = _deepest_line(text)
+        where = deepest_line(text)
         raise ScenarioError(
             source, None, None,
             f"TOML nested at most a few hundred levels deep: arrays or inline tables are nested too deep for "
@@ -486,81 +387,6 @@ def scenario_from_toml(text: str, source: str = "<string>") -> Scenario:
     return scenario_from_mapping(data, source)
 
 
-# strings and comments of a TOML text, in the order the parser meets them (a '#' inside a string is not a comment)
-_STRINGS_AND_COMMENTS = re.compile(
-    r'"""(?:[^"\\]|\\.|"(?!""))*+"""|\'\'\'(?:[^\']|\'(?!\'\'))*+\'\'\'|"(?:[^"\\\n]|\\.)*+"|\'[^\'\n]*+\'|#[^\n]*+',
-    re.DOTALL,
-)
-# a chain of MAX_KEY_PARTS + 1 dotted parts (strings already replaced by one letter); linear: possessive, and
-# a chain starts only at the beginning of a part
-_DOTTED_CHAIN = re.compile(rf"(?<![A-Za-z0-9_-])(?:[A-Za-z0-9_-]++[ \t]*+\.[ \t]*+){{{MAX_KEY_PARTS},}}[A-Za-z0-9_-]")
-
-
-def _long_dotted_key(text: str, source: str) -> None:
-    """Refuse a dotted key or header of more than :data:`MAX_KEY_PARTS` parts before ``tomllib`` sees it."""
-    bare = _STRINGS_AND_COMMENTS.sub(lambda m: "" if m[0].startswith("#") else "s" + "\n" * m[0].count("\n"), text)
-    found = _DOTTED_CHAIN.search(bare)
-    if found:
-        line = bare.count("\n", 0, found.start()) + 1
-        parts = found[0].count(".") + 1
-        raise ScenarioError(
-            source, None, None,
-            f"dotted keys and table headers of at most {MAX_KEY_PARTS} parts (visnav.scenario.MAX_KEY_PARTS): "
-            f"line {line} has a key of {parts:,} parts (a.b.c... is a table nested once per part)",
-            "a scenario nests tables at most 2 levels deep ([robot] then pan_offset_m, or robot.pan_offset_m): "
-            f"shorten the key at line {line}",
-            line=line,
-        )
-
-
-def _deepest_line(text: str) -> str:
-    """`` (line N)``: the line that opens the most arrays and inline tables (strings and comments skipped)."""
-    bare = _STRINGS_AND_COMMENTS.sub(lambda m: "" if m[0].startswith("#") else "s" + "\n" * m[0].count("\n"), text)
-    counts = [line.count("[") + line.count("{") for line in bare.split("\n")]
-    best = max(range(len(counts)), key=counts.__getitem__) if counts else 0
-    return f" (line {best + 1} opens {counts[best]:,})" if counts and counts[best] else ""
-
-
-_BARE_KEY_PREFIX = re.compile(r"\s*\[{0,2}\s*[A-Za-z0-9_\-. \t\"']*\Z")
-
-
-def _syntax_hint(text: str, message: str, line: int | None, column: int | None) -> tuple[str, str]:
-    """``(expected, fix)`` for the TOML syntax errors whose position alone does not say what to change."""
-    if line is None or column is None:
-        return "", ""
-    lines = text.splitlines()
-    source_line = lines[line - 1] if 0 < line <= len(lines) else ""
-    char = source_line[column - 1] if 0 < column <= len(source_line) else ""
-    at = f"line {line}, column {column}"
-    if char and ord(char) > 127 and _BARE_KEY_PREFIX.match(source_line[: column - 1]):
-        key = re.split(r"\s*[=\]]", source_line.strip().lstrip("["), maxsplit=1)[0].strip()
-        return (
-            f"a bare key of ASCII letters, digits, '-' and '_' only (found {char!r}, U+{ord(char):04X}, in the key "
-            f"{_short_key(key)!r} at {at})",
-            f'quote the key ("{_short_key(key)}" = ...) or spell it in ASCII; the keys of a scenario are ASCII '
-            "(docs/scenarios.md)",
-        )
-    if message.startswith("Cannot declare"):  # a [table] header given twice
-        header = source_line.strip().split("#", 1)[0].strip()
-        first = next((n for n, text_line in enumerate(lines[: line - 1], start=1)
-                      if text_line.split("#", 1)[0].strip() == header), None)
-        earlier = f" (first at line {first})" if first else ""
-        return (
-            f"each table defined once: TOML refuses the header {_short_key(header)} at {at}, the table is "
-            f"already defined{earlier}",
-            f"merge the keys of both {_short_key(header)} tables under one header and delete the other one "
-            "([[obstacles]] and [[requirements]], with two brackets, may repeat)",
-        )
-    if message.startswith("Cannot overwrite a value"):  # a key given twice in one table
-        key = re.split(r"\s*=", source_line.strip(), maxsplit=1)[0].strip()
-        return (
-            f"each key defined once per table: TOML refuses {_short_key(key)!r} at {at}, the same table "
-            "already defines it",
-            f"delete one of the two lines {_short_key(key)} = ... (the second is line {line})",
-        )
-    return "", ""
-
-
 # ---------------------------------------------------------------------------------------------
 # Validation
 # ---------------------------------------------------------------------------------------------
@@ -576,9 +402,9 @@ class _Checker:
         raise ScenarioError(self.source, key, value, expected, fix)
 
     def table(self, key: str, value: object, required: bool = False) -> Mapping[str, Any]:
-        if value is _MISSING:
+        if value is MISSING_VALUE:
             if required:
-                self.fail(key, _MISSING, f"a [{key}] table", f"add a [{key}] table (see docs/scenarios.md)")
+                self.fail(key, MISSING_VALUE, f"a [{key}] table", f"add a [{key}] table (see docs/scenarios.md)")
             return {}
         if not isinstance(value, Mapping):
             self.fail(key, value, f"a table [{key}]", f"write the entries under a [{key}] header")
@@ -588,7 +414,7 @@ class _Checker:
         for key in table:
             if key in valid:
                 continue
-            shown = _short_key(key)
+            shown = short_key(key)
             where = f"{prefix}.{shown}" if prefix else shown
             if prefix and key in _TOP_KEYS:
                 # a top-level key written below a [table] header: TOML puts it into that table
@@ -761,7 +587,7 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     for key in _REQUIRED_TOP:
         if key not in data:
             fix = 'add name = "..." at the top of the file' if key == "name" else f"add a [{key}] table"
-            check.fail(key, _MISSING, "a value (name, target, start and goal are required)", fix)
+            check.fail(key, MISSING_VALUE, "a value (name, target, start and goal are required)", fix)
 
     # -- top-level scalars
     top = _section(check, "", Scenario, {k: data[k] for k in _TOP_SCALARS if k in data})
@@ -782,7 +608,7 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     # -- parameter records
     records: dict[str, Any] = {}
     for prefix, cls in _SECTIONS.items():
-        table = check.table(prefix, data.get(prefix, _MISSING))
+        table = check.table(prefix, data.get(prefix, MISSING_VALUE))
         records[prefix] = cls(**_section(check, prefix, cls, table))
 
     robot: RobotGeometry = records["robot"]
@@ -832,7 +658,7 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     }
 
     # -- obstacles
-    obstacles = _obstacles(check, data.get("obstacles", _MISSING), env, poses)
+    obstacles = _obstacles(check, data.get("obstacles", MISSING_VALUE), env, poses)
 
     # -- target
     target_table = check.table("target", data["target"], required=True)
@@ -843,7 +669,7 @@ def scenario_from_mapping(data: Mapping[str, Any], source: str) -> Scenario:
     scenario = Scenario(
         **top, **records, obstacles=obstacles, target=target, start=poses["start"], goal=poses["goal"]
     )
-    requirements = _requirements(check, data.get("requirements", _MISSING), scenario)
+    requirements = _requirements(check, data.get("requirements", MISSING_VALUE), scenario)
     return dataclasses.replace(scenario, requirements=requirements) if requirements else scenario
 
 
@@ -935,7 +761,7 @@ def _requirements(check: _Checker, raw: object, scenario: Scenario) -> tuple[Req
     """
     from visnav.requirements import signal_catalogue
 
-    if raw is _MISSING:
+    if raw is MISSING_VALUE:
         return ()
     if isinstance(raw, list):
         _at_most(check, "requirements", raw, "MAX_REQUIREMENTS", "requirements", "each formula is parsed at load")
@@ -950,7 +776,7 @@ def _requirements(check: _Checker, raw: object, scenario: Scenario) -> tuple[Req
         check.unknown_keys(prefix, table, _REQUIREMENT_KEYS)
         for key in ("name", "formula"):
             if key not in table:
-                check.fail(f"{prefix}.{key}", _MISSING, "name and formula for every requirement",
+                check.fail(f"{prefix}.{key}", MISSING_VALUE, "name and formula for every requirement",
                            f'add {key} = "..." to the requirement (see docs/requirements.md)')
         for key in _REQUIREMENT_KEYS:
             if key in table:
@@ -1086,7 +912,7 @@ def validate_scenario(scenario: Scenario, source: str | None = None) -> Scenario
 def _obstacles(
     check: _Checker, raw: object, env: Envelopes, poses: Mapping[str, Pose]
 ) -> tuple[Obstacle, ...]:
-    if raw is _MISSING:
+    if raw is MISSING_VALUE:
         return ()
     if isinstance(raw, list):
         _at_most(check, "obstacles", raw, "MAX_OBSTACLES", "obstacles",
@@ -1107,7 +933,7 @@ def _obstacles(
             if key not in table:
                 check.fail(
                     f"{prefix}.{key}",
-                    _MISSING,
+                    MISSING_VALUE,
                     "name, center_m, radius_m and height_m for every obstacle",
                     f"add {key} to the obstacle",
                 )
@@ -1194,7 +1020,7 @@ def _target(
             if key not in table:
                 check.fail(
                     f"target.{key}",
-                    _MISSING,
+                    MISSING_VALUE,
                     "either points_m = [[x, y, h], ...] or center_m, normal_rad and side_m of a square",
                     f"add target.{key} (or give points_m)",
                 )

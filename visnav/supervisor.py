@@ -248,6 +248,24 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
          "d_occ <= D-", "", 1),
     ]
 
+    modes = _supervisor_modes()
+    transitions = _supervisor_transitions(collision_rules, occlusion_rules)
+    memory = _supervisor_memory()
+    variables = SIGNALS + tuple(f"d_coll_{i}_m" for i in range(n_obstacles))
+    automaton = HybridAutomaton(
+        name="folio-cadenat-supervisor",
+        modes=tuple(modes),
+        transitions=tuple(transitions),
+        variables=variables,
+        memory=memory,
+        initial_mode=mode_name("FAR", "CLEAR"),
+        description="AVOID/LEAVE/OCCLU logic of Folio & Cadenat as a product automaton",
+    )
+    return SupervisorModel(automaton=automaton, envelopes=envelopes, settings=settings, n_obstacles=n_obstacles)
+
+
+def _supervisor_modes() -> list[Mode]:
+    """The product modes of :func:`build_supervisor`: one per (collision phase, occlusion phase), labelled."""
     modes = []
     for collision in COLLISION_PHASES:
         for occlusion in OCCLUSION_PHASES:
@@ -265,6 +283,12 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
                     },
                 )
             )
+    return modes
+
+
+def _supervisor_transitions(collision_rules: list[tuple], occlusion_rules: list[tuple]) -> list[Transition]:
+    """The transitions of :func:`build_supervisor`: each collision rule in every occlusion phase it applies to
+    (``None``: all), then each occlusion rule in every collision phase."""
     reads_coll = ("d_nearest_m", "nearest_obstacle", "bypass_side", "pan_wrapped_rad", "d_occ_px")
     transitions = []
     for src, dst, guard, reset, writes, gtext, rtext, prio, only in collision_rules:
@@ -301,6 +325,11 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
                     reset_text=rtext,
                 )
             )
+    return transitions
+
+
+def _supervisor_memory() -> tuple[MemoryVariable, ...]:
+    """The latched quantities of :func:`build_supervisor` (all start at 0)."""
     memory = (
         MemoryVariable(name="obstacle", initial=0.0, description="index of the latched obstacle"),
         MemoryVariable(name="side", initial=0.0, description="bypass side: +1 obstacle on the left, -1 right"),
@@ -310,17 +339,7 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
         MemoryVariable(name="DL", initial=0.0, description="d_occ latched when OCCLU was reset [px]"),
         MemoryVariable(name="D_end", initial=0.0, description="end of the occlusion release band [px]"),
     )
-    variables = SIGNALS + tuple(f"d_coll_{i}_m" for i in range(n_obstacles))
-    automaton = HybridAutomaton(
-        name="folio-cadenat-supervisor",
-        modes=tuple(modes),
-        transitions=tuple(transitions),
-        variables=variables,
-        memory=memory,
-        initial_mode=mode_name("FAR", "CLEAR"),
-        description="AVOID/LEAVE/OCCLU logic of Folio & Cadenat as a product automaton",
-    )
-    return SupervisorModel(automaton=automaton, envelopes=envelopes, settings=settings, n_obstacles=n_obstacles)
+    return memory
 
 
 def measurement_system(model: SupervisorModel) -> HybridSystem:

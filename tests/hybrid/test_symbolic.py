@@ -19,6 +19,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import hybrid.symbolic as S
+from hybrid.symbolic_core import compiled_function  # the compiled evaluator (issue 26: its own module)
 from hybrid.errors import ExecutionError, ModelDefinitionError
 from hybrid.symbolic import (
     MAX_COMPILED_DEPTH,
@@ -396,7 +397,7 @@ def deep_chain(n, *, shared=False):
 
 
 def is_compiled(expr, kind="condition"):
-    return S._compiled(expr, kind).__code__.co_filename.startswith(f"<symbolic {kind} ")
+    return compiled_function(expr, kind).__code__.co_filename.startswith(f"<symbolic {kind} ")
 
 
 def random_points(seed, count=20):
@@ -1036,5 +1037,5 @@ def test_a_compiled_function_shows_its_source_in_tracebacks():
     import linecache
 
     v = coordinates("x")
-    fn = S._compiled(v.x - 1.0, "condition")
+    fn = compiled_function(v.x - 1.0, "condition")
     assert linecache.getline(fn.__code__.co_filename, 1).strip() == "lambda v, m: (v[0] - 1.0)"

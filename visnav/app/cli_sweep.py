@@ -228,7 +228,7 @@ def _free_space_hint(err: OSError) -> str:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from analysis.campaigns import CampaignOptionError, NoWorkerError, SchedulerUnavailableError, campaign_executor
     from visnav.studies.campaign import PRELOAD, CampaignSpec, CampaignSpecError, run_campaign, summarise
-    from visnav.app.campaign_store import CampaignStoreError, CampaignStoreWriteError
+    from visnav.app.campaign_store import CampaignStoreWriteError
     from visnav.app.files import prepare_output_dir
     from visnav.scenario import load_scenario
 
@@ -245,30 +245,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         _error(f"--out {str(folder)!r}: {SUMMARY_FILE} exists and is not a file (a folder, a broken link?), so the "
                f"summary could not be written; move {summary_path} away, or choose another --out")
         return EXIT_BAD_INPUT
-    try:
-        store, report = open_campaign_store(results_path, spec)
-    except CampaignStoreError as err:
-        _error(str(err))
-        return EXIT_BAD_INPUT
-    except CampaignStoreWriteError as err:
-        _error(f"{err}; {_free_space_hint(err)} and rerun the same command (nothing was run)")
-        return EXIT_COULD_NOT_COMPLETE if err.resource else EXIT_BAD_INPUT
-    except OSError as err:
-        if err.errno in _RESOURCE_ERRNOS:
-            _error(f"--out {str(folder)!r}: cannot write {RESULTS_FILE} ({_strerror(err)}); nothing was run; free "
-                   "some space and rerun the same command")
-            return EXIT_COULD_NOT_COMPLETE
-        _error(f"--out {str(folder)!r}: cannot write {RESULTS_FILE} ({_strerror(err)}); choose a writable folder")
-        return EXIT_BAD_INPUT
-    if report.migrated:
-        print(f"visnav: warning: {results_path}: written by an older visnav (lines without the campaign's spec hash); "
-              f"its {report.results} results were bound to this campaign and the file rewritten in the current format",
-              file=sys.stderr)
-    for bad in report.bad_lines:
-        print(f"visnav: warning: {results_path}: {bad}; dropped", file=sys.stderr)
-    if report.bad_lines:
-        print(f"visnav: warning: {results_path}: kept {report.results} valid results and rewrote the file without "
-              f"the {len(report.bad_lines)} bad line(s); their samples will be run again", file=sys.stderr)
+    opened = _open_store(results_path, folder, spec)
+    if isinstance(opened, int):
+        return opened
+    store, report = opened
+    _warn_store_report(results_path, report)
     resumed = report.results
     with store:  # closing never raises: every line was fsync-ed when it was appended
         progress = _Progress(sys.stderr, spec.samples, resumed, args.progress or sys.stderr.isatty())
@@ -335,6 +316,41 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             return EXIT_COULD_NOT_COMPLETE
     print(json.dumps(out, sort_keys=True) if args.json else _human(out))
     return EXIT_OK
+
+
+def _open_store(results_path: Any, folder: Any, spec: Any) -> tuple[Any, Any] | int:
+    """The campaign's result store and its load report, or the exit code when it cannot be opened (the error
+    said)."""
+    from visnav.app.campaign_store import CampaignStoreError, CampaignStoreWriteError
+
+    try:
+        return open_campaign_store(results_path, spec)
+    except CampaignStoreError as err:
+        _error(str(err))
+        return EXIT_BAD_INPUT
+    except CampaignStoreWriteError as err:
+        _error(f"{err}; {_free_space_hint(err)} and rerun the same command (nothing was run)")
+        return EXIT_COULD_NOT_COMPLETE if err.resource else EXIT_BAD_INPUT
+    except OSError as err:
+        if err.errno in _RESOURCE_ERRNOS:
+            _error(f"--out {str(folder)!r}: cannot write {RESULTS_FILE} ({_strerror(err)}); nothing was run; free "
+                   "some space and rerun the same command")
+            return EXIT_COULD_NOT_COMPLETE
+        _error(f"--out {str(folder)!r}: cannot write {RESULTS_FILE} ({_strerror(err)}); choose a writable folder")
+        return EXIT_BAD_INPUT
+
+
+def _warn_store_report(results_path: Any, report: Any) -> None:
+    """Warn on stderr about what loading the result store changed (migrated file, dropped bad lines)."""
+    if report.migrated:
+        print(f"visnav: warning: {results_path}: written by an older visnav (lines without the campaign's spec hash); "
+              f"its {report.results} results were bound to this campaign and the file rewritten in the current format",
+              file=sys.stderr)
+    for bad in report.bad_lines:
+        print(f"visnav: warning: {results_path}: {bad}; dropped", file=sys.stderr)
+    if report.bad_lines:
+        print(f"visnav: warning: {results_path}: kept {report.results} valid results and rewrote the file without "
+              f"the {len(report.bad_lines)} bad line(s); their samples will be run again", file=sys.stderr)
 
 
 def _write_summary(folder: Any, spec: Any, summary: Any, *, description: str, resumed: int, wall: float,

@@ -234,8 +234,27 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M, sos
         raise ValueError(f"analyse: sos = {sos!r}; expected one of {list(SOS_CHOICES)} (the SOS study with its "
                          "gain scan, at the scenario's k only, or none)")
     validate_gains(gains, limits, source=scenario.name)
-    k, v = gains.k_path, gains.v_coll_mps
     period = scenario.sampling_period_s
+    path_following = _path_following_section(scenario, clearance_m, sos)
+    loops, responses, goal, lambda_curves, margin_curves = _loop_section(scenario)
+
+    data: dict[str, Any] = {
+        "path_following": path_following,
+        "goal": goal.as_dict(),
+        "eigenvalues_vs_lambda": lambda_curves,
+        "margins": loops,
+        "margins_vs_gains": margin_curves,
+        "frequency_responses": responses,
+        "sampling_period_s": period,
+    }
+    return Analysis(scenario=scenario.name, data=data)
+
+
+def _path_following_section(scenario: Scenario, clearance_m: float, sos: str) -> dict[str, Any]:
+    """The ``"path_following"`` part of :func:`analyse`: linearisation, Lyapunov certificates, entry states and
+    bounds, admissible gains, the switched family and the SOS study."""
+    env, gains, limits = scenario.envelopes, scenario.gains, scenario.limits
+    k, v = gains.k_path, gains.v_coll_mps
     radii = [o.radius_m for o in scenario.obstacles] or [1.0]
     pf = path_following_model(k=k, v=v, d_zero=env.d_zero_m, radius=radii[0])
     lin = pf.linearisation()
@@ -266,7 +285,41 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M, sos
               for s in (0.25, 0.5, 1.0)]
     switched = common_quadratic_lyapunov_lmi(family, ["v_coll/4", "v_coll/2", "v_coll"])
     sos_study = _sos_study(scenario, entries, angles, clearance_m, sos)
+    return {
+        "parameters": {"k": k, "v_coll_mps": v, "d_zero_m": env.d_zero_m, "radius_m": radii[0]},
+        "equilibrium": {"delta_m": 0.0, "alpha_rad": 0.0, "residual_norm": float(np.linalg.norm(lin.residual))},
+        "jacobian": lin.jacobian.tolist(),
+        "eigenvalues": [[e.real, e.imag] for e in lin.eigenvalues],
+        "eigenvalues_closed_form": [[e.real, e.imag] for e in sorted(closed_form, key=lambda z: z.real)],
+        "modes": [m.as_dict() for m in lin.modes],
+        "hurwitz": lin.hurwitz,
+        "finding": lin.finding,
+        "claim": "computed",
+        "eigenvalues_vs_k": {"k": list(_K_CURVE), "eigenvalues": k_curve},
+        "eigenvalues_vs_v_coll": {"v_coll_mps": list(_V_CURVE), "eigenvalues": v_curve},
+        "quadratic_lyapunov": lyap.as_dict(),
+        "lyapunov": {**certificate.as_dict(), "claim": "proven" if certificate.certified else "not proven"},
+        "entry_states": [{"obstacle": n, "delta_m": d, "alpha_rad": a, "claim": "sampled"} for n, d, a in entries],
+        "entry_bounds": [
+            {"alpha0_rad": b.alpha0, "delta0_m": b.delta0, "V0": b.v0, "valid": b.valid,
+             "delta_max_m": b.delta_max_m, "alpha_max_rad": b.alpha_max_rad,
+             "omega_max_radps": b.omega_max_radps, "min_distance_m": b.min_distance_m}
+            for b in bounds
+        ],
+        "admissible_k": None if admissible.interval is None else list(admissible.interval),
+        "admissible": admissible.as_dict(),
+        "switched": {**switched.as_dict(), "claim": "proven" if switched.proven else "not proven",
+                     "family": "path-following linearisation at v_coll/4, v_coll/2, v_coll (the blend ramps v)"},
+        "sos": sos_study,
+    }
 
+
+def _loop_section(scenario: Scenario) -> tuple[dict[str, Any], dict[str, Any], Any, dict[str, Any], dict[str, Any]]:
+    """The loops of :func:`analyse`: margins and frequency responses per loop, the goal-loop findings, the
+    eigenvalues against the task gains and the margins against the gains."""
+    k = scenario.gains.k_path
+    period = scenario.sampling_period_s
+    radii = [o.radius_m for o in scenario.obstacles] or [1.0]
     loops: dict[str, Any] = {}
     responses: dict[str, Any] = {}
     w = np.geomspace(1e-3, math.pi / period, _RESPONSE_POINTS)
@@ -309,40 +362,4 @@ def analyse(scenario: Scenario, *, clearance_m: float = DEFAULT_CLEARANCE_M, sos
                                             lambda g: _vs_loop(visual_servoing_model(scenario, lambda_vs=g)),
                                             period, at_output="e_Vy")},
     }
-
-    data: dict[str, Any] = {
-        "path_following": {
-            "parameters": {"k": k, "v_coll_mps": v, "d_zero_m": env.d_zero_m, "radius_m": radii[0]},
-            "equilibrium": {"delta_m": 0.0, "alpha_rad": 0.0, "residual_norm": float(np.linalg.norm(lin.residual))},
-            "jacobian": lin.jacobian.tolist(),
-            "eigenvalues": [[e.real, e.imag] for e in lin.eigenvalues],
-            "eigenvalues_closed_form": [[e.real, e.imag] for e in sorted(closed_form, key=lambda z: z.real)],
-            "modes": [m.as_dict() for m in lin.modes],
-            "hurwitz": lin.hurwitz,
-            "finding": lin.finding,
-            "claim": "computed",
-            "eigenvalues_vs_k": {"k": list(_K_CURVE), "eigenvalues": k_curve},
-            "eigenvalues_vs_v_coll": {"v_coll_mps": list(_V_CURVE), "eigenvalues": v_curve},
-            "quadratic_lyapunov": lyap.as_dict(),
-            "lyapunov": {**certificate.as_dict(), "claim": "proven" if certificate.certified else "not proven"},
-            "entry_states": [{"obstacle": n, "delta_m": d, "alpha_rad": a, "claim": "sampled"} for n, d, a in entries],
-            "entry_bounds": [
-                {"alpha0_rad": b.alpha0, "delta0_m": b.delta0, "V0": b.v0, "valid": b.valid,
-                 "delta_max_m": b.delta_max_m, "alpha_max_rad": b.alpha_max_rad,
-                 "omega_max_radps": b.omega_max_radps, "min_distance_m": b.min_distance_m}
-                for b in bounds
-            ],
-            "admissible_k": None if admissible.interval is None else list(admissible.interval),
-            "admissible": admissible.as_dict(),
-            "switched": {**switched.as_dict(), "claim": "proven" if switched.proven else "not proven",
-                         "family": "path-following linearisation at v_coll/4, v_coll/2, v_coll (the blend ramps v)"},
-            "sos": sos_study,
-        },
-        "goal": goal.as_dict(),
-        "eigenvalues_vs_lambda": lambda_curves,
-        "margins": loops,
-        "margins_vs_gains": margin_curves,
-        "frequency_responses": responses,
-        "sampling_period_s": period,
-    }
-    return Analysis(scenario=scenario.name, data=data)
+    return loops, responses, goal, lambda_curves, margin_curves
