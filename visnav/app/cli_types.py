@@ -19,7 +19,8 @@ import math
 import signal
 
 __all__ = ["EXIT_OK", "EXIT_TASK_FAILED", "EXIT_BAD_INPUT", "EXIT_DIVERGED", "EXIT_INTERNAL", "EXIT_INTERRUPTED",
-           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "VERDICT_EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds", "ignore_late_interrupts"]
+           "EXIT_INCOMPLETE", "EXIT_MODEL_ERROR", "EXIT_CODES", "VERDICT_EXIT_CODES", "positive_int", "non_negative_int", "positive_seconds", "ignore_late_interrupts",
+           "VERIFY_BUDGET", "VERIFY_BUDGET_QUICK"]
 
 EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERNAL = 0, 1, 2, 3, 4
 """The exit codes of every ``visnav`` subcommand."""
@@ -34,6 +35,9 @@ EXIT_CODES = {EXIT_OK: "the task holds", EXIT_TASK_FAILED: "the task failed",
               EXIT_INTERNAL: "internal error", EXIT_INCOMPLETE: "a check or run did not decide",
               EXIT_MODEL_ERROR: "the model's code raised", EXIT_INTERRUPTED: "interrupted"}
 """What each exit code means (one line each, as ``docs/failure_modes.md`` explains them)."""
+VERIFY_BUDGET, VERIFY_BUDGET_QUICK = 120, 16
+"""Simulations of a verification: ``visnav verify``'s and the full report's default, and the quick report's
+(the one definition of both; the paper's problem: about 40 s on one core for 120)."""
 VERDICT_EXIT_CODES = {"proven": EXIT_OK, "not_falsified": EXIT_OK, "falsified": EXIT_TASK_FAILED,
                       "diverged": EXIT_DIVERGED, "incomplete": EXIT_INCOMPLETE, "error": EXIT_MODEL_ERROR}
 """The exit code of each overall verdict of a verification (:data:`analysis.verdicts.OVERALL`)."""

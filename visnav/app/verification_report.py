@@ -45,7 +45,7 @@ from typing import Any
 
 from hybrid.jsonable import to_jsonable
 
-from visnav.app.cli_types import VERDICT_EXIT_CODES
+from visnav.app.cli_types import VERDICT_EXIT_CODES, VERIFY_BUDGET, VERIFY_BUDGET_QUICK
 from visnav.app.precision import round_section, round_value
 
 __all__ = [
@@ -96,7 +96,6 @@ and 1 (a finding) for :data:`STRUCTURAL_ERROR`)."""
 COUNTEREXAMPLE_DIR = "counterexamples"
 """Sub-folder of the report's counterexample files (``counterexamples/NAME.json``)."""
 
-VERIFY_BUDGET, VERIFY_BUDGET_QUICK = 120, 16
 """Simulations of the verification in the full and in the quick report."""
 
 WORST_FINDINGS = 8
@@ -234,7 +233,7 @@ def _evidence(verdict: Any, result: Any, problem: Any) -> str:
 
 def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None, spec: str,
                        section: str = "verification") -> Claim:
-    from visnav.app.cli_verify import replay_command
+    from visnav.app.counterexample_files import replay_command
 
     label = VERDICT_LABELS[verdict.verdict]
     if verdict.verdict == "proven":
@@ -355,7 +354,7 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
         the report folder), ``nominal``, ``parameters``, ``coverage``, ``figures``...; the
         counterexample files' text in ``files``.
     """
-    from visnav.app.cli_verify import counterexample_text
+    from visnav.app.counterexample_files import counterexample_text
 
     options = dict(options or {})
     nominal, nominal_trace = _nominal_run(problem, result)
