@@ -509,18 +509,18 @@ class _Run:
                 if w.role == "guard":
                     tr = w.transition
                     raw = tr.guard(v, memory)  # type: ignore[union-attr]
-                    if raw.__class__ is not float and not_a_number(raw) is not None:
+                    if raw.__class__ is not float and raw.__class__ is not np.float64 and not_a_number(raw) is not None:
                         raise ValueError  # the careful pass names it
                     g = float(raw)
                     out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
                 elif w.role == "invariant":
                     raw = self.invariants[mode](v, memory)  # type: ignore[misc]
-                    if raw.__class__ is not float and not_a_number(raw) is not None:
+                    if raw.__class__ is not float and raw.__class__ is not np.float64 and not_a_number(raw) is not None:
                         raise ValueError
                     out.append(-float(raw))
                 else:
                     raw = self.stops[w.name](t, x, mode, memory)
-                    if raw.__class__ is not float and not_a_number(raw) is not None:
+                    if raw.__class__ is not float and raw.__class__ is not np.float64 and not_a_number(raw) is not None:
                         raise ValueError
                     out.append(float(raw))
             self.guard_evaluations += len(watches)
