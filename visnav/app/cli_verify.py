@@ -324,7 +324,8 @@ def _human(result: Any, written: Mapping[str, str], resumed: int, spec: str) -> 
              f"{result.method}, seed {result.seed}{f', {resumed} read back from the journal' if resumed else ''})"]
     width = max(len(r.name) for r in result.requirements)
     for r in result.requirements:
-        line = f"  {r.verdict:<14} {r.name:<{width}}  robustness {_fmt(r.robustness):>10}"
+        rho = r.robustness if r.robustness is not None or r.counterexample is None else r.counterexample.robustness
+        line = f"  {r.verdict:<14} {r.name:<{width}}  robustness {_fmt(rho):>10}"
         if r.counterexample is not None:
             cx = r.counterexample
             first = "" if cx.first_time is None else f"first violated at t = {cx.first_time:.4g} s, "
@@ -339,8 +340,11 @@ def _human(result: Any, written: Mapping[str, str], resumed: int, spec: str) -> 
         lines.append(f"  {result.invalid} points outside the problem's hypotheses skipped: {result.invalid_reasons[0]}")
     for d in result.diverged[:3]:
         lines.append(f"  {d['status']} at {d['point']}: {d['detail']}")
-    for d in result.ended_early[:3]:
-        lines.append(f"  ended early ({d['end']}) at {d['point']}: {d['detail']}")
+    if result.ended_early:  # the first, and how many (their causes are often the same sentence)
+        d = result.ended_early[0]
+        more = len(result.ended_early) - 1
+        lines.append(f"  ended early ({d['end']}) at {d['point']}: {d['detail']}"
+                     + (f" (+{more} more run(s) ended early: verification.json has them)" if more else ""))
     for d in result.errors[:1]:
         lines.append(f"  MODEL ERROR at {d['point']}: {d['detail']} (the model's traceback is on stderr)")
     for r in result.requirements:
