@@ -171,7 +171,7 @@ def test_import_does_not_pull_upper_layers(package, forbidden):
     assert proc.returncode == 0, f"{package} imported {proc.stdout.strip()} {proc.stderr[-500:]}"
 
 
-FACES = ("hybrid", "analysis.verify", "analysis.stl", "analysis.reach")
+FACES = ("hybrid", "analysis.verify", "analysis.certify", "analysis.integrate", "analysis.stl", "analysis.reach")
 """Packages whose ``__init__`` is a face: the names a user needs, and exactly those."""
 
 
