@@ -39,7 +39,7 @@ import numpy as np
 
 from hybrid.jsonable import to_jsonable
 
-from analysis.falsification import DEFAULT_TIMEOUT_S, Evaluation, Outcome, Runner, Search, falsify
+from analysis.falsification import DEFAULT_TIMEOUT_S, Evaluation, FalsificationError, Outcome, Runner, Search, falsify
 from analysis.verification import Proof, VerificationProblem
 
 __all__ = ["VERDICTS", "OVERALL", "PASSES", "Counterexample", "Coverage", "RequirementVerdict",
@@ -296,6 +296,10 @@ def verify(
 
     Parameters are those of :func:`analysis.falsification.falsify`.
     """
+    if isinstance(budget, int) and not isinstance(budget, bool) and budget < problem.min_budget:
+        raise FalsificationError("budget", budget, f"at least {problem.min_budget} simulations for problem "
+                                 f"{problem.name!r} (one per coordinate of its input signals' control points)",
+                                 f"give a budget of at least {problem.min_budget}, or fewer control points")
     proofs = _proofs(problem)
     search, falsified = falsify(problem, budget=budget, seed=seed, method=method, cache=cache,
                                 on_evaluation=on_evaluation, runner=runner, timeout_s=timeout_s)

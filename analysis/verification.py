@@ -236,6 +236,9 @@ class VerificationProblem:
     source : str
         How to load the problem again (``"pkg.mod:problem"``, ``"file.py:problem"``,
         ``"paper"``); written into counterexample files for ``replay``.
+    min_budget : int
+        The fewest simulations a search of the problem may be given (0: any); a problem over input
+        signals (:func:`analysis.signals.signal_problem`) needs at least one per control point.
     """
 
     name: str
@@ -251,6 +254,7 @@ class VerificationProblem:
     stability: Callable[[], Any] | None = None
     source: str = ""
     automaton: Any = None
+    min_budget: int = 0
     parsed: tuple[ParsedRequirement, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -283,6 +287,10 @@ class VerificationProblem:
         if unknown:
             raise ProblemError("VerificationProblem.proofs", unknown, "names of the problem's requirements",
                                "key each proof by the requirement it decides")
+        if isinstance(self.min_budget, bool) or not isinstance(self.min_budget, (int, np.integer)) \
+                or self.min_budget < 0:
+            raise ProblemError("VerificationProblem.min_budget", self.min_budget, "a non-negative integer",
+                               "give the fewest simulations a search needs, or 0")
         constants = tuple(p.name for p in params if p.name not in signals and p.name not in labels)
         parsed = parse_requirements(requirements, signals=(*signals, *constants, "time", "jumps"), labels=labels,
                                     horizon=horizon)
@@ -336,4 +344,5 @@ class VerificationProblem:
             requirements=tuple(requirements), signals=self.signals, labels=self.labels,
             description=self.description, proofs={k: v for k, v in self.proofs.items() if k in names},
             structural=self.structural, stability=self.stability, source=self.source, automaton=self.automaton,
+            min_budget=self.min_budget,
         )
