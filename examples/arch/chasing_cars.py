@@ -1,0 +1,279 @@
+"""ARCH-COMP FALS benchmark CC: five chasing cars (after Hu et al.), as verification problems.
+
+The model is ARCH-COMP's ``cars.mdl`` (a Simulink model of five Stateflow charts; the copy read is the one
+FalStar ships, ``falstar/resource/simulink/cars.mdl``, the model ARCH-COMP 2019-2022 used).  Car 1 leads,
+driven by the inputs ``throttle, brake ∈ [0, 1]``; cars 2..5 each follow the car ahead with a three-mode
+automaton.  Positions ``y_i`` decrease as the cars advance (car ``i`` starts at ``10 (i - 1)``, at rest);
+``d_i = y_i - y_{i-1}`` is the gap to the car ahead::
+
+    car 1:      v1' = -throttle - brake v1,   y1' = v1
+    Chasing:    v' = 1,    y' = -v           Chasing -> Keeping  when d <= 10
+    Keeping:    v' = 0,    y' = +v (!)       Keeping -> Chasing  when d >= 15,  Keeping -> Braking when d <= 5
+    Braking:    v' = -v,   y' = -v           Braking -> Chasing  when d >= 20
+
+Every follower starts in Keeping.  **The sign of Keeping** (``docs/arch.md``): in ``cars.mdl`` the keeping
+mode reads ``y_dot = v`` while chasing and braking read ``y_dot = -v``: a keeping car *backs away* at its
+speed instead of holding it, which is what the competition's model does and what its published results were
+obtained with.  The benchmark is that model, so it is the default; ``keeping_sign=-1`` gives the
+consistent reading (``y' = -v``, the speed held), which is what the follower's description ("keeping" the
+distance at a constant speed) and the two other modes suggest.
+
+Between events the dynamics are linear with constant inputs and are solved in closed form; a guard is
+detected at the 0.05 s samples (and at every input switch) and its crossing located by bisection on the
+closed form (to 1e-12 s), as Simulink's zero-crossing detection locates it; a guard crossed and crossed back
+within one 0.05 s step is not seen (nor is it by a solver that checks signs at its step ends).
+
+Requirements (ARCH-COMP 2019-2022 FALS reports, "CC")::
+
+    CC1  always[0,100] y5 - y4 <= 40
+    CC2  always[0,70] eventually[0,30] y5 - y4 >= 15
+    CC3  always[0,80] ((always[0,20] y2 - y1 <= 20) or (eventually[0,20] y5 - y4 >= 40))
+    CC4  always[0,65] eventually[0,30] always[0,5] y5 - y4 >= 8
+    CC5  always[0,72] eventually[0,8] ((always[0,5] y2 - y1 >= 9) -> (always[5,20] y5 - y4 >= 9))
+    CCx  always[0,50] (y2 - y1 > 7.5 and y3 - y2 > 7.5 and y4 - y3 > 7.5 and y5 - y4 > 7.5)
+
+Inputs: throttle and brake piecewise constant over [0, 100] s, 7 and 3 control points by default.
+
+Load them with ``visnav verify examples/arch/chasing_cars.py:cc1`` (``cc2`` .. ``cc5``, ``ccx``); :func:`problems`
+returns them keyed by requirement name.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from analysis.signals import InputSignal, PiecewiseConstantInput, signal_problem
+from analysis.stl import SignalTrace
+from analysis.verify import Requirement, VerificationProblem
+
+HORIZON = 100.0
+"""Simulated time and span of the inputs' control points [s]."""
+SAMPLE = 0.05
+"""Sample period of the trace and of guard detection [s]."""
+CARS = 5
+MODES = ("chasing", "keeping", "braking")
+OUTPUTS = ("y1", "y2", "y3", "y4", "y5", "v1", "v2", "v3", "v4", "v5")
+
+REQUIREMENTS: dict[str, tuple[str, str]] = {
+    "CC1": ("always[0, 100] (y5 - y4 <= 40)", "car 5 never falls more than 40 behind car 4"),
+    "CC2": ("always[0, 70] eventually[0, 30] (y5 - y4 >= 15)", "every 30 s, car 5 is at least 15 behind car 4"),
+    "CC3": ("always[0, 80] ((always[0, 20] (y2 - y1 <= 20)) or (eventually[0, 20] (y5 - y4 >= 40)))",
+            "a gap above 20 between cars 1 and 2 within 20 s means a gap of 40 between cars 4 and 5 within 20 s"),
+    "CC4": ("always[0, 65] eventually[0, 30] always[0, 5] (y5 - y4 >= 8)",
+            "every 30 s, cars 4 and 5 keep 8 apart for 5 s"),
+    "CC5": ("always[0, 72] eventually[0, 8] ((always[0, 5] (y2 - y1 >= 9)) -> (always[5, 20] (y5 - y4 >= 9)))",
+            "within every 8 s, a gap of 9 between cars 1 and 2 for 5 s is followed by one between cars 4 and 5"),
+    "CCx": ("always[0, 50] ((y2 - y1 > 7.5) and (y3 - y2 > 7.5) and (y4 - y3 > 7.5) and (y5 - y4 > 7.5))",
+            "every gap stays above 7.5 for 50 s"),
+}
+"""Requirement name -> (formula, description), as published in the ARCH-COMP FALS reports."""
+
+_GUARDS = {  # mode -> ((comparison, threshold, next mode), ...): d <= c is "le", d >= c is "ge"
+    "chasing": (("le", 10.0, "keeping"),),
+    "keeping": (("ge", 15.0, "chasing"), ("le", 5.0, "braking")),
+    "braking": (("ge", 20.0, "chasing"),),
+}
+
+
+def _phi1(x: float) -> float:
+    """(1 - e^-x) / x, accurate for small x."""
+    return 1.0 - x / 2 + x * x / 6 if abs(x) < 1e-5 else -math.expm1(-x) / x
+
+
+def _phi2(x: float) -> float:
+    """(x - 1 + e^-x) / x^2, accurate for small x."""
+    return 0.5 - x / 6 + x * x / 24 if abs(x) < 1e-3 else (x + math.expm1(-x)) / (x * x)
+
+
+def lead(y: float, v: float, throttle: float, brake: float, s: float) -> tuple[float, float]:
+    """Car 1 after ``s`` seconds of ``v' = -throttle - brake v``, ``y' = v`` (closed form)."""
+    x = brake * s
+    return (y + v * s * _phi1(x) - throttle * s * s * _phi2(x),
+            v * math.exp(-x) - throttle * s * _phi1(x))
+
+
+def follower(mode: str, y: float, v: float, s: float, keeping_sign: float) -> tuple[float, float]:
+    """A follower after ``s`` seconds in ``mode`` (closed form)."""
+    if mode == "chasing":
+        return y - v * s - s * s / 2, v + s
+    if mode == "keeping":
+        return y + keeping_sign * v * s, v
+    decay = math.exp(-s)
+    return y - v * (1.0 - decay), v * decay
+
+
+def _advance(state: list[tuple[float, float]], modes: list[str], u: float, b: float, s: float,
+             sign: float) -> list[tuple[float, float]]:
+    first = lead(state[0][0], state[0][1], u, b, s)
+    return [first] + [follower(modes[i], state[i][0], state[i][1], s, sign) for i in range(1, CARS)]
+
+
+def _fires(kind: str, gap: float, threshold: float) -> bool:
+    return gap <= threshold if kind == "le" else gap >= threshold
+
+
+def _switch(state: list[tuple[float, float]], modes: list[str]) -> bool:
+    """Take every enabled transition (in car order, chains at one instant allowed); whether any was taken."""
+    taken = False
+    for _ in range(3):  # no guard of a mode's successor is enabled by the same gap twice: chains have length <= 2
+        changed = False
+        for i in range(1, CARS):
+            gap = state[i][0] - state[i - 1][0]
+            for kind, threshold, target in _GUARDS[modes[i]]:
+                if _fires(kind, gap, threshold):
+                    modes[i], changed = target, True
+                    break
+        taken |= changed
+        if not changed:
+            break
+    return taken
+
+
+def _gap(state, modes, u, b, i, s, sign) -> float:
+    """``y_i - y_{i-1}`` after ``s`` seconds in the current modes."""
+    ahead = lead(*state[0], u, b, s) if i == 1 else follower(modes[i - 1], *state[i - 1], s, sign)
+    return follower(modes[i], *state[i], s, sign)[0] - ahead[0]
+
+
+def _crossing(g, lo: float, hi: float, g_lo: float, g_hi: float) -> float:
+    """The root of ``g`` in ``(lo, hi]`` (``g_lo < 0 <= g_hi``, ``g`` continuous) by the Illinois method, to 1e-12 s."""
+    side = 0
+    for _ in range(200):
+        if hi - lo <= 1e-12:
+            break
+        mid = hi - g_hi * (hi - lo) / (g_hi - g_lo)
+        if not lo < mid < hi:
+            mid = (lo + hi) / 2
+        g_mid = g(mid)
+        if g_mid >= 0:
+            hi, g_hi = mid, g_mid
+            if side == 1:
+                g_lo /= 2
+            side = 1
+        else:
+            lo, g_lo = mid, g_mid
+            if side == -1:
+                g_hi /= 2
+            side = -1
+        if g_mid == 0 or abs(hi - lo) <= 1e-12:
+            break
+    return hi
+
+
+def _first_event(state, modes, u, b, h, sign, end) -> float | None:
+    """The earliest guard crossing in ``(0, h]`` seen at the step's end state ``end``, located on the closed form.
+
+    A guard ``d <= c`` is the root of ``c - d``, ``d >= c`` of ``d - c``: negative before, non-negative at the end.
+    ``None`` when no guard holds at the end.
+    """
+    best = None
+    for i in range(1, CARS):
+        gap_end = end[i][0] - end[i - 1][0]
+        for kind, threshold, _ in _GUARDS[modes[i]]:
+            if not _fires(kind, gap_end, threshold):
+                continue
+            sense = 1.0 if kind == "ge" else -1.0
+
+            def g(s, i=i, threshold=threshold, sense=sense):
+                return sense * (_gap(state, modes, u, b, i, s, sign) - threshold)
+
+            tau = _crossing(g, 0.0, h, g(0.0), sense * (gap_end - threshold))
+            best = tau if best is None else min(best, tau)
+    return best
+
+
+def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HORIZON, *,
+                  keeping_sign: float = 1.0) -> dict[str, np.ndarray]:
+    """Simulate the five cars over ``[0, horizon]``.
+
+    Returns
+    -------
+    dict
+        ``time`` [s] and ``y1..y5``, ``v1..v5`` (arrays, one sample every :data:`SAMPLE` s, at every input switch
+        and at every mode switch), and ``modes`` (tuple of the followers' modes at each sample).
+    """
+    grid = np.unique(np.round(np.concatenate((np.arange(0.0, horizon + 1e-9, SAMPLE), throttle.starts,
+                                              brake.starts, [horizon])), 9))
+    grid = grid[grid <= horizon]
+    state = [(10.0 * i, 0.0) for i in range(CARS)]
+    modes = ["lead"] + ["keeping"] * (CARS - 1)
+    times, states, mode_log = [0.0], [list(state)], [tuple(modes[1:])]
+    us, bs = throttle.at(grid[:-1]).tolist(), brake.at(grid[:-1]).tolist()
+    for k in range(grid.size - 1):
+        t, end, u, b = float(grid[k]), float(grid[k + 1]), us[k], bs[k]
+        while t < end:
+            reached = _advance(state, modes, u, b, end - t, keeping_sign)
+            tau = _first_event(state, modes, u, b, end - t, keeping_sign, reached)
+            if tau is None or t + tau >= end:
+                state, t = reached, end
+            else:
+                state, t = _advance(state, modes, u, b, tau, keeping_sign), t + tau
+            _switch(state, modes)
+            if t > times[-1]:
+                times.append(t), states.append(list(state)), mode_log.append(tuple(modes[1:]))
+            else:  # an event at the sample's time: the sample shows the modes after it
+                states[-1], mode_log[-1] = list(state), tuple(modes[1:])
+    arr = np.asarray(states)
+    out = {"time": np.asarray(times)}
+    for i in range(CARS):
+        out[f"y{i + 1}"], out[f"v{i + 1}"] = arr[:, i, 0], arr[:, i, 1]
+    out["modes"] = tuple(mode_log)
+    return out
+
+
+def _inputs(throttle_points: int, brake_points: int) -> tuple[PiecewiseConstantInput, PiecewiseConstantInput]:
+    return (PiecewiseConstantInput(name="throttle", low=0.0, high=1.0, control_points=throttle_points, span=HORIZON),
+            PiecewiseConstantInput(name="brake", low=0.0, high=1.0, control_points=brake_points, span=HORIZON))
+
+
+def chasing_cars_problem(requirement: Requirement, *, throttle_points: int = 7, brake_points: int = 3,
+                         keeping_sign: float = 1.0) -> VerificationProblem:
+    """The CC problem of one requirement over the inputs' control points.
+
+    Parameters
+    ----------
+    requirement : Requirement
+        Reads ``y1..y5``, ``v1..v5`` (any other signal is refused).
+    throttle_points, brake_points : int
+        Control points of throttle and brake over [0, 100] s (positive).
+    keeping_sign : {1.0, -1.0}
+        ``y' = keeping_sign * v`` in Keeping: +1 as in ARCH-COMP's ``cars.mdl``, -1 the consistent reading.
+    """
+    if keeping_sign not in (1.0, -1.0):
+        raise ValueError(f"keeping_sign = {keeping_sign!r}: expected 1.0 (ARCH-COMP's cars.mdl) or -1.0 (the "
+                         "speed held); fix: pass one of the two")
+    sign = float(keeping_sign)
+
+    def simulate(signals: Mapping[str, InputSignal], point: Mapping[str, float]) -> SignalTrace:
+        run = simulate_cars(signals["throttle"], signals["brake"], keeping_sign=sign)
+        modes = run.pop("modes")
+        return SignalTrace(times=run.pop("time"), signals=run,
+                           labels={f"mode{i + 2}": tuple(m[i] for m in modes) for i in range(CARS - 1)},
+                           termination="end_time")
+
+    name = getattr(requirement, "name", "requirement")
+    variant = "" if sign > 0 else " (keeping mode holding its speed)"
+    return signal_problem(name=f"arch-cc-{name}" + ("" if sign > 0 else "-keeping-held"), simulate=simulate,
+                          inputs=_inputs(throttle_points, brake_points), outputs=OUTPUTS, horizon=HORIZON,
+                          requirements=(requirement,),
+                          labels={f"mode{i}": MODES for i in range(2, CARS + 1)},
+                          description=f"ARCH-COMP FALS chasing cars{variant}, {name}: throttle {throttle_points} "
+                                      f"and brake {brake_points} piecewise-constant control points over "
+                                      f"[0, {HORIZON:g}] s")
+
+
+def problems(*, throttle_points: int = 7, brake_points: int = 3,
+             keeping_sign: float = 1.0) -> dict[str, VerificationProblem]:
+    """Every CC requirement's problem, keyed by requirement name (``CC1`` .. ``CC5``, ``CCx``)."""
+    return {name: chasing_cars_problem(Requirement(name=name, formula=formula, description=text),
+                                       throttle_points=throttle_points, brake_points=brake_points,
+                                       keeping_sign=keeping_sign)
+            for name, (formula, text) in REQUIREMENTS.items()}
+
+
+_ALL = problems()
+cc1, cc2, cc3, cc4, cc5, ccx = (_ALL[name] for name in ("CC1", "CC2", "CC3", "CC4", "CC5", "CCx"))
+problem = cc1
