@@ -112,7 +112,7 @@ def test_no_throttle_falsifies_cc2_and_keeps_cc4():
     assert problems["CC4"].parsed[0].formula.robustness(trace) == pytest.approx(2.0)
 
 
-def test_a_witness_falsifies_cc1_and_cc3():
+def test_witnesses_falsify_cc1_cc3_and_cc5():
     problems = CC.problems()
     # found by the guided search and checked here by reading the trace
     point = {**{f"throttle_{k}": 0.5 for k in range(7)}, "brake_0": 0.0, "brake_1": 0.5, "brake_2": 0.5}
@@ -123,6 +123,10 @@ def test_a_witness_falsifies_cc1_and_cc3():
              "brake_2": 0.5}
     trace = problems["CC3"].trace(point)
     assert not problems["CC3"].parsed[0].formula.satisfied(trace)
+    point = {**{f"throttle_{k}": 0.5 for k in range(7)}, "throttle_1": 0.0, "brake_0": 1.0, "brake_1": 0.5,
+             "brake_2": 0.5}
+    trace = problems["CC5"].trace(point)
+    assert not problems["CC5"].parsed[0].formula.satisfied(trace)
 
 
 def test_bad_input_is_refused():
