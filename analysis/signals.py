@@ -175,7 +175,8 @@ def input_parameters(inputs: Sequence[PiecewiseConstantInput]) -> tuple[Paramete
     for item in inputs:
         if not isinstance(item, PiecewiseConstantInput):
             raise ProblemError("inputs", item, "PiecewiseConstantInput objects",
-                               "write PiecewiseConstantInput(name=..., low=..., high=..., control_points=..., span=...)")
+                               "write PiecewiseConstantInput(name=..., low=..., high=..., control_points=..., "
+                               "span=...)")
     names = [item.name for item in inputs]
     if len(set(names)) != len(names):
         raise ProblemError("inputs", names, "distinct signal names", "rename the duplicate input signal")
