@@ -173,3 +173,28 @@ def test_cli_falsifies_at2(tmp_path):
     assert proc.returncode == 1, proc.stderr
     data = json.loads(proc.stdout)
     assert data["verdict"] == "falsified" and data["requirements"][0]["robustness"] < 0
+
+
+# Falsifying inputs of FalCAuN's ARCH-COMP 2024 entry, found on the Simulink model (github.com/MasWag/
+# FalCAuN-ARCH-COMP, FalCAuN_ARCH2024_validation.csv; rows [time, throttle, brake], each value held until the
+# next row): an independent yardstick -- the Simulink model violates the requirement on them, so must ours
+FALCAUN_2024 = {
+    "AT1": [[0, 100, 0], [20, 0, 325]],
+    "AT2": [[0, 100, 325]],
+    "AT6a": [[0, 50, 0], [2, 50, 325], [4, 0, 325], [8, 50, 325], [10, 0, 325], [14, 50, 325], [16, 0, 0],
+             [18, 0, 325], [20, 50, 0], [22, 0, 325], [24, 50, 0], [26, 0, 325], [28, 50, 0], [30, 0, 325]],
+    "AT6c": [[0, 50, 0], [4, 0, 0], [6, 50, 0], [10, 0, 0], [12, 50, 0], [24, 0, 0], [26, 50, 325],
+             [30, 50, 0]],
+}
+
+
+@pytest.mark.parametrize("name", sorted(FALCAUN_2024))
+def test_inputs_falsifying_the_simulink_model_falsify_ours(name):
+    from analysis.signals import InputSignal
+
+    rows = np.asarray(FALCAUN_2024[name], dtype=float)
+    inputs = {"throttle": InputSignal(name="throttle", starts=rows[:, 0], values=rows[:, 1]),
+              "brake": InputSignal(name="brake", starts=rows[:, 0], values=rows[:, 2])}
+    problem = AT.problems()[name]
+    trace = AT.simulate_inputs(inputs, problem.horizon)
+    assert not problem.parsed[0].formula.satisfied(trace)

@@ -138,3 +138,23 @@ def test_bad_input_is_refused():
         CC.problems(keeping_sign=0.5)
     with pytest.raises(FalsificationError, match="at least 10"):
         verify(CC.problems()["CC1"], budget=9)
+
+
+# Falsifying inputs of FalCAuN's ARCH-COMP 2024 entry on the Simulink cars.mdl (github.com/MasWag/FalCAuN-ARCH-COMP,
+# FalCAuN_ARCH2024_validation.csv; rows [time, throttle, brake], each held until the next row)
+FALCAUN_2024 = {
+    "CC1": [[0, 1, 0], [5, 1, 1], [10, 1, 0], [15, 0, 0], [20, 1, 0]],
+    "CC2": [[0, 0, 1], [25, 1, 0]],
+    "CC3": [[0, 0, 1], [10, 1, 0]],
+}
+
+
+@pytest.mark.parametrize("name", sorted(FALCAUN_2024))
+def test_inputs_falsifying_the_simulink_model_falsify_ours(name):
+    rows = np.asarray(FALCAUN_2024[name], dtype=float)
+    throttle = CC.InputSignal(name="throttle", starts=rows[:, 0], values=rows[:, 1])
+    brake = CC.InputSignal(name="brake", starts=rows[:, 0], values=rows[:, 2])
+    run = CC.simulate_cars(throttle, brake)
+    run.pop("modes")
+    trace = CC.SignalTrace(times=run.pop("time"), signals=run)
+    assert not CC.problems()[name].parsed[0].formula.satisfied(trace)
