@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.signals import InputSignal, PiecewiseConstantInput, signal_problem
-from analysis.stl import SignalTrace, parse_formula
+from analysis.stl import FormulaError, SignalTrace, parse_formula
 from analysis.verify import Requirement, VerificationProblem
 
 TABLES_FILE = Path(__file__).resolve().parent / "data" / "autotrans_tables.json"
@@ -314,7 +314,10 @@ def autotrans_problem(requirement: Requirement, *, throttle_points: int = 7, bra
     inputs = _inputs(throttle_points, brake_points)
     if horizon is None and isinstance(requirement, Requirement):
         known = (*OUTPUTS, *(p.name for item in inputs for p in item.parameters()), "time", "jumps")
-        horizon = max(TICK, parse_formula(requirement.formula, signals=known).horizon)
+        try:
+            horizon = max(TICK, parse_formula(requirement.formula, signals=known).horizon)
+        except FormulaError:
+            horizon = None  # the problem refuses the formula below, naming the requirement
     span = INPUT_SPAN if horizon is None else horizon
 
     def simulate(signals: Mapping[str, InputSignal], point: Mapping[str, float]) -> SignalTrace:

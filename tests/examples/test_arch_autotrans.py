@@ -198,3 +198,18 @@ def test_inputs_falsifying_the_simulink_model_falsify_ours(name):
     problem = AT.problems()[name]
     trace = AT.simulate_inputs(inputs, problem.horizon)
     assert not problem.parsed[0].formula.satisfied(trace)
+
+
+@pytest.mark.parametrize("body, words", [
+    ("problem = autotrans.problems(throttle_points=0)['AT1']", "control_points = 0"),
+    ("problem = autotrans.autotrans_problem(Requirement(name='x', formula='always[0, 5] (velocity < 10)'))",
+     "unknown signal 'velocity'"),
+])
+def test_cli_refuses_bad_signals_and_requirements_with_exit_2(tmp_path, body, words):
+    module = tmp_path / "mine.py"
+    module.write_text(f"import sys\nsys.path.insert(0, {str(EXAMPLE.parent)!r})\nimport autotrans\n"
+                      f"from analysis.verify import Requirement\n{body}\n")
+    proc = subprocess.run([sys.executable, "-m", "visnav.app.cli", "verify", f"{module}:problem", "--budget", "20",
+                           "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    assert words in proc.stderr and "Traceback" not in proc.stderr
