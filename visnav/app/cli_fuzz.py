@@ -1,4 +1,4 @@
-"""The ``visnav fuzz`` and ``visnav replay`` subcommands.
+"""The ``visnav fuzz`` subcommand (``visnav replay`` of its counterexamples: :mod:`visnav.app.cli_replay`).
 
 ``visnav fuzz [--property NAME]... [--variant NAME] [--examples N] [--seed S] [--out DIR] [--json] [--progress]``
 runs the properties of :mod:`visnav.fuzzing` (all by default, each with its CI
@@ -30,18 +30,12 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from hybrid.jsonable import to_jsonable
-
 from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_OK, EXIT_TASK_FAILED, non_negative_int, positive_int
 
-__all__ = ["add_parser", "cmd_fuzz", "cmd_replay", "DEFAULT_OUT"]
+__all__ = ["add_parser", "cmd_fuzz", "DEFAULT_OUT"]
 
 DEFAULT_OUT = "out/fuzz"
 """Where counterexamples go without ``--out``."""
-
-TRACE_CONTEXT = 3
-"""Rows shown before and after the violated sample (and around every jump) without ``--all``."""
-
 
 def _exit_codes() -> tuple[int, int, int]:
     return EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT
@@ -75,7 +69,7 @@ def _seed(text: str) -> int:
 
 
 def add_parser(sub: Any) -> None:
-    """Register the ``fuzz`` and ``replay`` subcommands on ``visnav``'s subparsers."""
+    """Register the ``fuzz`` subcommand on ``visnav``'s subparsers."""
     fz = sub.add_parser("fuzz", help="fuzz the supervisor's switching logic with hypothesis (exit 1 if a property fails)")
     fz.add_argument("--property", dest="properties", action="append", type=_property_name, metavar="NAME",
                     help="a property to run (repeatable; default: all, see docs/fuzzing.md)")
@@ -90,15 +84,6 @@ def add_parser(sub: Any) -> None:
     fz.add_argument("--progress", action="store_true", help="show the progress bar even when stderr is not a terminal")
     fz.add_argument("--no-shrink", action="store_true", help="keep the first failing example (faster, longer)")
     fz.set_defaults(func=cmd_fuzz)
-    rp = sub.add_parser("replay", help="replay a saved counterexample: its trace and the violated property")
-    rp.add_argument("file", help="a counterexample written by visnav fuzz or visnav verify")
-    rp.add_argument("--problem", default=None, metavar="SPEC",
-                    help="the problem a visnav verify counterexample was found on, to confirm it (the file's own "
-                         "is never imported): package.module:OBJECT or path/to/file.py:OBJECT; not needed for "
-                         "paper")
-    rp.add_argument("--all", action="store_true", help="show every sample of the trace")
-    rp.add_argument("--json", action="store_true", help="print one JSON object")
-    rp.set_defaults(func=cmd_replay)
 
 
 class _Progress:
@@ -205,102 +190,3 @@ def _fuzz_human(report: Any, written: dict[str, list[str]], wall: float) -> str:
     lines.append(f"{len(report.results)} properties, {failed} failed; {wall:.1f} s{rate}")
     return "\n".join(lines)
 
-
-def _fmt(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.6g}"
-    if isinstance(value, tuple):
-        return " -> ".join(value) if value else "-"
-    return str(value)
-
-
-def _shown_rows(trace: tuple[Any, ...], sample: int | None) -> list[int]:
-    keep: set[int] = {0, len(trace) - 1}
-    for i, row in enumerate(trace):
-        if row.get("jumps"):
-            keep.update(range(max(0, i - 1), min(len(trace), i + 2)))
-    if sample is not None:
-        keep.update(range(max(0, sample - TRACE_CONTEXT), min(len(trace), sample + TRACE_CONTEXT + 1)))
-    return sorted(i for i in keep if 0 <= i < len(trace))
-
-
-def _replay_human(path: str, result: Any, show_all: bool) -> str:
-    from visnav.fuzzing import PROPERTIES
-
-    cx = result.counterexample
-    prop = PROPERTIES[cx.property]
-    size = f"{len(cx.measurements)} samples" if cx.measurements is not None else f"scenario {cx.scenario.name!r}"
-    lines = [
-        f"replay {path}: property {cx.property} on variant {cx.variant} ({cx.kind}, {size})",
-        f"  {prop.summary}",
-    ]
-    trace = result.trace
-    if trace and "k" in trace[0]:
-        columns = list(trace[0].keys())
-        lines.append("  " + "  ".join(f"{c:>10}" if c not in ("mode", "jumps") else f"{c:<16}" for c in columns))
-        shown = range(len(trace)) if show_all else _shown_rows(trace, result.sample)
-        last = -1
-        for i in shown:
-            if i > last + 1:
-                lines.append(f"  {'...':>10}")
-            row = trace[i]
-            cells = [f"{_fmt(row[c]):>10}" if c not in ("mode", "jumps") else f"{_fmt(row[c]):<16}" for c in columns]
-            marker = "  <== violated here" if result.violated and i == result.sample else ""
-            lines.append("  " + "  ".join(cells) + marker)
-            last = i
-    else:
-        for row in trace:
-            lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in row.items()))
-    if result.violated:
-        where = "" if result.sample is None else f" at sample {result.sample}"
-        lines.append(f"VIOLATED{where}: {result.message}")
-    else:
-        lines.append("the property now HOLDS on this example")
-    lines.append(f"  (recorded when found: {cx.message})")
-    return "\n".join(lines)
-
-
-def cmd_replay(args: argparse.Namespace) -> int:
-    """``visnav replay FILE``: run a counterexample again, show its trace and the violated property."""
-    from analysis.counterexamples import read_counterexample_text
-    from visnav.fuzzing import CounterexampleError, counterexample_from_json, replay
-
-    exit_ok, exit_failed, exit_bad = _exit_codes()
-    try:
-        text = read_counterexample_text(args.file)
-    except CounterexampleError as err:
-        print(f"visnav: error: replay {args.file!r}: {err.problem}; give a counterexample file written by "
-              "visnav fuzz or visnav verify", file=sys.stderr)
-        return exit_bad
-    from visnav.app.cli_replay import replay_verification
-    from visnav.app.cli_verify import is_verification_counterexample
-
-    if is_verification_counterexample(text):
-        return replay_verification(text, args.file, args.json, args.problem)
-    try:
-        cx = counterexample_from_json(text, args.file)
-    except CounterexampleError as err:
-        print(f"visnav: error: replay: {err}", file=sys.stderr)
-        return exit_bad
-    if args.problem is not None:
-        print(f"visnav: error: replay {args.file!r}: --problem {args.problem!r} given for a visnav fuzz "
-              f"counterexample, which names property {cx.property!r} of visnav fuzz, not a problem; drop --problem",
-              file=sys.stderr)
-        return exit_bad
-    result = replay(cx)
-    if args.json:
-        out = {
-            "file": args.file,
-            "property": cx.property,
-            "variant": cx.variant,
-            "kind": cx.kind,
-            "violated": result.violated,
-            "message": result.message,
-            "sample": result.sample,
-            "recorded_message": cx.message,
-            "trace": [to_jsonable(dict(row), nonfinite="string") for row in result.trace],
-        }
-        print(json.dumps(out, sort_keys=True))
-    else:
-        print(_replay_human(args.file, result, args.all))
-    return exit_failed if result.violated else exit_ok

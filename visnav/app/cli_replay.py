@@ -28,6 +28,7 @@ failure), 6 the user's simulator raised (their traceback is shown).
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
@@ -38,12 +39,13 @@ from collections.abc import Mapping
 from typing import Any
 
 from analysis.falsification import run_end
+from hybrid.jsonable import to_jsonable
 
 from visnav.app.cli_types import (EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INCOMPLETE, EXIT_MODEL_ERROR, EXIT_OK,
                                   EXIT_TASK_FAILED)
 from visnav.app.cli_verify import COUNTEREXAMPLE_FORMAT, PAPER, load_verification_problem
 
-__all__ = ["PAPER", "PAPER_OPTIONS", "POINT_TOLERANCE", "same_problem", "replay_verification"]
+__all__ = ["add_parser", "cmd_replay", "PAPER", "PAPER_OPTIONS", "POINT_TOLERANCE", "same_problem", "replay_verification"]
 
 PAPER_OPTIONS = ("scenario", "variant")
 """The ``options`` keys the ``paper`` problem accepts (strings: a scenario name or TOML file, a variant)."""
@@ -263,3 +265,119 @@ def replay_verification(text: str, path: str, as_json: bool, problem: str | None
     if out.get("undecided"):
         return EXIT_INCOMPLETE
     return EXIT_TASK_FAILED if out["violated"] else EXIT_OK
+
+
+def add_parser(sub: Any) -> None:
+    """Register the ``replay`` subcommand on ``visnav``'s subparsers."""
+    rp = sub.add_parser("replay", help="replay a saved counterexample: its trace and the violated property")
+    rp.add_argument("file", help="a counterexample written by visnav fuzz or visnav verify")
+    rp.add_argument("--problem", default=None, metavar="SPEC",
+                    help="the problem a visnav verify counterexample was found on, to confirm it (the file's own "
+                         "is never imported): package.module:OBJECT or path/to/file.py:OBJECT; not needed for "
+                         "paper")
+    rp.add_argument("--all", action="store_true", help="show every sample of the trace")
+    rp.add_argument("--json", action="store_true", help="print one JSON object")
+    rp.set_defaults(func=cmd_replay)
+
+
+TRACE_CONTEXT = 3
+"""Rows shown before and after the violated sample (and around every jump) without ``--all``."""
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, tuple):
+        return " -> ".join(value) if value else "-"
+    return str(value)
+
+
+def _shown_rows(trace: tuple[Any, ...], sample: int | None) -> list[int]:
+    keep: set[int] = {0, len(trace) - 1}
+    for i, row in enumerate(trace):
+        if row.get("jumps"):
+            keep.update(range(max(0, i - 1), min(len(trace), i + 2)))
+    if sample is not None:
+        keep.update(range(max(0, sample - TRACE_CONTEXT), min(len(trace), sample + TRACE_CONTEXT + 1)))
+    return sorted(i for i in keep if 0 <= i < len(trace))
+
+
+def _replay_human(path: str, result: Any, show_all: bool) -> str:
+    from visnav.fuzzing import PROPERTIES
+
+    cx = result.counterexample
+    prop = PROPERTIES[cx.property]
+    size = f"{len(cx.measurements)} samples" if cx.measurements is not None else f"scenario {cx.scenario.name!r}"
+    lines = [
+        f"replay {path}: property {cx.property} on variant {cx.variant} ({cx.kind}, {size})",
+        f"  {prop.summary}",
+    ]
+    trace = result.trace
+    if trace and "k" in trace[0]:
+        columns = list(trace[0].keys())
+        lines.append("  " + "  ".join(f"{c:>10}" if c not in ("mode", "jumps") else f"{c:<16}" for c in columns))
+        shown = range(len(trace)) if show_all else _shown_rows(trace, result.sample)
+        last = -1
+        for i in shown:
+            if i > last + 1:
+                lines.append(f"  {'...':>10}")
+            row = trace[i]
+            cells = [f"{_fmt(row[c]):>10}" if c not in ("mode", "jumps") else f"{_fmt(row[c]):<16}" for c in columns]
+            marker = "  <== violated here" if result.violated and i == result.sample else ""
+            lines.append("  " + "  ".join(cells) + marker)
+            last = i
+    else:
+        for row in trace:
+            lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in row.items()))
+    if result.violated:
+        where = "" if result.sample is None else f" at sample {result.sample}"
+        lines.append(f"VIOLATED{where}: {result.message}")
+    else:
+        lines.append("the property now HOLDS on this example")
+    lines.append(f"  (recorded when found: {cx.message})")
+    return "\n".join(lines)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``visnav replay FILE``: run a counterexample again, show its trace and the violated property."""
+    from analysis.counterexamples import read_counterexample_text
+    from visnav.fuzzing import CounterexampleError, counterexample_from_json, replay
+
+    exit_ok, exit_failed, exit_bad = (EXIT_OK, EXIT_TASK_FAILED, EXIT_BAD_INPUT)
+    try:
+        text = read_counterexample_text(args.file)
+    except CounterexampleError as err:
+        print(f"visnav: error: replay {args.file!r}: {err.problem}; give a counterexample file written by "
+              "visnav fuzz or visnav verify", file=sys.stderr)
+        return exit_bad
+    from visnav.app.cli_verify import is_verification_counterexample
+
+    if is_verification_counterexample(text):
+        return replay_verification(text, args.file, args.json, args.problem)
+    try:
+        cx = counterexample_from_json(text, args.file)
+    except CounterexampleError as err:
+        print(f"visnav: error: replay: {err}", file=sys.stderr)
+        return exit_bad
+    if args.problem is not None:
+        print(f"visnav: error: replay {args.file!r}: --problem {args.problem!r} given for a visnav fuzz "
+              f"counterexample, which names property {cx.property!r} of visnav fuzz, not a problem; drop --problem",
+              file=sys.stderr)
+        return exit_bad
+    result = replay(cx)
+    if args.json:
+        out = {
+            "file": args.file,
+            "property": cx.property,
+            "variant": cx.variant,
+            "kind": cx.kind,
+            "violated": result.violated,
+            "message": result.message,
+            "sample": result.sample,
+            "recorded_message": cx.message,
+            "trace": [to_jsonable(dict(row), nonfinite="string") for row in result.trace],
+        }
+        print(json.dumps(out, sort_keys=True))
+    else:
+        print(_replay_human(args.file, result, args.all))
+    return exit_failed if result.violated else exit_ok

@@ -32,7 +32,7 @@ from visnav.app.counterexample_files import (COUNTEREXAMPLE_FORMAT, PAPER, count
                                              is_verification_counterexample, replay_command)
 from visnav.app.cli_types import VERIFY_BUDGET, VERDICT_EXIT_CODES, EXIT_BAD_INPUT, EXIT_DIVERGED, non_negative_int, positive_int, positive_seconds
 
-__all__ = ["is_verification_counterexample", "cli_words", "add_parser", "load_verification_problem", "counterexample_text", "replay_command",
+__all__ = ["user_problem", "is_verification_counterexample", "cli_words", "add_parser", "load_verification_problem", "counterexample_text", "replay_command",
            "JOURNAL_FORMAT", "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET", "PAPER"]
 
 JOURNAL_FORMAT = "visnav-verification-journal"
@@ -411,3 +411,18 @@ def _runner(args: argparse.Namespace, problem: Any, options: Mapping[str, Any], 
         return outcomes
 
     return run
+
+
+def user_problem(spec: str, config: str | None = None) -> Any:
+    """The verification problem ``spec`` names (a SpaceEx model with its ``config``), or the exit code of a bad
+    one (the message printed)."""
+    from hybrid.errors import ParameterError
+
+    try:
+        return load_verification_problem(spec, {} if config is None else {"config": config}, None)
+    except ParameterError as error:
+        trace = getattr(error, "user_traceback", "")
+        if trace:
+            print(trace.rstrip(), file=sys.stderr)
+        print(f"visnav: error: {error.render()}", file=sys.stderr)
+        return EXIT_BAD_INPUT

@@ -226,3 +226,18 @@ def test_check_model_parametric_with_a_problem_is_refused(capsys):
     assert main(["check-model", "--problem", "examples/thermostat.py:problem", "--parametric"]) == 2
     err = capsys.readouterr().err
     assert "--parametric" in err and "exclusive_for_all" in err and "Traceback" not in err
+
+
+def test_each_subcommand_lives_in_its_own_module():
+    """Issue 26: ``visnav X`` is run by ``visnav/app/cli_X.py`` (``check-model`` by ``cli_check.py``); ``cli.py``
+    only builds the parser and guards the entry point."""
+    from visnav.app.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    owners = {name: p.get_default("func").__module__ for name, p in sub.choices.items()}
+    expected = {name: "visnav.app.cli_" + {"check-model": "check"}.get(name, name).replace("-", "_")
+                for name in owners}
+    assert owners == expected
+    assert {"simulate", "mode-graph", "analyse", "report", "check-model", "sweep", "stiffness", "fuzz", "replay",
+            "verify"} <= set(owners)

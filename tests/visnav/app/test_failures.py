@@ -8,6 +8,7 @@ import re
 import pytest
 
 import visnav.app.cli as cli
+import visnav.app.cli_mode_graph as cli_mode_graph
 from hybrid.errors import DivergenceError, ExecutionError, ModelDefinitionError, NumericalFailure, ZenoError
 from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_CODES, EXIT_DIVERGED, EXIT_INTERNAL, EXIT_INTERRUPTED
 from visnav.app.failures import TRACEBACK_PREFIX
@@ -17,7 +18,7 @@ def _planted(monkeypatch, err: BaseException) -> None:
     def command(args):
         raise err
 
-    monkeypatch.setattr(cli, "_cmd_mode_graph", command)
+    monkeypatch.setattr(cli_mode_graph, "_cmd_mode_graph", command)
 
 
 @pytest.mark.parametrize("err, code, words", [
