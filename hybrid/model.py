@@ -12,15 +12,22 @@ priorities are a modelling error reported at run time.
 
 Examples
 --------
+Guards written once, symbolically (:mod:`hybrid.symbolic`): a comparison is the guard, and its text.
+
 >>> from hybrid.model import HybridAutomaton, Mode, Transition, MemoryVariable
->>> heat = Transition(name="on", source="off", target="on", guard=lambda v, m: 19.0 - v[0],
-...                   guard_text="T <= 19")
->>> cool = Transition(name="off", source="on", target="off", guard=lambda v, m: v[0] - 21.0,
-...                   guard_text="T >= 21")
+>>> from hybrid.symbolic import coordinates
+>>> v = coordinates("T")
+>>> heat = Transition(name="on", source="off", target="on", guard=v.T <= 19.0)
+>>> cool = Transition(name="off", source="on", target="off", guard=v.T >= 21.0)
 >>> thermostat = HybridAutomaton(name="thermostat", modes=(Mode(name="off"), Mode(name="on")),
 ...                              transitions=(heat, cool), variables=("T",), initial_mode="off")
->>> [t.name for t in thermostat.enabled("off", (18.0,), {})]
-['on']
+>>> [t.name for t in thermostat.enabled("off", (18.0,), {})], heat.guard_text
+(['on'], 'T <= 19')
+
+The fallback, a plain function (its text given by hand; the structural checks can only sample it):
+
+>>> Transition(name="on", source="off", target="on", guard=lambda v, m: 19.0 - v[0], guard_text="T <= 19").guard_text
+'T <= 19'
 """
 
 from __future__ import annotations

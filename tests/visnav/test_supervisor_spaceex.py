@@ -2,11 +2,12 @@
 
 ``measurement_system(model, held=True)`` (symbolic zero flows) is written by
 :func:`hybrid.spaceex_export.to_spaceex` and re-read by
-:func:`hybrid.spaceex_import.import_spaceex`.  The comparison does not sample: z3 decides, for
-every transition, that the union of its SpaceEx cases is enabled exactly where the original guard
-is, up to :data:`EPS` on the guard's level (the constants' float folding) (the signals replaced by the output map over the measurements, the memory a state of the
-re-import), and that each case assigns the original reset wherever it is enabled.  The yardstick
-is the solver on the original expressions; the exporter's own case splitting is not reused.
+:func:`hybrid.spaceex_import.import_spaceex`.  The comparison does not sample: z3 decides, for every
+transition, that the union of its SpaceEx cases is enabled exactly where the original guard is, up to
+:data:`EPS` on the guard's level (the constants' float folding; the signals replaced by the output map over
+the measurements, the memory a state of the re-import), and that each case assigns the original reset
+wherever it is enabled.  The yardstick is the solver on the original expressions; the exporter's own case
+splitting is not reused.
 
 The memory's ``obstacle`` is an index, 0 or 1 (the only values the resets give it).  SpaceEx reads
 strict comparisons as closed (docs/spaceex.md): on the boundary of a strict split (a tie
