@@ -17,16 +17,23 @@ carries on purpose):
   :func:`retrigger`, :func:`unreachable`).
 
 Guards, invariants, flows and jump maps are affine (the exports rely on it)
-and symbolic: they are written with the builders of :mod:`hybrid.symbolic`
-(``v.h``, ``flow_map``, ``jump_map``), never as Python lambdas, so that a
-checker can hand them to an SMT solver.  Each is the same arithmetic, in the
-same order, as the formula in its docstring, and so evaluates bit for bit like
-the plain float expression.  Conjunctions are built with
-:func:`~hybrid.model.all_of` (a :class:`~hybrid.model.Conjunction` whose terms
-are symbolic; the exports write one inequality per term).  Every invariant is
-such a conjunction, of a single term where there is one: unlike a bare
-symbolic expression, which refuses ``bool()``, a conjunction can stand in
-``mode.invariant or default``, and its value is its term's value.  A
+and written once, symbolically, with the builders of :mod:`hybrid.symbolic`
+(``v.x >= 1.0``, ``flow_map``, ``jump_map``), never as Python lambdas: a
+checker hands them to an SMT solver, and their text (``guard_text``,
+``invariant_text``, ``reset_text``) is derived from them, never written a
+second time.  A comparison's level form is the same arithmetic, in the same
+order, as the formula in its docstring (``x <= 3`` is ``3 - x``), and so
+evaluates bit for bit like the plain float expression; a threshold that is a
+parameter, and may be ``0.0``, is compared with
+:func:`~hybrid.symbolic.exactly`, whose level form keeps the subtraction as
+written (``+0.0`` on the face, as in float arithmetic).  Conjunctions are
+built with :func:`~hybrid.model.all_of` (a :class:`~hybrid.model.Conjunction`
+of level forms, with the text of each comparison; the exports write one
+inequality per term).  Every invariant is such a conjunction, of a single
+term where there is one: unlike a bare symbolic condition, which refuses
+``bool()``, a conjunction can stand in ``mode.invariant or default``, and its
+value is its term's value.  A transition's ``reset_text`` is its jump map's
+text (:func:`~hybrid.model.jump_text`: the components it changes); a
 transition without a jump map keeps the state (its ``reset_text`` is then
 empty).
 
@@ -82,13 +89,13 @@ from .examples_physical import (  # the physical models, re-exported; the shared
     real_parameter as _real,
     positive_parameter as _positive,
     event_horizon as _horizon,
-    exact_minus as _minus,
     thermostat_parameters as _thermostat,
     require_symbolic as _require_symbolic,
+    with_jump_texts as _with_jump_texts,
 )
 from .model import HybridAutomaton, Mode, Transition, all_of
 from .region import Box
-from .symbolic import SymbolicVector, coordinates, flow_map, jump_map
+from .symbolic import SymbolicVector, coordinates, exactly, flow_map, jump_map
 from .system import HybridSystem
 
 __all__ = [
@@ -129,6 +136,7 @@ def _unit_speed_model(
 ) -> ReferenceModel:
     """A one-state (``x``) model from its symbolic parts (see :func:`_require_symbolic`)."""
     _require_symbolic(name, modes, transitions, flows, jumps)
+    transitions = _with_jump_texts(transitions, jumps, ("x",))
     automaton = HybridAutomaton(
         name=name,
         modes=modes,
@@ -182,21 +190,17 @@ def nondeterministic() -> ReferenceModel:
     v = coordinates("x")  # signal
     modes = (
         Mode(name="a", description="x rises until one of two overlapping guards fires",
-             invariant=all_of(2.0 - v.x), invariant_text="x <= 2"),
+             invariant=all_of(v.x <= 2.0)),
         Mode(name="b", description="x rises to 3, then returns to a at x = 0",
-             invariant=all_of(3.0 - v.x), invariant_text="x <= 3"),
+             invariant=all_of(v.x <= 3.0)),
         Mode(name="c", description="x falls to 0, then returns to a",
-             invariant=all_of(v.x), invariant_text="x >= 0"),
+             invariant=all_of(v.x >= 0.0)),
     )
     transitions = (
-        Transition(name="a_to_b", source="a", target="b", guard=v.x - 1.0,
-                   guard_text="x >= 1", reads=("x",), priority=0),
-        Transition(name="a_to_c", source="a", target="c", guard=v.x - 1.5,
-                   guard_text="x >= 1.5", reads=("x",), priority=0),
-        Transition(name="b_to_a", source="b", target="a", guard=v.x - 3.0,
-                   guard_text="x >= 3", reads=("x",), reset_text="x := 0"),
-        Transition(name="c_to_a", source="c", target="a", guard=-v.x,
-                   guard_text="x <= 0", reads=("x",)),
+        Transition(name="a_to_b", source="a", target="b", guard=v.x >= 1.0, reads=("x",), priority=0),
+        Transition(name="a_to_c", source="a", target="c", guard=v.x >= 1.5, reads=("x",), priority=0),
+        Transition(name="b_to_a", source="b", target="a", guard=v.x >= 3.0, reads=("x",)),
+        Transition(name="c_to_a", source="c", target="a", guard=v.x <= 0.0, reads=("x",)),
     )
     return _unit_speed_model(
         name="nondeterministic",
@@ -238,11 +242,10 @@ def deadlock() -> ReferenceModel:
     x = coordinates("x")  # state
     modes = (
         Mode(name="run", description="x rises towards the end x = 1 of its invariant",
-             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
+             invariant=all_of(v.x <= 1.0)),
     )
     transitions = (
-        Transition(name="rewind", source="run", target="run", guard=-0.5 - v.x,
-                   guard_text="x <= -0.5", reads=("x",), reset_text="x := x + 1"),
+        Transition(name="rewind", source="run", target="run", guard=v.x <= -0.5, reads=("x",)),
     )
     return _unit_speed_model(
         name="deadlock",
@@ -282,15 +285,13 @@ def bad_reset() -> ReferenceModel:
     x = coordinates("x")  # state
     modes = (
         Mode(name="up", description="x rises to 1",
-             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
+             invariant=all_of(v.x <= 1.0)),
         Mode(name="down", description="x falls to 0; x must stay within [0, 1.5]",
-             invariant=all_of(v.x, 1.5 - v.x), invariant_text="0 <= x <= 1.5"),
+             invariant=all_of(v.x >= 0.0, v.x <= 1.5)),
     )
     transitions = (
-        Transition(name="reverse", source="up", target="down", guard=v.x - 1.0,
-                   guard_text="x >= 1", reads=("x",), reset_text="x := x + 1"),
-        Transition(name="rearm", source="down", target="up", guard=-v.x,
-                   guard_text="x <= 0", reads=("x",)),
+        Transition(name="reverse", source="up", target="down", guard=v.x >= 1.0, reads=("x",)),
+        Transition(name="rearm", source="down", target="up", guard=v.x <= 0.0, reads=("x",)),
     )
     return _unit_speed_model(
         name="bad_reset",
@@ -328,11 +329,10 @@ def retrigger() -> ReferenceModel:
     x = coordinates("x")  # state
     modes = (
         Mode(name="tick", description="x rises to 1, where the self-loop fires forever",
-             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
+             invariant=all_of(v.x <= 1.0)),
     )
     transitions = (
-        Transition(name="fire", source="tick", target="tick", guard=v.x - 1.0,
-                   guard_text="x >= 1", reads=("x",), reset_text="x := x"),
+        Transition(name="fire", source="tick", target="tick", guard=v.x >= 1.0, reads=("x",)),
     )
     return _unit_speed_model(
         name="retrigger",
@@ -369,15 +369,13 @@ def unreachable() -> ReferenceModel:
     v = coordinates("x")  # signal
     modes = (
         Mode(name="main", description="x rises to 1 and wraps around to 0",
-             invariant=all_of(1.0 - v.x), invariant_text="x <= 1"),
+             invariant=all_of(v.x <= 1.0)),
         Mode(name="orphan", description="never entered: x would fall to 0 and go to main",
-             invariant=all_of(v.x), invariant_text="x >= 0"),
+             invariant=all_of(v.x >= 0.0)),
     )
     transitions = (
-        Transition(name="wrap", source="main", target="main", guard=v.x - 1.0,
-                   guard_text="x >= 1", reads=("x",), reset_text="x := 0"),
-        Transition(name="orphan_to_main", source="orphan", target="main", guard=-v.x,
-                   guard_text="x <= 0", reads=("x",)),
+        Transition(name="wrap", source="main", target="main", guard=v.x >= 1.0, reads=("x",)),
+        Transition(name="orphan_to_main", source="orphan", target="main", guard=v.x <= 0.0, reads=("x",)),
     )
     return _unit_speed_model(
         name="unreachable",
@@ -571,15 +569,13 @@ def relay_feedback(
     x = coordinates(*_RELAY_STATES)
     modes = (
         Mode(name="plus", description="relay output +d: the plant output rises",
-             invariant=all_of(_minus(eps, v.x1)), invariant_text=f"y <= {eps:g}"),
+             invariant=all_of(exactly(v.x1 <= eps))),
         Mode(name="minus", description="relay output -d: the plant output falls",
-             invariant=all_of(v.x1 + eps), invariant_text=f"y >= {-eps:g}"),
+             invariant=all_of(exactly(v.x1 >= -eps))),
     )
     transitions = (
-        Transition(name="to_minus", source="plus", target="minus", guard=_minus(v.x1, eps),
-                   guard_text=f"y >= {eps:g}", reads=("x1",)),
-        Transition(name="to_plus", source="minus", target="plus", guard=-eps - v.x1,
-                   guard_text=f"y <= {-eps:g}", reads=("x1",)),
+        Transition(name="to_minus", source="plus", target="minus", guard=exactly(v.x1 >= eps), reads=("x1",)),
+        Transition(name="to_plus", source="minus", target="plus", guard=v.x1 <= -eps, reads=("x1",)),
     )
     automaton = HybridAutomaton(name="relay_feedback", modes=modes, transitions=transitions, variables=_RELAY_STATES,
                                 initial_mode="plus",
@@ -855,23 +851,22 @@ def buck_converter(
     x = coordinates(*_BUCK_STATES)
     modes = (
         Mode(name="on", description="high-side switch closed: the input drives the inductor",
-             invariant=all_of(_minus(dd, v.phase)), invariant_text=f"phase <= {dd:g}"),
+             invariant=all_of(exactly(v.phase <= dd))),
         Mode(name="off", description="low-side switch closed: the inductor freewheels into the load",
-             invariant=all_of(_minus(1.0, v.phase)), invariant_text="phase <= 1"),
+             invariant=all_of(v.phase <= 1.0)),
     )
     transitions = (
-        Transition(name="switch_off", source="on", target="off", guard=_minus(v.phase, dd),
-                   guard_text=f"phase >= {dd:g}", reads=("phase",)),
-        Transition(name="switch_on", source="off", target="on", guard=_minus(v.phase, 1.0),
-                   guard_text="phase >= 1", reads=("phase",), reset_text="phase := 0"),
+        Transition(name="switch_off", source="on", target="off", guard=exactly(v.phase >= dd), reads=("phase",)),
+        Transition(name="switch_on", source="off", target="on", guard=v.phase >= 1.0, reads=("phase",)),
     )
-    automaton = HybridAutomaton(name="buck_converter", modes=modes, transitions=transitions, variables=_BUCK_STATES,
-                                initial_mode="on",
-                                description=f"PWM buck converter {vin:g} V, duty {dd:g}, {f:g} Hz")
     capacitor = (x.i_L - x.v_C / res) / cap
     flows = {"on": flow_map((vin - x.v_C) / ind, capacitor, f),
              "off": flow_map(-x.v_C / ind, capacitor, f)}
     jumps = {"switch_on": jump_map(x.i_L, x.v_C, 0.0)}
+    transitions = _with_jump_texts(transitions, jumps, _BUCK_STATES)
+    automaton = HybridAutomaton(name="buck_converter", modes=modes, transitions=transitions, variables=_BUCK_STATES,
+                                initial_mode="on",
+                                description=f"PWM buck converter {vin:g} V, duty {dd:g}, {f:g} Hz")
     _require_symbolic("buck_converter", automaton.modes, automaton.transitions, flows, jumps)
     system = HybridSystem(automaton=automaton, state_names=_BUCK_STATES, flows=flows, jumps=jumps)
     period = 1.0 / f

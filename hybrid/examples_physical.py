@@ -8,15 +8,16 @@ conventions (affine, symbolic guards and flows; planted defects).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from numbers import Integral, Real
 
 from .errors import ModelDefinitionError
-from .model import Conjunction, HybridAutomaton, Mode, Transition, all_of
+from .model import Conjunction, HybridAutomaton, Mode, Transition, all_of, jump_text
 from .region import Box
-from .symbolic import Apply, Expr, SymbolicVector, as_expr, coordinates, flow_map, is_symbolic, jump_map
+from .symbolic import Apply, Expr, SymbolicVector, as_expr, coordinates, exactly, flow_map, is_symbolic, jump_map
 from .system import HybridSystem
 
 # Helpers shared with hybrid.examples have public names but stay out of __all__: every new short string
@@ -261,28 +262,25 @@ def bouncing_ball(
     fly = Mode(
         name="fly",
         description="ball in the air (or on the ground), accelerated downwards by gravity",
-        invariant=all_of(v.h),
-        invariant_text="h >= 0",
+        invariant=all_of(v.h >= 0.0),
     )
     bounce = Transition(
         name="bounce",
         source="fly",
         target="fly",
-        guard=all_of(-v.h, -v.v),
-        guard_text="h <= 0 and v <= 0",
+        guard=all_of(v.h <= 0.0, v.v <= 0.0),
         reads=("h", "v"),
-        reset_text=f"v := -{e:g} v",
     )
+    flows = {"fly": flow_map(x.v, -g)}
+    jumps = {"bounce": jump_map(x.h, -e * x.v)}
     automaton = HybridAutomaton(
         name="bouncing_ball",
         modes=(fly,),
-        transitions=(bounce,),
+        transitions=with_jump_texts((bounce,), jumps, ("h", "v")),
         variables=("h", "v"),
         initial_mode="fly",
         description=f"bouncing ball, g = {g:g} m/s², e = {e:g}",
     )
-    flows = {"fly": flow_map(x.v, -g)}
-    jumps = {"bounce": jump_map(x.h, -e * x.v)}
     require_symbolic("bouncing_ball", automaton.modes, automaton.transitions, flows, jumps)
     system = HybridSystem(automaton=automaton, state_names=("h", "v"), flows=flows, jumps=jumps)
     impacts = bouncing_ball_impact_times(gravity=g, restitution=e, h0=h0, v0=v0, count=HORIZON_EVENT + 1)
@@ -499,29 +497,25 @@ def thermostat(
     a, u, k, lo, hi, T, on = thermostat_parameters("thermostat", ambient, heater, rate, low, high, T0, initially_on)
     v = coordinates("T")  # signal
     x = coordinates("T")  # state
-    # The thresholds and temperatures may be 0.0: exact_minus keeps each subtraction as written.
+    # The thresholds and temperatures may be 0.0: exactly() and exact_minus keep each subtraction as written.
     modes = (
         Mode(
             name="off",
             description="heater off: the room cools towards the ambient temperature",
-            invariant=all_of(exact_minus(v.T, lo)),
-            invariant_text=f"T >= {lo:g}",
+            invariant=all_of(exactly(v.T >= lo)),
         ),
         Mode(
             name="on",
             description="heater on: the room warms towards the heater temperature",
-            invariant=all_of(exact_minus(hi, v.T)),
-            invariant_text=f"T <= {hi:g}",
+            invariant=all_of(exactly(v.T <= hi)),
         ),
     )
     transitions = (
         Transition(
-            name="heat_on", source="off", target="on", guard=exact_minus(lo, v.T),
-            guard_text=f"T <= {lo:g}", reads=("T",),
+            name="heat_on", source="off", target="on", guard=exactly(v.T <= lo), reads=("T",),
         ),
         Transition(
-            name="heat_off", source="on", target="off", guard=exact_minus(v.T, hi),
-            guard_text=f"T >= {hi:g}", reads=("T",),
+            name="heat_off", source="on", target="off", guard=exactly(v.T >= hi), reads=("T",),
         ),
     )
     initial = "on" if on else "off"
@@ -699,29 +693,25 @@ def water_tanks(
     """
     w, v1, v2, a, b, x1, x2 = _tanks("water_tanks", inflow, outflow1, outflow2, r1, r2, x1_0, x2_0)
     v = coordinates("x1", "x2")  # signals (the levels)
-    # The thresholds are 0.0 by default: exact_minus keeps each subtraction as written.
+    # The thresholds are 0.0 by default: exactly() keeps each subtraction as written (+0.0 on the face).
     modes = (
         Mode(
             name="fill1",
             description="inflow into tank 1; tank 2 drains",
-            invariant=all_of(exact_minus(v.x2, b)),
-            invariant_text=f"x2 >= {b:g}",
+            invariant=all_of(exactly(v.x2 >= b)),
         ),
         Mode(
             name="fill2",
             description="inflow into tank 2; tank 1 drains",
-            invariant=all_of(exact_minus(v.x1, a)),
-            invariant_text=f"x1 >= {a:g}",
+            invariant=all_of(exactly(v.x1 >= a)),
         ),
     )
     transitions = (
         Transition(
-            name="to_fill2", source="fill1", target="fill2", guard=exact_minus(b, v.x2),
-            guard_text=f"x2 <= {b:g}", reads=("x2",),
+            name="to_fill2", source="fill1", target="fill2", guard=exactly(v.x2 <= b), reads=("x2",),
         ),
         Transition(
-            name="to_fill1", source="fill2", target="fill1", guard=exact_minus(a, v.x1),
-            guard_text=f"x1 <= {a:g}", reads=("x1",),
+            name="to_fill1", source="fill2", target="fill1", guard=exactly(v.x1 <= a), reads=("x1",),
         ),
     )
     automaton = HybridAutomaton(
@@ -858,6 +848,13 @@ def water_tanks_zeno_time(
     if w >= v1 + v2:
         return math.inf
     return (x1 - a + x2 - b) / (v1 + v2 - w)
+
+
+def with_jump_texts(transitions: tuple[Transition, ...], jumps: dict[str, SymbolicVector],
+                    state_names: tuple[str, ...]) -> tuple[Transition, ...]:
+    """``transitions`` with the ``reset_text`` of each one that has a jump map derived from it (:func:`jump_text`)."""
+    return tuple(dataclasses.replace(t, reset_text=jump_text(jumps[t.name], state_names))
+                 if t.name in jumps and not t.reset_text else t for t in transitions)
 
 
 def require_symbolic(

@@ -12,15 +12,22 @@ priorities are a modelling error reported at run time.
 
 Examples
 --------
+Guards written once, symbolically (:mod:`hybrid.symbolic`): a comparison is the guard, and its text.
+
 >>> from hybrid.model import HybridAutomaton, Mode, Transition, MemoryVariable
->>> heat = Transition(name="on", source="off", target="on", guard=lambda v, m: 19.0 - v[0],
-...                   guard_text="T <= 19")
->>> cool = Transition(name="off", source="on", target="off", guard=lambda v, m: v[0] - 21.0,
-...                   guard_text="T >= 21")
+>>> from hybrid.symbolic import coordinates
+>>> v = coordinates("T")
+>>> heat = Transition(name="on", source="off", target="on", guard=v.T <= 19.0)
+>>> cool = Transition(name="off", source="on", target="off", guard=v.T >= 21.0)
 >>> thermostat = HybridAutomaton(name="thermostat", modes=(Mode(name="off"), Mode(name="on")),
 ...                              transitions=(heat, cool), variables=("T",), initial_mode="off")
->>> [t.name for t in thermostat.enabled("off", (18.0,), {})]
-['on']
+>>> [t.name for t in thermostat.enabled("off", (18.0,), {})], heat.guard_text
+(['on'], 'T <= 19')
+
+The fallback, a plain function (its text given by hand; the structural checks can only sample it):
+
+>>> Transition(name="on", source="off", target="on", guard=lambda v, m: 19.0 - v[0], guard_text="T <= 19").guard_text
+'T <= 19'
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ import numpy as np
 from .errors import ExecutionError, ModelDefinitionError
 from .symbolic import (
     Condition,
+    Coordinate,
     Expr,
     SymbolicReset,
     SymbolicVector,
@@ -185,7 +193,30 @@ def symbolic_text(function: Any) -> str:
         return f"{render(function)} >= 0"
     if isinstance(function, SymbolicReset):
         return ", ".join(f"{name} := {render(e)}" for name, e in function.assignments.items())
+    if isinstance(function, Conjunction):
+        return " and ".join(function.texts)
     return ""
+
+
+def jump_text(jump: Any, state_names: Sequence[str]) -> str:
+    """The text of a symbolic jump map over ``state_names``: the components it changes (``v := (-0.8 * v)``).
+
+    A component that keeps its state (``x.h`` for ``h``) is left out; a jump that keeps every component is
+    written in full (``x := x``), so the text of a jump is never empty.  ``""`` for a plain callable, whose
+    text only its author can give (``reset_text=``).
+
+    Examples
+    --------
+    >>> from hybrid.symbolic import coordinates, jump_map
+    >>> x = coordinates("h", "v")
+    >>> jump_text(jump_map(x.h, -0.8 * x.v), ("h", "v"))
+    'v := (-0.8 * v)'
+    """
+    if not isinstance(jump, SymbolicVector):
+        return ""
+    pairs = list(zip(state_names, jump.components))
+    changed = [(n, e) for n, e in pairs if not (isinstance(e, Coordinate) and e.name == n)]
+    return ", ".join(f"{n} := {render(e)}" for n, e in (changed or pairs))
 
 Guard = Callable[[Sequence[float], Mapping[str, float]], float]
 """Guard value ``g(v, m)``; the transition is enabled when ``g >= 0``."""
@@ -592,6 +623,8 @@ class Conjunction:
     """
 
     terms: tuple[Guard, ...]
+    texts: tuple[str, ...] = ()
+    """The text of each term when every term is symbolic (``symbolic_text``), else empty."""
 
     def __call__(self, v: Sequence[float], m: Mapping[str, float]) -> float:
         return min(term(v, m) for term in self.terms)
@@ -605,6 +638,14 @@ def all_of(*terms: Guard) -> Conjunction:
     >>> g = all_of(lambda v, m: -v[0], lambda v, m: -v[1])   # h <= 0 and v <= 0
     >>> g((0.0, -1.0), {}), g((0.0, 2.0), {})
     (-0.0, -2.0)
+
+    Symbolic terms (comparisons, or level expressions) give the conjunction its text, so a mode or
+    transition needs no ``invariant_text=`` / ``guard_text=``:
+
+    >>> from hybrid.symbolic import coordinates
+    >>> v = coordinates("h", "v")
+    >>> Mode(name="fly", invariant=all_of(v.h >= 0.0, v.v <= 10.0)).invariant_text
+    'h >= 0 and v <= 10'
     """
     if not terms:
         raise ModelDefinitionError("all_of(): give at least one guard term")
@@ -612,9 +653,15 @@ def all_of(*terms: Guard) -> Conjunction:
         if not callable(term):
             raise ModelDefinitionError(f"all_of(): term {i} = {term!r} is not callable; pass g(v, m) -> float")
     flat: list[Guard] = []
+    texts: list[str] = []
     for term in terms:
-        flat.extend(term.terms if isinstance(term, Conjunction) else (term,))
-    return Conjunction(tuple(flat))
+        if isinstance(term, Conjunction):
+            flat.extend(term.terms)
+            texts.extend(term.texts if term.texts else [""])
+        else:  # a symbolic comparison is kept as its level form (the terms are level functions), with its text
+            texts.append(symbolic_text(term))
+            flat.append(_as_level(term))
+    return Conjunction(tuple(flat), tuple(texts) if all(texts) else ())
 
 
 def initial_mode_of(automaton: HybridAutomaton, signals: Sequence[float], memory: Mapping[str, float]) -> str:

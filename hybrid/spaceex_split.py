@@ -71,7 +71,8 @@ def replace(node: Any, target: Any, replacement: Any) -> Any:
         return Select(replace(node.index, target, replacement),
                       tuple(replace(o, target, replacement) for o in node.options))
     if isinstance(node, Compare):
-        return Compare(node.op, replace(node.left, target, replacement), replace(node.right, target, replacement))
+        return Compare(node.op, replace(node.left, target, replacement), replace(node.right, target, replacement),
+                       node.exact)
     if isinstance(node, Logic):
         return Logic(node.op, tuple(replace(a, target, replacement) for a in node.args))
     return node

@@ -86,6 +86,7 @@ from .symbolic_core import (
     cos,
     depth,
     evaluate,
+    exactly,
     exp,
     expanded_size,
     float_value,
@@ -144,6 +145,7 @@ __all__ = [
     "all_true",
     "any_true",
     "level_form",
+    "exactly",
     "evaluate",
     "diff",
     "enclose",
@@ -250,7 +252,7 @@ def substitute(node: Any, coordinates: Mapping[str, Expr] | None = None,
         elif isinstance(n, Select):
             out = Select(sub(n.index), tuple(sub(o) for o in n.options))
         elif isinstance(n, Compare):
-            out = Compare(n.op, sub(n.left), sub(n.right))
+            out = Compare(n.op, sub(n.left), sub(n.right), n.exact)
         elif isinstance(n, Logic):
             out = Logic(n.op, tuple(sub(a) for a in n.args))
         else:

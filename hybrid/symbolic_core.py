@@ -59,6 +59,7 @@ __all__ = [
     "all_true",
     "any_true",
     "level_form",
+    "exactly",
     "evaluate",
     "Unsupported",
     "render",
@@ -327,11 +328,18 @@ class Condition:
 
 @dataclass(frozen=True, eq=False, slots=True, repr=False)
 class Compare(Condition):
-    """``left op right`` with ``op`` one of ``>=, >, <=, <, ==, !=``."""
+    """``left op right`` with ``op`` one of ``>=, >, <=, <, ==, !=``.
+
+    ``exact=True`` makes the level form the subtraction as written, without the light simplification of a
+    zero side (``0 - x`` stays ``0 - x``, not ``-x``): it then evaluates bit for bit like the float
+    difference, ``+0.0`` on the face where a threshold that happens to be ``0.0`` is met (see
+    :func:`exactly`).  Everything else (text, SMT form, enclosure) is the same comparison.
+    """
 
     op: str
     left: Expr
     right: Expr
+    exact: bool = False
 
 
 @dataclass(frozen=True, eq=False, slots=True, repr=False)
@@ -581,6 +589,8 @@ def level_form(condition: Condition | Expr) -> Expr:
         return condition
     if isinstance(condition, Compare):
         a, b = condition.left, condition.right
+        if condition.exact and condition.op in (">=", ">", "<=", "<"):
+            return Apply("sub", (a, b) if condition.op in (">=", ">") else (b, a))
         if condition.op in (">=", ">"):
             return a - b
         if condition.op in ("<=", "<"):
@@ -600,11 +610,31 @@ def level_form(condition: Condition | Expr) -> Expr:
     raise SymbolicError(f"level_form(): {condition!r} is not a condition")
 
 
+def exactly(condition: Condition) -> Condition:
+    """``condition`` whose comparisons take their level form exactly as written (``Compare.exact``).
+
+    For a threshold given as a number that may be ``0.0``: ``exactly(x <= r)`` has the level ``r - x``,
+    ``+0.0`` at ``x = r = 0`` as in float arithmetic, where the simplified ``-x`` gives ``-0.0``.
+
+    Examples
+    --------
+    >>> from hybrid.symbolic import coordinates, exactly
+    >>> v = coordinates("x")
+    >>> (v.x <= 0.0)((0.0,), {}), exactly(v.x <= 0.0)((0.0,), {})
+    (-0.0, 0.0)
+    """
+    if isinstance(condition, Compare):
+        return Compare(condition.op, condition.left, condition.right, True)
+    if isinstance(condition, Logic):
+        return Logic(condition.op, tuple(exactly(c) for c in condition.args))
+    raise SymbolicError(f"exactly(): {condition!r} is not a condition; compare expressions (x >= 1) first")
+
+
 def _negate(c: Condition) -> Condition:
     """``not c`` pushed inside (``not (a >= b)`` is ``a < b``), so its level form is defined."""
     if isinstance(c, Compare):
         flipped = {">=": "<", ">": "<=", "<=": ">", "<": ">=", "==": "!=", "!=": "=="}[c.op]
-        return Compare(flipped, c.left, c.right)
+        return Compare(flipped, c.left, c.right, c.exact)
     assert isinstance(c, Logic)
     if c.op == "not":
         return c.args[0]

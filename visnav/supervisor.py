@@ -34,11 +34,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from hybrid import Box, HybridAutomaton, HybridSystem, MemoryVariable, Mode, Transition
+from hybrid.model import symbolic_text
 from hybrid.decide import ParameterSpace
 from hybrid.errors import ParameterError
 from hybrid.symbolic import (
+    Condition,
     Expr,
+    SymbolicReset,
     coordinates,
+    flow_map,
     ite,
     maximum,
     memory as memory_refs,
@@ -47,6 +51,7 @@ from hybrid.symbolic import (
     param,
     reset as memory_reset,
     select,
+    substitute,
 )
 
 from visnav.parameters import Envelopes, SupervisorSettings
@@ -160,8 +165,111 @@ class SupervisorModel:
         return {"AVOID": avoid, "LEAVE": leave, "OCCLU": int(occlusion == "OCCLUDED")}
 
 
+# ---------------------------------------------------------------------------- the rules, written once
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SupervisorRule:
+    """One rule of a component of the supervisor: ``source -> target`` when ``guard``, with ``reset``.
+
+    Written once, symbolically, over the signals (:data:`SIGNALS`), the memory, the named envelopes and
+    settings (:data:`RULE_PARAMETERS`, placeholders that :func:`build_supervisor` replaces by the scenario's
+    values) and ``d``, the latched obstacle's distance (:data:`LATCHED_DISTANCE`, replaced by
+    ``select(obstacle, [d_coll_0, ...])``).  The transition's guard, reset, ``writes`` and texts are all
+    derived from these expressions.
+
+    Attributes
+    ----------
+    source, target : str
+        Phases of the component (collision phases for :data:`COLLISION_RULES`, occlusion phases for
+        :data:`OCCLUSION_RULES`).
+    guard : hybrid.symbolic.Condition
+        When the rule fires (its level form is the transition's guard; closed).
+    reset : hybrid.symbolic.SymbolicReset or None
+        The memory it latches or clears.
+    priority : int
+        Smaller fires first among the rules enabled in a product mode.
+    phases : tuple of str or None
+        A collision rule applies in these occlusion phases only (``None``: in all).
+    """
+
+    source: str
+    target: str
+    guard: Condition
+    reset: SymbolicReset | None = None
+    priority: int = 0
+    phases: tuple[str, ...] | None = None
+
+    @property
+    def guard_text(self) -> str:
+        """The guard as written (``d <= d_minus``)."""
+        return symbolic_text(self.guard)
+
+    @property
+    def reset_text(self) -> str:
+        """The reset as written (``dL := d, d_end := ...``); empty without a reset."""
+        return symbolic_text(self.reset)
+
+
+LATCHED_DISTANCE = "d"
+"""The name the rules give the latched obstacle's distance (``d`` in the paper, ``d_coll`` of the latched one)."""
+
+RULE_PARAMETERS = ("d_minus", "d_zero", "d_plus", "D_minus", "D_zero", "D_plus", "arm", "hysteresis")
+"""The named constants of the rules: the envelopes d−, d0, d+ [m], D−, D0, D+ [px], the arming angle [rad] and the
+detection hysteresis [m]."""
+
+_v = coordinates(SIGNALS + (LATCHED_DISTANCE,))
+_m = memory_refs("obstacle", "side", "arm_sign", "dL", "d_end", "DL", "D_end")
+_p = {name: param(name, 0.0) for name in RULE_PARAMETERS}
+_d, _pan, _d_occ = _v[LATCHED_DISTANCE], _v.pan_wrapped_rad, _v.d_occ_px
+# ϑ (wrapped) is back on the other side of zero from where it was armed, near 0
+_pan_back_through_zero = (-_m.arm_sign * _pan >= 0.0) & (abs(_pan) <= 0.5 * math.pi)
+_latch_dl = memory_reset(dL=_d, d_end=maximum(_p["d_plus"], _d + (_p["d_plus"] - _p["d_zero"])))
+_forget_obstacle = memory_reset(obstacle=0.0, side=0.0, arm_sign=0.0, dL=0.0, d_end=0.0)
+_latched_occ = ite(_d_occ < math.inf, _d_occ, _p["D_zero"])  # an occluder out of view latches D0
+_clear_DL = memory_reset(DL=0.0, D_end=0.0)
+
+COLLISION_RULES: tuple[SupervisorRule, ...] = (
+    SupervisorRule(source="FAR", target="APPROACH", guard=_v.d_nearest_m <= _p["d_plus"], priority=10,
+                   reset=memory_reset(obstacle=_v.nearest_obstacle, side=_v.bypass_side)),
+    SupervisorRule(source="APPROACH", target="AVOID", guard=_d <= _p["d_minus"], priority=10),
+    SupervisorRule(source="APPROACH", target="FAR", guard=_d >= _p["d_plus"] + _p["hysteresis"],
+                   reset=_forget_obstacle, priority=11),
+    SupervisorRule(source="AVOID", target="ARMED", guard=abs(_pan) >= _p["arm"],
+                   reset=memory_reset(arm_sign=ite(_pan > 0.0, 1.0, -1.0)), priority=10),
+    SupervisorRule(source="ARMED", target="LEAVE", guard=_pan_back_through_zero & (_d_occ >= _p["D_zero"]),
+                   reset=_latch_dl, priority=10, phases=("CLEAR",)),
+    SupervisorRule(source="ARMED", target="PASSED", guard=_pan_back_through_zero, priority=11),
+    SupervisorRule(source="PASSED", target="LEAVE", guard=_d_occ >= _p["D_zero"], reset=_latch_dl, priority=10,
+                   phases=("CLEAR",)),
+    SupervisorRule(source="LEAVE", target="FAR", guard=_d >= maximum(_m.d_end, _p["d_plus"] + _p["hysteresis"]),
+                   reset=_forget_obstacle, priority=10),
+    SupervisorRule(source="LEAVE", target="AVOID", guard=(_d <= _p["d_minus"]) & (_d <= _m.dL - 0.01),
+                   reset=memory_reset(arm_sign=0.0, dL=0.0, d_end=0.0), priority=11),
+)
+"""The collision component's rules (AVOID and LEAVE, eq. (18) of the paper as resolved in docs/supervisor.md):
+each applies in every occlusion phase of its ``phases``.  LEAVE is set only with no occlusion risk
+(``d_occ >= D0`` and phase ``CLEAR``); ``LEAVE -> AVOID`` re-enters ξ− 1 cm below the latched ``dL``."""
+
+OCCLUSION_RULES: tuple[SupervisorRule, ...] = (
+    SupervisorRule(source="CLEAR", target="OCCLUDED", guard=_d_occ <= _p["D_minus"]),
+    SupervisorRule(source="OCCLUDED", target="RELEASE",
+                   guard=(_d_occ >= _p["D_zero"]) | ((_v.d_bord_px <= 0.0)
+                                                    & (_d_occ >= _p["D_minus"] + 0.5 * (_p["D_zero"] - _p["D_minus"]))),
+                   reset=memory_reset(DL=_latched_occ,
+                                      D_end=maximum(_p["D_plus"], _latched_occ + (_p["D_plus"] - _p["D_zero"])))),
+    SupervisorRule(source="RELEASE", target="CLEAR", guard=_d_occ >= _m.D_end, reset=_clear_DL),
+    SupervisorRule(source="RELEASE", target="OCCLUDED", guard=_d_occ <= _p["D_minus"], reset=_clear_DL, priority=1),
+)
+"""The occlusion component's rules (OCCLU, eq. (19) of the paper as resolved in docs/supervisor.md): each applies
+in every collision phase.  OCCLU is released at ``d_occ >= D0``, or once the occluder touches the image border
+(``d_bord = 0``) half-way between D− and D0."""
+
+
 def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obstacles: int) -> SupervisorModel:
     """Build the supervisor automaton for a scene with ``n_obstacles`` obstacles.
+
+    The transitions are :data:`COLLISION_RULES` and :data:`OCCLUSION_RULES` with the scenario's envelopes and
+    settings put in for :data:`RULE_PARAMETERS` (named parameters, which a parametric question of
+    :mod:`hybrid.decide` may leave free) and the latched obstacle's distance for ``d``.
 
     Parameters
     ----------
@@ -185,83 +293,43 @@ def build_supervisor(envelopes: Envelopes, settings: SupervisorSettings, n_obsta
                              "an integer >= 0 (the number of obstacles of the scene, for build_supervisor)",
                              "pass len(scenario.obstacles)")
     env = envelopes
-    d_minus, d_zero, d_plus = (param("d_minus", env.d_minus_m), param("d_zero", env.d_zero_m),
-                               param("d_plus", env.d_plus_m))
-    D_minus, D_zero, D_plus = (param("D_minus", env.D_minus_px), param("D_zero", env.D_zero_px),
-                               param("D_plus", env.D_plus_px))
-    arm = param("arm", settings.arm_angle_rad)
-    hysteresis = param("hysteresis", settings.detection_hysteresis_m)
-    release_margin = 0.5 * (D_zero - D_minus)
+    values = {"d_minus": env.d_minus_m, "d_zero": env.d_zero_m, "d_plus": env.d_plus_m, "D_minus": env.D_minus_px,
+              "D_zero": env.D_zero_px, "D_plus": env.D_plus_px, "arm": settings.arm_angle_rad,
+              "hysteresis": settings.detection_hysteresis_m}
     n_obstacles = int(n_obstacles)
-    v = coordinates(SIGNALS + tuple(f"d_coll_{i}_m" for i in range(n_obstacles)))
-    m = memory_refs("obstacle", "side", "arm_sign", "dL", "d_end", "DL", "D_end")
-    pan, d_occ, d_bord = v.pan_wrapped_rad, v.d_occ_px, v.d_bord_px
-    # the latched obstacle's distance (with no obstacle, the nearest distance, which is then inf)
-    d_latched: Expr = (select(m.obstacle, [v[f"d_coll_{i}_m"] for i in range(n_obstacles)])
-                       if n_obstacles else v.d_nearest_m)
-    # ϑ (wrapped) is back on the other side of zero from where it was armed, near 0
-    crossed_zero = minimum(-m.arm_sign * pan, 0.5 * math.pi - abs(pan))
-
-    # ---- resets --------------------------------------------------------------------
-    latch_obstacle = memory_reset(obstacle=v.nearest_obstacle, side=v.bypass_side)
-    forget_obstacle = memory_reset(obstacle=0.0, side=0.0, arm_sign=0.0, dL=0.0, d_end=0.0)
-    arm_leave = memory_reset(arm_sign=ite(pan > 0.0, 1.0, -1.0))
-    latch_dl = memory_reset(dL=d_latched, d_end=maximum(d_plus, d_latched + (d_plus - d_zero)))
-    disarm = memory_reset(arm_sign=0.0, dL=0.0, d_end=0.0)
-    latched_occ = ite(d_occ < math.inf, d_occ, D_zero)  # an occluder out of view latches D0
-    latch_DL = memory_reset(DL=latched_occ, D_end=maximum(D_plus, latched_occ + (D_plus - D_zero)))
-    clear_DL = memory_reset(DL=0.0, D_end=0.0)
-
-    # ---- collision component -------------------------------------------------------------
-    # (source, target, guard, reset, writes, guard_text, reset_text, priority, occlusion phases or None=all)
-    collision_rules = [
-        ("FAR", "APPROACH", d_plus - v.d_nearest_m, latch_obstacle, ("obstacle", "side"),
-         "d_nearest <= d+", "obstacle := nearest; side := bypass side", 10, None),
-        ("APPROACH", "AVOID", d_minus - d_latched, None, (),
-         "d <= d-", "", 10, None),
-        ("APPROACH", "FAR", d_latched - (d_plus + hysteresis), forget_obstacle,
-         ("obstacle", "side", "arm_sign", "dL", "d_end"), "d >= d+ + hysteresis", "forget obstacle", 11, None),
-        ("AVOID", "ARMED", abs(pan) - arm, arm_leave, ("arm_sign",),
-         "|wrap(pan)| >= arm", "arm_sign := sign(pan)", 10, None),
-        ("ARMED", "LEAVE", minimum(crossed_zero, d_occ - D_zero), latch_dl, ("dL", "d_end"),
-         "pan back through 0 and mu_occ = 0", "dL := d; d_end := max(d+, dL + d+ - d0)", 10, ("CLEAR",)),
-        ("ARMED", "PASSED", crossed_zero, None, (),
-         "pan back through 0 and mu_occ > 0", "", 11, None),
-        ("PASSED", "LEAVE", d_occ - D_zero, latch_dl, ("dL", "d_end"),
-         "mu_occ = 0", "dL := d; d_end := max(d+, dL + d+ - d0)", 10, ("CLEAR",)),
-        ("LEAVE", "FAR", d_latched - maximum(m.d_end, d_plus + hysteresis), forget_obstacle,
-         ("obstacle", "side", "arm_sign", "dL", "d_end"), "d >= max(d_end, d+ + hysteresis)", "AVOID := LEAVE := 0",
-         10, None),
-        ("LEAVE", "AVOID", minimum(d_minus - d_latched, m.dL - 0.01 - d_latched), disarm,
-         ("arm_sign", "dL", "d_end"), "d <= min(d-, dL - 1 cm)", "LEAVE := 0; disarm", 11, None),
-    ]
-    # ---- occlusion component ----------------------------------------------------------------
-    occlusion_rules = [
-        ("CLEAR", "OCCLUDED", D_minus - d_occ, None, (), "d_occ <= D-", "", 0),
-        ("OCCLUDED", "RELEASE",
-         maximum(d_occ - D_zero, minimum(-d_bord, d_occ - (D_minus + release_margin))),
-         latch_DL, ("DL", "D_end"), "d_occ >= D0 or (d_bord = 0 and d_occ >= (D- + D0)/2)",
-         "DL := d_occ; D_end := max(D+, DL + D+ - D0)", 0),
-        ("RELEASE", "CLEAR", d_occ - m.D_end, clear_DL, ("DL", "D_end"),
-         "d_occ >= D_end", "", 0),
-        ("RELEASE", "OCCLUDED", D_minus - d_occ, clear_DL, ("DL", "D_end"),
-         "d_occ <= D-", "", 1),
-    ]
-
-    modes = _supervisor_modes()
-    transitions = _supervisor_transitions(collision_rules, occlusion_rules)
-    memory = _supervisor_memory()
     variables = SIGNALS + tuple(f"d_coll_{i}_m" for i in range(n_obstacles))
+    v = coordinates(variables)
+    # the latched obstacle's distance (with no obstacle, the nearest distance, which is then inf)
+    d_latched: Expr = (select(_m.obstacle, [v[f"d_coll_{i}_m"] for i in range(n_obstacles)])
+                       if n_obstacles else v.d_nearest_m)
+    instance = _Instance(d_latched, {name: param(name, values[name]) for name in RULE_PARAMETERS})
     automaton = HybridAutomaton(
         name="folio-cadenat-supervisor",
-        modes=tuple(modes),
-        transitions=tuple(transitions),
+        modes=tuple(_supervisor_modes()),
+        transitions=tuple(_supervisor_transitions(instance)),
         variables=variables,
-        memory=memory,
+        memory=_supervisor_memory(),
         initial_mode=mode_name("FAR", "CLEAR"),
         description="AVOID/LEAVE/OCCLU logic of Folio & Cadenat as a product automaton",
     )
     return SupervisorModel(automaton=automaton, envelopes=envelopes, settings=settings, n_obstacles=n_obstacles)
+
+
+class _Instance:
+    """The rules' placeholders replaced: ``d`` by the latched distance, the parameters by their values."""
+
+    def __init__(self, d_latched: Expr, params: Mapping[str, Expr]) -> None:
+        self.coordinates = {LATCHED_DISTANCE: d_latched}
+        self.params = dict(params)
+
+    def guard(self, rule: SupervisorRule) -> Condition:
+        return substitute(rule.guard, coordinates=self.coordinates, params=self.params)
+
+    def reset(self, rule: SupervisorRule) -> SymbolicReset | None:
+        if rule.reset is None:
+            return None
+        return memory_reset({name: substitute(e, coordinates=self.coordinates, params=self.params)
+                             for name, e in rule.reset.assignments.items()})
 
 
 def _supervisor_modes() -> list[Mode]:
@@ -286,45 +354,30 @@ def _supervisor_modes() -> list[Mode]:
     return modes
 
 
-def _supervisor_transitions(collision_rules: list[tuple], occlusion_rules: list[tuple]) -> list[Transition]:
+def _supervisor_transitions(instance: _Instance) -> list[Transition]:
     """The transitions of :func:`build_supervisor`: each collision rule in every occlusion phase it applies to
-    (``None``: all), then each occlusion rule in every collision phase."""
+    (``None``: all), then each occlusion rule in every collision phase.
+
+    The texts are the rules' own (over ``d`` and the parameters' names), the guard and reset their instances.
+    """
     reads_coll = ("d_nearest_m", "nearest_obstacle", "bypass_side", "pan_wrapped_rad", "d_occ_px")
     transitions = []
-    for src, dst, guard, reset, writes, gtext, rtext, prio, only in collision_rules:
+    for rule in COLLISION_RULES:
+        guard, reset = instance.guard(rule), instance.reset(rule)
         for occlusion in OCCLUSION_PHASES:
-            if only is not None and occlusion not in only:
+            if rule.phases is not None and occlusion not in rule.phases:
                 continue
-            transitions.append(
-                Transition(
-                    name=f"{src}->{dst}@{occlusion}",
-                    source=mode_name(src, occlusion),
-                    target=mode_name(dst, occlusion),
-                    guard=guard,
-                    reset=reset,
-                    writes=writes,
-                    reads=reads_coll,
-                    priority=prio,
-                    guard_text=gtext,
-                    reset_text=rtext,
-                )
-            )
-    for src, dst, guard, reset, writes, gtext, rtext, prio in occlusion_rules:
+            transitions.append(Transition(
+                name=f"{rule.source}->{rule.target}@{occlusion}", source=mode_name(rule.source, occlusion),
+                target=mode_name(rule.target, occlusion), guard=guard, reset=reset, reads=reads_coll,
+                priority=rule.priority, guard_text=rule.guard_text, reset_text=rule.reset_text))
+    for rule in OCCLUSION_RULES:
+        guard, reset = instance.guard(rule), instance.reset(rule)
         for collision in COLLISION_PHASES:
-            transitions.append(
-                Transition(
-                    name=f"{collision}@{src}->{dst}",
-                    source=mode_name(collision, src),
-                    target=mode_name(collision, dst),
-                    guard=guard,
-                    reset=reset,
-                    writes=writes,
-                    reads=("d_occ_px", "d_bord_px"),
-                    priority=prio,
-                    guard_text=gtext,
-                    reset_text=rtext,
-                )
-            )
+            transitions.append(Transition(
+                name=f"{collision}@{rule.source}->{rule.target}", source=mode_name(collision, rule.source),
+                target=mode_name(collision, rule.target), guard=guard, reset=reset, reads=("d_occ_px", "d_bord_px"),
+                priority=rule.priority, guard_text=rule.guard_text, reset_text=rule.reset_text))
     return transitions
 
 
@@ -342,7 +395,7 @@ def _supervisor_memory() -> tuple[MemoryVariable, ...]:
     return memory
 
 
-def measurement_system(model: SupervisorModel) -> HybridSystem:
+def measurement_system(model: SupervisorModel, *, held: bool = False) -> HybridSystem:
     """The supervisor over a *consistent* measurement state, for :func:`hybrid.check`.
 
     The supervisor's signals are not independent: ``d_nearest`` is the
@@ -358,7 +411,23 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
     supervisor); it plays no part in the checks because no mode of the
     supervisor has an invariant (it is evaluated at every sample, and the
     deadlock question is void).  The dwell-time bounds of the Zeno check take
-    the measurements' rate bounds instead (:func:`measurement_rates`).
+    the measurements' rate bounds instead (:func:`measurement_rates`).  That
+    zero is not a fact about the measurements, so by default it is a plain
+    function the checker cannot read: a symbolic zero flow would be enclosed
+    as the rate bound 0, and the dwell bounds would then take the measurements
+    for constant (an unsound proof of no Zeno behaviour).
+
+    ``held=True`` writes it symbolically, ``flow_map(0, ..., 0)``: the
+    measurements held between the supervisor's evaluations.  That is the form
+    the exports need (:func:`hybrid.spaceex_export.to_spaceex` writes the
+    automaton with ``x' == 0`` flows); do not give it to :func:`hybrid.check`
+    with rate bounds.
+
+    Parameters
+    ----------
+    model : SupervisorModel
+    held : bool
+        Symbolic zero flows (for the exports) instead of the plain zero function (for the checks).
 
     Without obstacles (``n_obstacles = 0``) there is no distance coordinate:
     the closed loop then measures ``d_nearest = inf``, and the checks read the
@@ -383,12 +452,9 @@ def measurement_system(model: SupervisorModel) -> HybridSystem:
         nearest, index = 0.0 * x.d_occ_px + far, 0.0 * x.d_occ_px  # type: ignore[assignment]
     output = output_map(nearest, index, x.bypass_side, x.d_occ_px, x.d_bord_px, x.pan_wrapped_rad, *distances)
     zero = tuple(0.0 for _ in names)
-    return HybridSystem(
-        automaton=model.automaton,
-        state_names=names,
-        flows={mode: (lambda t, x, m: zero) for mode in model.automaton.mode_names},
-        output=output,
-    )
+    flow = flow_map(zero) if held else (lambda t, x, m: zero)
+    return HybridSystem(automaton=model.automaton, state_names=names,
+                        flows={mode: flow for mode in model.automaton.mode_names}, output=output)
 
 
 def no_obstacle_distance(envelopes: Envelopes) -> float:
