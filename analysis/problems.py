@@ -404,9 +404,10 @@ def hybrid_problem(
     )
     from analysis.reach.verdict import reach_proofs
 
-    found = reach_proofs(probe, problem.parsed, initial, reach_mode=reach, initial_mode=initial_mode,
-                         builder=not isinstance(system, HybridSystem), options=reach_options,
-                         where=f"problem {name!r}")
+    fixed = isinstance(system, HybridSystem)
+    found = reach_proofs(probe if fixed else build, problem.parsed, initial, reach_mode=reach,
+                         initial_mode=initial_mode, builder=not fixed, options=reach_options,
+                         where=f"problem {name!r}", box=box)
     if not found:
         return problem
     return replace(problem, proofs={**found, **dict(proofs or {})})
