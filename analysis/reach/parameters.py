@@ -422,22 +422,38 @@ def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, 
                       scale=scale, scale_text=text)
 
 
-def _may_meet(polyhedra: Sequence[Polyhedron], box: Sequence[tuple[float, float]]) -> bool:
-    """False only when every polyhedron is proven disjoint from the box (one row beyond it, exactly)."""
-    for poly in polyhedra:
-        apart = False
-        for h in poly.halfspaces:
-            low = sum((a * Fraction(lo if a > 0 else hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0))
-            if low > h.offset:
-                apart = True
-                break
-        if not apart:
-            return True
-    return False
+def _float_down(q: Fraction) -> float:
+    f = float(q)
+    return f if Fraction(f) <= q else math.nextafter(f, -math.inf)
 
 
-def initial_modes(setup: ReachSetup, initial_mode: Any, declared: bool) -> tuple[str, ...]:
-    """The modes a run may start in (see the module docstring).
+def _float_up(q: Fraction) -> float:
+    f = float(q)
+    return f if Fraction(f) >= q else math.nextafter(f, math.inf)
+
+
+def _clipped(poly: Polyhedron, box: Sequence[tuple[float, float]]) -> list[tuple[float, float]] | None:
+    """A box holding ``box ∩ poly`` (rows on one coordinate tighten it, exactly; others are kept out), or
+    None when a row is proven beyond the box."""
+    out = [(Fraction(lo), Fraction(hi)) for lo, hi in box]
+    for h in poly.halfspaces:
+        low = sum((a * (lo if a > 0 else hi) for a, (lo, hi) in zip(h.normal, out)), Fraction(0))
+        if low > h.offset:
+            return None
+        used = [j for j, a in enumerate(h.normal) if a]
+        if len(used) == 1:
+            j = used[0]
+            bound = h.offset / h.normal[j]
+            lo, hi = out[j]
+            out[j] = (lo, min(hi, bound)) if h.normal[j] > 0 else (max(lo, bound), hi)
+    return [(_float_down(lo), _float_up(hi)) for lo, hi in out]
+
+
+Start = tuple[str, tuple[tuple[str, float, float], ...]]
+
+
+def initial_modes(setup: ReachSetup, initial_mode: Any, declared: bool) -> tuple[Start, ...]:
+    """The modes a run may start in, each with its box of start states (see the module docstring).
 
     Parameters
     ----------
@@ -445,17 +461,29 @@ def initial_modes(setup: ReachSetup, initial_mode: Any, declared: bool) -> tuple
         The problem's.
     declared : bool
         The automaton declares its initial mode (used when ``initial_mode`` is None).
+
+    Returns
+    -------
+    tuple of (mode, box)
+        ``box`` over ``setup.model.state_names``: the whole initial box, or (when the invariants decide the
+        mode) its part that may lie in the mode's invariant (rows on one coordinate clip it exactly).
     """
     model = setup.model
     if isinstance(initial_mode, str):
-        return (initial_mode,)
+        return ((initial_mode, setup.box),)
     if callable(initial_mode):
-        return tuple(model.modes)
+        return tuple((m, setup.box) for m in model.modes)
     if declared or len(model.modes) == 1:
-        return (model.initial_mode,)
+        return ((model.initial_mode, setup.box),)
+    names = [n for n, _, _ in setup.box]
     box = [(lo, hi) for _, lo, hi in setup.box]
-    found = tuple(m for m, mode in model.modes.items() if _may_meet(mode.invariant, box))
+    found = []
+    for m, mode in model.modes.items():
+        parts = [c for c in (_clipped(p, box) for p in mode.invariant) if c is not None]
+        if parts:
+            hull = [(min(p[j][0] for p in parts), max(p[j][1] for p in parts)) for j in range(len(box))]
+            found.append((m, tuple((n, lo, hi) for n, (lo, hi) in zip(names, hull))))
     if not found:
         raise ParameterRoute("no mode's invariant meets the initial box, so no run can start (give the initial "
                              "mode, or fix the box)")
-    return found
+    return tuple(found)

@@ -202,7 +202,7 @@ def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tu
 def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]], *,
                 initial_mode: str | None = None, time_step: float | None = None,
                 max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None,
-                initial_modes: Sequence[str] | None = None, scale: Fraction = Fraction(1),
+                starts: Sequence[tuple[str, Any]] | None = None, scale: Fraction = Fraction(1),
                 scale_text: str = "") -> tuple[Proof, ReachDecision]:
     """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
 
@@ -221,8 +221,9 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     cache : dict or None
         Flowpipes already computed, by their settings (the requirements of one problem with the same
         window share one flowpipe; each is decided and re-checked on its own).
-    initial_modes : sequence of str or None
-        Start from each of these modes (every one must prove the requirement); default ``(initial_mode,)``.
+    starts : sequence of (mode, box) or None
+        Start from each mode with its box ``((name, lo, hi), ...)`` (every one must prove the requirement);
+        default ``((initial_mode, initial),)``.
     scale, scale_text : Fraction, str
         A common time scale ``m(p)`` of the flows (:mod:`analysis.reach.parameters`): the window's end is
         multiplied by ``scale = max m`` and the flows are those divided by ``m``.
@@ -231,15 +232,17 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     fragment = scaled_fragment(fragment, scale)  # in both times; the window and the step scale
     end = max(fragment.end, 1e-9)
     step = default_time_step(end) if time_step is None else time_step * float(scale)
-    modes = tuple(initial_modes) if initial_modes else (initial_mode,)
-    runs = [(m, *_decide_mode(system, fragment, initial, m, step, jumps, cache)) for m in modes]
+    begin = [(m, {k: (lo, hi) for k, lo, hi in b}) for m, b in starts] if starts else [(initial_mode, dict(initial))]
+    modes = [m for m, _ in begin]
+    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache)) for m, b in begin]
     bad = next((r for r in runs if not r[1].holds), None)
     holds = bad is None
     chosen = bad if bad is not None else min(runs, key=lambda r: r[1].margin)
     decision = chosen[1]
     rechecked = holds and all(c is not None and c.passed for _, _, c, _ in runs)
     parts = [(f"from mode {m!r}: " if len(runs) > 1 else "") + _evidence(d, c, took) for m, d, c, took in runs]
-    assumptions = [f"the initial box {dict(initial)}", f"the window [{fragment.start:g}, {fragment.end:g}] s",
+    assumptions = [f"the initial box {dict(initial)}" if len(begin) == 1 else
+                   "the initial box " + "; ".join(f"in mode {m!r} {b}" for m, b in begin), f"the window [{fragment.start:g}, {fragment.end:g}] s",
                    "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)"]
     if len(runs) > 1:
         assumptions.append(f"every start mode {list(modes)} (the initial mode depends on the point)")
@@ -264,7 +267,7 @@ class ReachProof:
     time_step: float | None = None
     max_jumps: int | None = None
     refused: str | None = None
-    initial_modes: tuple[str, ...] | None = None
+    starts: tuple[tuple[str, Any], ...] | None = None
     scale: Fraction = Fraction(1)
     scale_text: str = ""
     cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
@@ -278,7 +281,7 @@ class ReachProof:
         try:
             proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
                                    initial_mode=self.initial_mode, time_step=self.time_step,
-                                   max_jumps=self.max_jumps, cache=self.cache, initial_modes=self.initial_modes,
+                                   max_jumps=self.max_jumps, cache=self.cache, starts=self.starts,
                                    scale=self.scale, scale_text=self.scale_text)
         except (ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
@@ -377,7 +380,7 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
             out[p.name] = ReachProof(system=None, fragment=fragment, initial=(), refused=why)
             continue
         out[p.name] = ReachProof(system=setup.model, fragment=fragment, initial=setup.box,
-                                 initial_mode=modes[0], initial_modes=modes, time_step=opts.get("time_step"),
+                                 initial_mode=modes[0][0], starts=modes, time_step=opts.get("time_step"),
                                  max_jumps=opts.get("max_jumps"), scale=setup.scale, scale_text=setup.scale_text,
                                  cache=shared)
     return out
