@@ -232,6 +232,11 @@ class HybridSimulation:
     options: Mapping[str, Any] = field(default_factory=dict)
     final_stops: tuple[str, ...] = ()
 
+    @property
+    def fixed_system(self) -> HybridSystem | None:
+        """The system when the problem was given it (not a function of the parameters), else None."""
+        return self.build.system if isinstance(self.build, _Fixed) else None
+
     def __call__(self, point: Mapping[str, float]) -> SignalTrace:
         system = self.build(point)
         x0 = _point_values(point, self.initial)

@@ -122,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     from visnav.app.cli_stiffness import add_parser as _add_stiffness; _add_stiffness(sub)
     from visnav.app.cli_fuzz import add_parser as _add_fuzz; _add_fuzz(sub)
     from visnav.app.cli_verify import add_parser as _add_verify; _add_verify(sub)
+    from visnav.app.cli_reach import add_parser as _add_reach; _add_reach(sub)
     return parser
 
 
