@@ -149,17 +149,19 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
     return True, margin, f"holds on all {len(result.segments)} segments"
 
 
-def _evidence(decision: ReachDecision, check: Any, recheck_seconds: float) -> str:
+def _evidence(decision: ReachDecision, check: Any) -> str:
+    """The proof's evidence in words: deterministic (no timings; :attr:`ReachDecision.seconds` has them), so a
+    report that quotes it has the same bytes on every run."""
     r = decision.result
     size = f"{len(r.segments)} segments, {len(r.jumps)} jumps, step {r.time_step:g} s" if r is not None else ""
     if check is None:
-        return f"reachability: {decision.reason}; {size}; {decision.seconds:.2f} s; not re-checked (nothing to re-check)"
+        return f"reachability: {decision.reason}; {size}; not re-checked (nothing to re-check)"
     if check.passed:
         again = (f"re-checked from the saved flowpipe ({check.segments} segments, {check.jumps} jumps: "
-                 f"{'; '.join(check.parts)}), exact margin {check.margin}, {recheck_seconds:.2f} s")
+                 f"{'; '.join(check.parts)}), exact margin {check.margin}")
     else:
-        again = f"re-check FAILED ({check.failure}); {recheck_seconds:.2f} s"
-    return f"reachability: {decision.reason}, margin {decision.margin:.6g}; {size}; {decision.seconds:.2f} s; {again}"
+        again = f"re-check FAILED ({check.failure})"
+    return f"reachability: {decision.reason}, margin {decision.margin:.6g}; {size}; {again}"
 
 
 def scaled_fragment(fragment: SafetyFragment, scale: Fraction) -> SafetyFragment:
@@ -240,7 +242,7 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     chosen = bad if bad is not None else min(runs, key=lambda r: r[1].margin)
     decision = chosen[1]
     rechecked = holds and all(c is not None and c.passed for _, _, c, _ in runs)
-    parts = [(f"from mode {m!r}: " if len(runs) > 1 else "") + _evidence(d, c, took) for m, d, c, took in runs]
+    parts = [(f"from mode {m!r}: " if len(runs) > 1 else "") + _evidence(d, c) for m, d, c, _ in runs]
     assumptions = [f"the initial box {dict(initial)}" if len(begin) == 1 else
                    "the initial box " + "; ".join(f"in mode {m!r} {b}" for m, b in begin), f"the window [{fragment.start:g}, {fragment.end:g}] s",
                    "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)"]
