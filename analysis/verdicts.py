@@ -121,6 +121,8 @@ class RequirementVerdict:
     history: tuple[float, ...]
     undecided: int = 0
     undecided_reasons: tuple[str, ...] = ()
+    searched: int | None = None
+    """Simulations the search ran in all (complete or not); ``None``: ``simulations``."""
 
     @property
     def decided_by(self) -> str:
@@ -205,7 +207,7 @@ def decided_by(verdict: RequirementVerdict) -> str:
     proof = verdict.proof
     if verdict.verdict == "proven" and proof is not None:
         return f"{_method_name(proof)} (re-checked)"
-    text = f"falsification ({verdict.simulations} simulations"
+    text = f"falsification ({verdict.simulations if verdict.searched is None else verdict.searched} simulations"
     text += f"; {verdict.undecided} ended early)" if verdict.verdict == "incomplete" and verdict.undecided else ")"
     if proof is None:
         return text
@@ -285,6 +287,7 @@ def _verdict(problem: VerificationProblem, search: Search, r: int, falsified: Ma
         simulations=len(ok), lowest_at=None if lowest is None else problem.point(lowest.unit),
         counterexample=counterexample, proof=proof, history=_running_min(search.evaluations, r),
         undecided=len(undecided),
+        searched=sum(e.outcome.status != "invalid" for e in search.evaluations),
         undecided_reasons=tuple(dict.fromkeys(f"{e.outcome.status}: {e.outcome.detail}" for e in undecided))[:5],
     )
 
