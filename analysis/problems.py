@@ -232,6 +232,11 @@ class HybridSimulation:
     options: Mapping[str, Any] = field(default_factory=dict)
     final_stops: tuple[str, ...] = ()
 
+    @property
+    def fixed_system(self) -> HybridSystem | None:
+        """The system when the problem was given it (not a function of the parameters), else None."""
+        return self.build.system if isinstance(self.build, _Fixed) else None
+
     def __call__(self, point: Mapping[str, float]) -> SignalTrace:
         system = self.build(point)
         x0 = _point_values(point, self.initial)
@@ -404,9 +409,10 @@ def hybrid_problem(
     )
     from analysis.reach.verdict import reach_proofs
 
-    found = reach_proofs(probe, problem.parsed, initial, reach_mode=reach, initial_mode=initial_mode,
-                         builder=not isinstance(system, HybridSystem), options=reach_options,
-                         where=f"problem {name!r}")
+    fixed = isinstance(system, HybridSystem)
+    found = reach_proofs(probe if fixed else build, problem.parsed, initial, reach_mode=reach,
+                         initial_mode=initial_mode, builder=not fixed, options=reach_options,
+                         where=f"problem {name!r}", box=box)
     if not found:
         return problem
     return replace(problem, proofs={**found, **dict(proofs or {})})

@@ -43,7 +43,7 @@ from analysis.falsification import DEFAULT_TIMEOUT_S, Evaluation, FalsificationE
 from analysis.verification import Proof, VerificationProblem
 
 __all__ = ["VERDICTS", "OVERALL", "PASSES", "Counterexample", "Coverage", "RequirementVerdict",
-           "VerificationResult", "verify", "coverage_of"]
+           "VerificationResult", "verify", "coverage_of", "decided_by"]
 
 VERDICTS = ("proven", "falsified", "not_falsified", "incomplete")
 OVERALL = ("proven", "not_falsified", "falsified", "diverged", "incomplete", "error")
@@ -121,10 +121,18 @@ class RequirementVerdict:
     history: tuple[float, ...]
     undecided: int = 0
     undecided_reasons: tuple[str, ...] = ()
+    searched: int | None = None
+    """Simulations the search ran in all (complete or not); ``None``: ``simulations``."""
+
+    @property
+    def decided_by(self) -> str:
+        """Which method decided the verdict, in words (:func:`decided_by`)."""
+        return decided_by(self)
 
     def as_dict(self) -> dict[str, Any]:
         return to_jsonable({
             "name": self.name, "formula": self.formula, "description": self.description, "verdict": self.verdict,
+            "decided_by": self.decided_by,
             "robustness": self.robustness, "nominal_robustness": self.nominal_robustness,
             "simulations": self.simulations, "lowest_at": self.lowest_at,
             "counterexample": None if self.counterexample is None else self.counterexample,
@@ -179,6 +187,37 @@ class VerificationResult:
         if evaluations:
             out["evaluations"] = [e.as_dict() for e in self.evaluations]
         return to_jsonable(out, nonfinite="string")
+
+
+def _method_name(proof: Proof) -> str:
+    """The proof's method in a few words: ``reachability``, or its method up to the first comma."""
+    method = proof.method.strip()
+    return "reachability" if method.startswith("reachability") else (method.split(",")[0] or "proof")
+
+
+def decided_by(verdict: RequirementVerdict) -> str:
+    """Which method decided a requirement's verdict, in words.
+
+    ``reachability (re-checked)`` (a proof's method, re-checked) for ``proven``;
+    ``falsification (N simulations)`` otherwise (``; M ended early`` when incomplete), followed for a
+    proof that was attempted and did not prove it by what it gave: ``reachability: inconclusive, margin
+    m`` (the smallest slack it found, which proves nothing), ``...: not decided`` (no margin), or
+    ``...: holds, not re-checked``.
+    """
+    proof = verdict.proof
+    if verdict.verdict == "proven" and proof is not None:
+        return f"{_method_name(proof)} (re-checked)"
+    text = f"falsification ({verdict.simulations if verdict.searched is None else verdict.searched} simulations"
+    text += f"; {verdict.undecided} ended early)" if verdict.verdict == "incomplete" and verdict.undecided else ")"
+    if proof is None:
+        return text
+    if proof.proven:  # the search found a violation the proof excludes: both are shown, never one hidden
+        return f"{text}; {_method_name(proof)}: proven (re-checked), contradicted by the search"
+    if proof.holds:
+        return f"{text}; {_method_name(proof)}: holds, not re-checked"
+    if proof.margin is not None:
+        return f"{text}; {_method_name(proof)}: inconclusive, margin {proof.margin:.4g}"
+    return f"{text}; {_method_name(proof)}: not decided"
 
 
 def coverage_of(problem: VerificationProblem, evaluations: Sequence[Evaluation]) -> Coverage:
@@ -248,6 +287,7 @@ def _verdict(problem: VerificationProblem, search: Search, r: int, falsified: Ma
         simulations=len(ok), lowest_at=None if lowest is None else problem.point(lowest.unit),
         counterexample=counterexample, proof=proof, history=_running_min(search.evaluations, r),
         undecided=len(undecided),
+        searched=sum(e.outcome.status != "invalid" for e in search.evaluations),
         undecided_reasons=tuple(dict.fromkeys(f"{e.outcome.status}: {e.outcome.detail}" for e in undecided))[:5],
     )
 

@@ -183,6 +183,9 @@ class Proof:
         holds but was not re-checked does not give the verdict ``proven``.
     assumptions : tuple of str
         What it assumed (the box, the hypotheses).
+    margin : float or None
+        The smallest slack the method found, in the requirement's units (reachability: the smallest
+        ``d − max c·x`` over the flowpipe); ``None`` when the method gives none or decided nothing.
     """
 
     holds: bool
@@ -190,6 +193,7 @@ class Proof:
     evidence: str
     rechecked: bool
     assumptions: tuple[str, ...] = ()
+    margin: float | None = None
 
     @property
     def proven(self) -> bool:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -91,7 +91,7 @@ class _Run:
 def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initial_mode: str | None = None,
           max_jumps: int = 10, inputs: Mapping[str, ModeInput] | None = None, unsafe: Sequence[UnsafeSet] = (),
           order: int = 20, stored_order: int = 10, size_limit: float = 1e6, max_segments: int = 200_000,
-          max_flowpipes: int = 1_000) -> ReachResult:
+          max_flowpipes: int = 1_000, progress: Callable[[float], None] | None = None) -> ReachResult:
     """An over-approximation of the states a symbolic affine hybrid system reaches.
 
     Parameters
@@ -120,6 +120,8 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
         A segment whose box radius exceeds this ends the run inconclusively (``"blow_up"``).
     max_segments, max_flowpipes : int
         Limits on the stored segments and on the flowpipes (memory and time are bounded).
+    progress : callable or None
+        ``progress(t)`` after each flowpipe, ``t`` [s] the latest time its segments reached so far.
 
     Returns
     -------
@@ -148,7 +150,7 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     run = _Run(model=model, step=float(time_step), horizon=float(horizon), max_jumps=max_jumps, order=order,
                stored_order=stored_order, size_limit=float(size_limit), max_segments=max_segments,
                inputs=_inputs(inputs, model), dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
-    _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes)
+    _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes, progress)
     result = ReachResult(system=model.name, state_names=model.state_names, horizon=run.horizon,
                          max_jumps=max_jumps, time_step=run.step, segments=tuple(run.segments),
                          jumps=tuple(run.jumps), terminations=tuple(run.terminations))
@@ -229,9 +231,10 @@ def _augment(z: Zonotope, scale: float) -> Zonotope:
                     generators=np.vstack([z.generators, np.zeros((1, z.order))]))
 
 
-def _explore(run: _Run, first: _Work, max_flowpipes: int) -> None:
+def _explore(run: _Run, first: _Work, max_flowpipes: int, progress: Callable[[float], None] | None = None) -> None:
     queue = deque([first])
     count = 0
+    reached = 0.0
     while queue:
         work = queue.popleft()
         if count >= max_flowpipes:
@@ -242,6 +245,9 @@ def _explore(run: _Run, first: _Work, max_flowpipes: int) -> None:
             return
         count += 1
         collected = _flow(run, work)
+        if progress is not None and run.segments:
+            reached = max(reached, min(run.segments[-1].t_hi, run.horizon))
+            progress(reached)
         if collected and work.jumps >= run.max_jumps:
             run.terminations.append(Termination(
                 reason="max_jumps", mode=work.mode, time=min(v[2] for v in collected.values()), jumps=work.jumps,

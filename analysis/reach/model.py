@@ -77,7 +77,12 @@ def affine_model(system: Any) -> AffineHybridModel:
     AffineError
         ``system`` is not a :class:`HybridSystem`, a part is a plain Python function, or a part
         is not affine (naming it and what to write instead).
+
+    An :class:`AffineHybridModel` is returned as it is (a model read already, e.g. with parameters as
+    constant states: :mod:`analysis.reach.parameters`).
     """
+    if isinstance(system, AffineHybridModel):
+        return system
     if not isinstance(system, HybridSystem):
         raise AffineError(f"system = {system!r}: {_NOT_SYMBOLIC}",
                           "build hybrid.system.HybridSystem(automaton=..., state_names=..., flows={mode: "

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import Any
 
@@ -39,7 +39,7 @@ from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
 __all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "default_time_step",
-           "default_max_jumps", "reach_proofs", "REACH_CHOICES"]
+           "default_max_jumps", "reach_proofs", "REACH_CHOICES", "scaled_fragment"]
 
 METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
 
@@ -99,12 +99,14 @@ def _slack(node: Nnf, seg: ReachSegment) -> tuple[bool, float | None]:
     return bool(good), (max(good) if good else (max(slacks) if slacks else None))
 
 
-def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None) -> tuple[bool, float, str]:
+def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
+           initial: Mapping[str, tuple[float, float]] | None = None) -> tuple[bool, float, str]:
     """Decide the fragment on a flowpipe: (holds, margin, reason).
 
     With the affine ``model``, a flowpipe that leaves an invariant where no guard is shown enabled, or
     a jump landing outside the target's invariant and every guard, proves nothing (a possible deadlock:
-    the executor's run would end early).
+    the executor's run would end early).  With ``initial`` (the exact initial box), the initial entry is
+    checked on it rather than on the saved segment's box (which rounding makes a little wider).
     """
     if model is not None:
         for term in result.terminations:
@@ -122,6 +124,8 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None) -> 
                 return False, math.nan, f"not decided by reachability: {why}"
         for seg in result.segments:
             box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+            if initial is not None and seg.entry and seg.jumps == 0:
+                box = [(Fraction(float(initial[k][0])), Fraction(float(initial[k][1]))) for k in result.state_names]
             why = entry_uncovered(model, seg.mode, box) if seg.entry else None
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
@@ -145,29 +149,69 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None) -> 
     return True, margin, f"holds on all {len(result.segments)} segments"
 
 
-def _evidence(decision: ReachDecision, check: Any, recheck_seconds: float) -> str:
+def _evidence(decision: ReachDecision, check: Any) -> str:
+    """The proof's evidence in words: deterministic (no timings; :attr:`ReachDecision.seconds` has them), so a
+    report that quotes it has the same bytes on every run."""
     r = decision.result
     size = f"{len(r.segments)} segments, {len(r.jumps)} jumps, step {r.time_step:g} s" if r is not None else ""
     if check is None:
-        return f"reachability: {decision.reason}; {size}; {decision.seconds:.2f} s; not re-checked (nothing to re-check)"
+        return f"reachability: {decision.reason}; {size}; not re-checked (nothing to re-check)"
     if check.passed:
         again = (f"re-checked from the saved flowpipe ({check.segments} segments, {check.jumps} jumps: "
-                 f"{'; '.join(check.parts)}), exact margin {check.margin}, {recheck_seconds:.2f} s")
+                 f"{'; '.join(check.parts)}), exact margin {check.margin}")
     else:
-        again = f"re-check FAILED ({check.failure}); {recheck_seconds:.2f} s"
-    return f"reachability: {decision.reason}, margin {decision.margin:.6g}; {size}; {decision.seconds:.2f} s; {again}"
+        again = f"re-check FAILED ({check.failure})"
+    return f"reachability: {decision.reason}, margin {decision.margin:.6g}; {size}; {again}"
+
+
+def scaled_fragment(fragment: SafetyFragment, scale: Fraction) -> SafetyFragment:
+    """``always[0, b·scale] φ``: the window in the time ``τ = m(p)·t`` of a time scale with ``max m = scale``.
+
+    The end is rounded up to a float, so the scaled window holds every ``[0, b·m(p)]``.
+    """
+    if scale == 1:
+        return fragment
+    end = Fraction(fragment.end) * scale
+    value = float(end)
+    if Fraction(value) < end:
+        value = float(np.nextafter(value, np.inf))
+    return replace(fragment, end=value)
+
+
+def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
+                 mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None
+                 ) -> tuple[ReachDecision, Any, float]:
+    """One start mode: the flowpipe, the producer's decision, the re-check (or None) and its seconds."""
+    end = max(fragment.end, 1e-9)
+    start = time.perf_counter()
+    key = (end, min(step, end), jumps, mode, tuple(sorted((k, tuple(v)) for k, v in initial.items())))
+    result = None if cache is None else cache.get(key)
+    if result is None:
+        result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=mode,
+                       max_jumps=jumps, max_segments=MAX_SEGMENTS)
+        if cache is not None:
+            cache[key] = result
+    holds, margin, reason = decide(result, fragment, affine_model(system), initial)
+    decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
+                             seconds=time.perf_counter() - start)
+    if not holds:
+        return decision, None, 0.0
+    start = time.perf_counter()
+    check = recheck_flowpipe(result.to_json(), system, initial, fragment, initial_mode=mode)
+    return decision, check, time.perf_counter() - start
 
 
 def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]], *,
                 initial_mode: str | None = None, time_step: float | None = None,
-                max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None
-                ) -> tuple[Proof, ReachDecision]:
+                max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None,
+                starts: Sequence[tuple[str, Any]] | None = None, scale: Fraction = Fraction(1),
+                scale_text: str = "") -> tuple[Proof, ReachDecision]:
     """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
 
     Parameters
     ----------
-    system : hybrid.system.HybridSystem
-        Symbolic and affine.
+    system : hybrid.system.HybridSystem or AffineHybridModel
+        Symbolic and affine (or its affine reading, e.g. with parameters as constant states).
     fragment : SafetyFragment
     initial : mapping {state: (lo, hi)}
         The box of initial states.
@@ -179,31 +223,38 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     cache : dict or None
         Flowpipes already computed, by their settings (the requirements of one problem with the same
         window share one flowpipe; each is decided and re-checked on its own).
+    starts : sequence of (mode, box) or None
+        Start from each mode with its box ``((name, lo, hi), ...)`` (every one must prove the requirement);
+        default ``((initial_mode, initial),)``.
+    scale, scale_text : Fraction, str
+        A common time scale ``m(p)`` of the flows (:mod:`analysis.reach.parameters`): the window's end is
+        multiplied by ``scale = max m`` and the flows are those divided by ``m``.
     """
+    jumps = default_max_jumps(max(fragment.end, 1e-9)) if max_jumps is None else max_jumps  # jumps: the same events
+    fragment = scaled_fragment(fragment, scale)  # in both times; the window and the step scale
     end = max(fragment.end, 1e-9)
-    step = default_time_step(end) if time_step is None else time_step
-    jumps = default_max_jumps(end) if max_jumps is None else max_jumps
-    start = time.perf_counter()
-    key = (end, min(step, end), jumps, initial_mode, tuple(sorted((k, tuple(v)) for k, v in initial.items())))
-    result = None if cache is None else cache.get(key)
-    if result is None:
-        result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=initial_mode,
-                       max_jumps=jumps, max_segments=MAX_SEGMENTS)
-        if cache is not None:
-            cache[key] = result
-    holds, margin, reason = decide(result, fragment, affine_model(system))
-    decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
-                             seconds=time.perf_counter() - start)
-    check = None
-    took = 0.0
-    if holds:
-        start = time.perf_counter()
-        check = recheck_flowpipe(result.to_json(), system, initial, fragment, initial_mode=initial_mode)
-        took = time.perf_counter() - start
-    assumptions = (f"the initial box {dict(initial)}", f"the window [{fragment.start:g}, {fragment.end:g}] s",
-                   "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)")
-    proof = Proof(holds=holds, method=METHOD, evidence=_evidence(decision, check, took),
-                  rechecked=bool(check is not None and check.passed), assumptions=assumptions)
+    step = default_time_step(end) if time_step is None else time_step * float(scale)
+    begin = [(m, {k: (lo, hi) for k, lo, hi in b}) for m, b in starts] if starts else [(initial_mode, dict(initial))]
+    modes = [m for m, _ in begin]
+    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache)) for m, b in begin]
+    bad = next((r for r in runs if not r[1].holds), None)
+    holds = bad is None
+    chosen = bad if bad is not None else min(runs, key=lambda r: r[1].margin)
+    decision = chosen[1]
+    rechecked = holds and all(c is not None and c.passed for _, _, c, _ in runs)
+    parts = [(f"from mode {m!r}: " if len(runs) > 1 else "") + _evidence(d, c) for m, d, c, _ in runs]
+    assumptions = [f"the initial box {dict(initial)}" if len(begin) == 1 else
+                   "the initial box " + "; ".join(f"in mode {m!r} {b}" for m, b in begin), f"the window [{fragment.start:g}, {fragment.end:g}] s",
+                   "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)"]
+    if len(runs) > 1:
+        assumptions.append(f"every start mode {list(modes)} (the initial mode depends on the point)")
+    if scale_text:
+        assumptions.append(f"the flows are {scale_text} times flows free of it, {scale_text} > 0 on the box: the "
+                           f"window is read in the time tau = {scale_text}·t, [0, {fragment.end:g}] (the flows "
+                           f"divided by {scale_text})")
+    margin = None if not math.isfinite(decision.margin) else float(decision.margin)
+    proof = Proof(holds=holds, method=METHOD, evidence=" | ".join(parts), rechecked=rechecked,
+                  assumptions=tuple(assumptions), margin=margin)
     return proof, decision
 
 
@@ -218,6 +269,9 @@ class ReachProof:
     time_step: float | None = None
     max_jumps: int | None = None
     refused: str | None = None
+    starts: tuple[tuple[str, Any], ...] | None = None
+    scale: Fraction = Fraction(1)
+    scale_text: str = ""
     cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
 
     def __call__(self) -> Proof:
@@ -229,7 +283,8 @@ class ReachProof:
         try:
             proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
                                    initial_mode=self.initial_mode, time_step=self.time_step,
-                                   max_jumps=self.max_jumps, cache=self.cache)
+                                   max_jumps=self.max_jumps, cache=self.cache, starts=self.starts,
+                                   scale=self.scale, scale_text=self.scale_text)
         except (ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
         return proof
@@ -263,13 +318,13 @@ def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: 
 
 def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_mode: Any = "auto",
                  initial_mode: Any = None, builder: bool = False, options: Mapping[str, Any] | None = None,
-                 where: str = "problem") -> dict[str, Any]:
+                 where: str = "problem", box: Sequence[Any] = ()) -> dict[str, Any]:
     """The reachability proofs of a problem's requirements: ``{requirement name: ReachProof}``.
 
     Parameters
     ----------
-    system : HybridSystem or other
-        The problem's system (the probe, when ``builder``).
+    system : HybridSystem, callable or other
+        The problem's system, or (``builder``) the function building it from the point.
     parsed : sequence of ParsedRequirement
         ``problem.parsed``.
     initial : mapping {state: Parameter or float}
@@ -278,10 +333,13 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         ``False``: none.  ``"auto"``: a proof for each requirement in the fragment when the system is
         symbolic and affine.  ``True``: the same, and a non-symbolic or non-affine system raises.
     builder : bool
-        The problem's system is built by a function of the parameters (not decided by reachability:
-        each requirement in the fragment gets a proof that says so and does not hold).
+        The problem's system is built by a function of the parameters: they are read as constant states
+        (:mod:`analysis.reach.parameters`); when they cannot be, each requirement in the fragment gets a
+        proof that does not hold and says why.
     options : mapping or None
         ``time_step`` [s] and ``max_jumps`` of :func:`reach_proof`.
+    box : sequence of Parameter
+        Every coordinate of the problem's box (``problem.parameters``), for ``builder``.
 
     Raises
     ------
@@ -292,12 +350,16 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
 
     from .affine import AffineError
     from .fragment import NotInFragment, safety_fragment
+    from .parameters import ParameterRoute, initial_modes, reach_setup
 
     opts = _checked_options(reach_mode, options, where)
     if reach_mode is False:
         return {}
+    why = None
     try:
-        model = affine_model(system)
+        setup = reach_setup(system, initial, box, builder=builder)
+        declared = _declared(system, box) if builder else bool(getattr(system.automaton, "initial_mode_given", True))
+        modes = initial_modes(setup, initial_mode, declared)
     except AffineError as exc:
         if reach_mode is True:
             raise ProblemError(f"{where}: reach", True, "a symbolic, affine HybridSystem (reachability needs a "
@@ -306,28 +368,30 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
                                "guards and invariants as symbolic conditions (coordinates('x').x >= 1.0); or "
                                "use reach='auto' or False (falsification still runs)") from None
         return {}
+    except ParameterRoute as exc:
+        setup, modes, why = None, (), f"not decided by reachability: {exc}"
     out: dict[str, Any] = {}
     shared: dict[Any, ReachResult] = {}
+    names = setup.model.state_names if setup is not None else tuple(initial)
     for p in parsed:
         try:
-            fragment = safety_fragment(p.formula.tree, model.state_names, ("mode",))
+            fragment = safety_fragment(p.formula.tree, names, ("mode",))
         except NotInFragment:
             continue
-        why = None
-        if builder:
-            why = ("not decided by reachability: the system depends on the parameters (it is built by a function "
-                   "of them; parameters as constant states: next step) — pass the HybridSystem itself when the "
-                   "parameters do not change it")
-        elif callable(initial_mode):
-            why = "not decided by reachability: the initial mode depends on the point (give it as a mode name)"
-        elif initial_mode is None and not getattr(system.automaton, "initial_mode_given", True) \
-                and len(system.automaton.modes) > 1:
-            why = ("not decided by reachability: the automaton declares no initial mode, so the invariants decide it "
-                   "per point (declare HybridAutomaton(initial_mode=...) or give the problem's initial_mode)")
-        if why is not None and reach_mode == "auto":
-            continue  # nothing attempted: no proof, so no "proof does not hold" line (reach=True shows why)
-        box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
-        out[p.name] = ReachProof(system=system, fragment=fragment, initial=box, initial_mode=initial_mode,
-                                 time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why,
+        if setup is None:
+            out[p.name] = ReachProof(system=None, fragment=fragment, initial=(), refused=why)
+            continue
+        out[p.name] = ReachProof(system=setup.model, fragment=fragment, initial=setup.box,
+                                 initial_mode=modes[0][0], starts=modes, time_step=opts.get("time_step"),
+                                 max_jumps=opts.get("max_jumps"), scale=setup.scale, scale_text=setup.scale_text,
                                  cache=shared)
     return out
+
+
+def _declared(system: Any, box: Sequence[Any]) -> bool:
+    """Whether the built automaton declares its initial mode (the probe at the nominal point)."""
+    try:
+        probe = system({p.name: p.at(0.0) for p in box})
+    except Exception:  # the user's builder; hybrid_problem built this probe already
+        return False
+    return bool(getattr(probe.automaton, "initial_mode_given", True))

@@ -31,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``visnav``."""
     parser = _Parser(prog="visnav", description="Verify the Folio & Cadenat switching controller as a hybrid automaton.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name in ("simulate", "mode_graph", "analyse", "report", "check", "sweep", "stiffness", "fuzz", "replay", "verify"):
+    for name in ("simulate", "mode_graph", "analyse", "report", "check", "sweep", "stiffness", "fuzz", "replay", "verify", "reach"):
         import_module(f"visnav.app.cli_{name}").add_parser(sub)
     return parser
 

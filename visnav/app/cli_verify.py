@@ -323,19 +323,18 @@ def _human(result: Any, written: Mapping[str, str], resumed: int, spec: str) -> 
     lines = [f"verify {result.problem}: {result.verdict.upper()} ({result.simulations} simulations, method "
              f"{result.method}, seed {result.seed}{f', {resumed} read back from the journal' if resumed else ''})"]
     width = max(len(r.name) for r in result.requirements)
+    decided = max(len(r.decided_by) for r in result.requirements)
     for r in result.requirements:
         rho = r.robustness if r.robustness is not None or r.counterexample is None else r.counterexample.robustness
-        line = f"  {r.verdict:<14} {r.name:<{width}}  robustness {_fmt(rho):>10}"
+        line = f"  {r.verdict:<14} {r.name:<{width}}  robustness {_fmt(rho):>10}  decided by {r.decided_by:<{decided}}"
         if r.counterexample is not None:
             cx = r.counterexample
             first = "" if cx.first_time is None else f"first violated at t = {cx.first_time:.4g} s, "
             line += (f"  {first}lowest at t = {cx.time:.4g} s ({cx.atom}); replay: "
                      f"{replay_command(written.get(r.name), spec)}")
-        elif r.proof is not None and r.verdict == "proven":
-            line += f"  {r.proof.method}"
-        elif r.lowest_at:
+        elif r.lowest_at and r.verdict != "proven":
             line += "  lowest at " + ", ".join(f"{k}={v:.4g}" for k, v in r.lowest_at.items())
-        lines.append(line)
+        lines.append(line.rstrip())
     if result.invalid:
         lines.append(f"  {result.invalid} points outside the problem's hypotheses skipped: {result.invalid_reasons[0]}")
     for d in result.diverged[:3]:

@@ -230,9 +230,9 @@ def _verification_table(ver: dict[str, Any]) -> Block:
     rows = []
     for r in ver["requirements"]:
         file = r["counterexample_file"]
-        rows.append([r["name"], VERDICT_LABELS[r["verdict"]], _rho(r["robustness"]), _rho(r["nominal_robustness"]),
-                     r["evidence"], f"[{file}]({file})" if file else "—"])
-    return Block("table", (["requirement", "verdict", "robustness (lowest)", "nominal", "evidence",
+        rows.append([r["name"], VERDICT_LABELS[r["verdict"]], r.get("decided_by", "—"), _rho(r["robustness"]),
+                     _rho(r["nominal_robustness"]), r["evidence"], f"[{file}]({file})" if file else "—"])
+    return Block("table", (["requirement", "verdict", "decided by", "robustness (lowest)", "nominal", "evidence",
                             "counterexample"], rows))
 
 
