@@ -170,3 +170,32 @@ def test_a_long_chain_of_locations_imports_and_runs_in_bounded_time():
     # x = t; the chain moves on at every integer: 20 jumps, in location l20 at the end
     assert [e.time for e in run.events] == pytest.approx([float(k) for k in range(1, 21)], abs=1e-9)
     assert run.final_mode == "l20"
+
+
+def chain(n: int) -> bytes:
+    locations = "".join(f'<location id="{i}" name="l{i}"><invariant>x &lt;= {i + 1}</invariant>'
+                        f"<flow>x' == 1</flow></location>\n" for i in range(n))
+    transitions = "".join(f'<transition source="{i}" target="{i + 1}"><guard>x &gt;= {i + 1}</guard></transition>\n'
+                          for i in range(n - 1))
+    return document(component(locations + transitions))
+
+
+def cpu_seconds_to_import(data: bytes) -> tuple[float, int]:
+    start = time.process_time()  # CPU time of this process: the machine's other jobs do not count
+    model = import_spaceex(data, source="chain.xml")
+    return time.process_time() - start, len(model.system.automaton.modes)
+
+
+def test_import_and_validation_grow_linearly_with_the_locations():
+    # A quadratic step (a membership test in the tuple of mode names per flow, as before) makes 4x the
+    # locations cost 16x; linear work costs 4x.  The bound 7 leaves room for timer noise and caches.
+    small, n_small = cpu_seconds_to_import(chain(MAX_LOCATIONS // 8))
+    large, n_large = cpu_seconds_to_import(chain(MAX_LOCATIONS // 2))
+    assert (n_small, n_large) == (MAX_LOCATIONS // 8, MAX_LOCATIONS // 2)
+    assert large / small < 7.0, (small, large)
+
+
+def test_the_largest_accepted_automaton_imports_in_bounded_time():
+    seconds, modes = cpu_seconds_to_import(chain(MAX_LOCATIONS))
+    assert modes == MAX_LOCATIONS and seconds < 30.0
+    assert f"more than {MAX_LOCATIONS} locations" in refused(chain(MAX_LOCATIONS + 1), within=30.0)
