@@ -126,11 +126,13 @@ def test_binary_garbage_and_a_wrong_root_are_refused():
     assert "<sspaceex>" in refused(b"<html><body/></html>")
 
 
-def test_an_input_variable_is_refused_not_frozen():
-    data = document(component('<location id="1" name="a"><invariant>-1 &lt;= u &amp; u &lt;= 1</invariant>'
+def test_an_input_variable_without_bounds_is_refused_not_frozen():
+    data = document(component('<location id="1" name="a"><invariant>-1 &lt;= u</invariant>'
                               '<flow>x\' == u</flow></location>\n', params="x,u"))
     message = refused(data)
-    assert "'u'" in message and "input" in message
+    assert "'u'" in message and "input" in message and "u in [-1.0, inf]" in message
+    bounded = data.replace(b"-1 &lt;= u<", b"-1 &lt;= u &amp; u &lt;= 1<")
+    assert [(i.name, i.low, i.high) for i in import_spaceex(bounded, source="u.xml").inputs] == [("u", -1.0, 1.0)]
 
 
 def test_the_configuration_refuses_what_is_not_a_box():
