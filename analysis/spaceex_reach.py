@@ -28,7 +28,11 @@ from hybrid.system import HybridSystem
 
 from analysis.verification import Proof
 
-__all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs"]
+__all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs", "MAX_FLOWPIPES"]
+
+MAX_FLOWPIPES = 16
+"""Flowpipes of one input proof (one per jump set): arbitrary switching (PLAA01's guards always hold) would
+otherwise start one per segment up to the jump bound; beyond, the flowpipe is inconclusive and proves nothing."""
 
 NOT_RECHECKED = ("not re-checked: the independent re-checker (analysis.reach.recheck) does not take "
                  "non-deterministic inputs yet, so this is the producer's decision only")
@@ -95,7 +99,7 @@ class InputReachProof:
             zero, matrices = input_reach_model(self.system, self.input_flows, self.inputs)
             result = reach(zero, {k: (lo, hi) for k, lo, hi in self.initial}, horizon=end, time_step=step,
                            initial_mode=self.initial_mode, max_jumps=jumps, inputs=matrices,
-                           max_segments=MAX_SEGMENTS)
+                           max_segments=MAX_SEGMENTS, max_flowpipes=MAX_FLOWPIPES)
             holds, margin, reason = decide(result, self.fragment, affine_model(zero))
         except (AffineError, ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=method, evidence=f"not decided by reachability: {exc}", rechecked=False)
