@@ -150,20 +150,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         period = instant / math.ceil(instant / period)  # the instant on the sampling grid
         notes.append(f"the forbidden set holds at the clock's instant {instant!r} s only: checked there "
                      f"(always[{instant!r}, {instant!r}]), the trace sampled every {period!r} s")
-    parameters: tuple[Parameter, ...] = ()
-    mode: str | InitialLocation = modes[0]
-    if len(modes) > 1:
-        parameters = (Parameter(name=LOCATION_PARAMETER, low=0.0, high=float(len(modes) - 1)),)
-        mode = InitialLocation(modes=tuple(modes))
-        notes.append(f"the initial set names no location: every location is initial ({', '.join(modes)}), "
-                     f"chosen by the parameter {LOCATION_PARAMETER} (rounded to an index)")
-    if model.inputs:
-        parameters = (*parameters, *input_parameters(model.inputs, input_points))
-        notes.append(f"inputs {', '.join(i.name for i in model.inputs)}: simulated as piecewise-constant signals of "
-                     f"{input_points} values over the horizon (parameters {model.inputs[0].symbol}_0, ...); "
-                     "reachability takes them as any signal within their bounds")
-    if cfg.ignored:
-        notes.append(f"configuration keys ignored (SpaceEx algorithm settings): {', '.join(cfg.ignored)}")
+    parameters, mode = _choices(model, cfg, modes, input_points, notes)
     notes.append("hybrid fires each transition as soon as its guard holds; SpaceEx may fire it later while the "
                  "invariant holds: the simulated runs are runs of the SpaceEx model, not all of them")
     system: HybridSystem | InputSignals = model.system
@@ -179,6 +166,26 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         source=f"{xml}:{model.system.automaton.name} --config {config}",
     )
     return _with_input_proofs(problem, model, initial, mode)
+
+
+def _choices(model: SpaceExModel, cfg: object, modes: list[str], input_points: int,
+             notes: list[str]) -> tuple[tuple[Parameter, ...], str | InitialLocation]:
+    """The parameters beyond the initial box (initial location, input signals) and the initial mode; notes added."""
+    parameters: tuple[Parameter, ...] = ()
+    mode: str | InitialLocation = modes[0]
+    if len(modes) > 1:
+        parameters = (Parameter(name=LOCATION_PARAMETER, low=0.0, high=float(len(modes) - 1)),)
+        mode = InitialLocation(modes=tuple(modes))
+        notes.append(f"the initial set names no location: every location is initial ({', '.join(modes)}), "
+                     f"chosen by the parameter {LOCATION_PARAMETER} (rounded to an index)")
+    if model.inputs:
+        parameters = (*parameters, *input_parameters(model.inputs, input_points))
+        notes.append(f"inputs {', '.join(i.name for i in model.inputs)}: simulated as piecewise-constant signals of "
+                     f"{input_points} values over the horizon (parameters {model.inputs[0].symbol}_0, ...); "
+                     "reachability takes them as any signal within their bounds")
+    if cfg.ignored:
+        notes.append(f"configuration keys ignored (SpaceEx algorithm settings): {', '.join(cfg.ignored)}")
+    return parameters, mode
 
 
 def _clock(model: SpaceExModel, name: str, box: Mapping[str, tuple[float, float]]) -> bool:
@@ -214,8 +221,8 @@ def _instant_formula(model: SpaceExModel, cfg: object, box: Mapping[str, tuple[f
             if clock[0] == "name" and value[0] == "num" and _clock(model, clock[1], box) \
                     and 0.0 <= float(value[1]) <= cfg.horizon:
                 rest = parts[:k] + parts[k + 1:]
-                text = forbidden_formula(model, replace(cfg, forbidden=rest[0] if len(rest) == 1 else ("and", tuple(rest))),
-                                         cfg.horizon)
+                others = rest[0] if len(rest) == 1 else ("and", tuple(rest))
+                text = forbidden_formula(model, replace(cfg, forbidden=others), cfg.horizon)
                 instant = float(value[1])
                 return f"always[{instant!r}, {instant!r}]" + text[len(f"always[0, {cfg.horizon!r}]"):], instant
     return forbidden_formula(model, cfg, cfg.horizon), None

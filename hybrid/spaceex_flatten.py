@@ -136,7 +136,8 @@ def rename(tree: Any, names: dict[str, Any], where: str, component: str) -> Any:
         if target[0] == "unbound":
             raise SpaceExError(where, tree[1], f"a value for the constant {target[1]!r}",
                                f"map it to a number in the <bind> of its instance: <map key=\"{tree[1]}\">...</map>"
-                               f" (a constant of the top component: load_spaceex(..., constants={{{target[1]!r}: ...}}))")
+                               " (a constant of the top component: load_spaceex(..., "
+                               f"constants={{{target[1]!r}: ...}}))")
         if kind == "deriv":
             if target[0] != "name":
                 raise SpaceExError(where, f"{tree[1]}'", "the derivative of a variable",
