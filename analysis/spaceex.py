@@ -7,24 +7,40 @@ named ``<state>0`` where it is a range), ``loc(...) == name`` the initial mode,
 ``time-horizon`` the horizon and the forbidden set the requirement
 ``safe: always[0, T] not (forbidden)``.  docs/spaceex.md describes the
 mapping and what it leaves out.
+
+A model with non-deterministic inputs (:mod:`hybrid.spaceex_inputs`) is simulated with each input a
+piecewise-constant signal of :data:`INPUT_POINTS` values over the horizon, each value a problem
+parameter ``input_<name>_<k>`` in the input's bounds (so falsification searches the signal), and
+reachability takes the input as a bounded non-deterministic input (:mod:`analysis.spaceex_reach`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from hybrid.spaceex_config import forbidden_formula, initial_box, parse_config
-from hybrid.spaceex_import import load_spaceex, read_bytes
+from hybrid.spaceex_import import SpaceExModel, load_spaceex, read_bytes
+from hybrid.spaceex_inputs import SpaceExInput, input_signal, with_inputs
 from hybrid.spaceex_syntax import SpaceExError
+from hybrid.system import HybridSystem
 
 from analysis.problems import hybrid_problem
 from analysis.requirements import Requirement
 from analysis.verification import Parameter, VerificationProblem
 
 __all__ = ["spaceex_problem", "split_spaceex_spec", "is_spaceex_spec", "InitialLocation", "LOCATION_PARAMETER",
-           "TRACE_SAMPLES"]
+           "TRACE_SAMPLES", "INPUT_POINTS", "InputSignals", "input_parameters"]
+
+INPUT_POINTS = 10
+"""Values of each input's piecewise-constant signal over the horizon (one problem parameter each).
+
+Ten pieces of a tenth of the horizon: enough to switch the input between its bounds a few times within
+the slowest dynamics of the ARCH models (the building's 20 s, the platoon's 20 s), while the search space
+of falsification grows by ten dimensions per input only.  Falsification over these signals is a search
+over a subset of SpaceEx's inputs (any measurable signal): a ``not_falsified`` verdict stays SAMPLED."""
 
 TRACE_SAMPLES = 2000
 """Samples of the STL trace over the horizon (plus both sides of every jump)."""
@@ -44,6 +60,27 @@ class InitialLocation:
         return self.modes[min(max(index, 0), len(self.modes) - 1)]
 
 
+def input_parameters(inputs: tuple[SpaceExInput, ...], points: int) -> tuple[Parameter, ...]:
+    """The parameters ``<input.symbol>_<k>`` (``k < points``) of the inputs' signals, each in the input's bounds."""
+    return tuple(Parameter(name=f"{i.symbol}_{k}", low=i.low, high=i.high) for i in inputs for k in range(points))
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class InputSignals:
+    """``point -> HybridSystem``: the model with each input the piecewise-constant signal of the point's values."""
+
+    system: HybridSystem
+    input_flows: Mapping[str, object]
+    inputs: tuple[SpaceExInput, ...]
+    points: int
+    horizon: float
+
+    def __call__(self, point: Mapping[str, float]) -> HybridSystem:
+        signals = {i.name: input_signal([float(point.get(f"{i.symbol}_{k}", i.middle)) for k in range(self.points)],
+                                        self.horizon) for i in self.inputs}
+        return with_inputs(self.system, self.input_flows, self.inputs, signals)
+
+
 def is_spaceex_spec(spec: str) -> bool:
     """Whether a problem spec names a SpaceEx model (``FILE.xml`` or ``FILE.xml:COMPONENT``)."""
     if not isinstance(spec, str):
@@ -61,7 +98,8 @@ def split_spaceex_spec(spec: str) -> tuple[str, str | None]:
 
 
 def spaceex_problem(xml: str | Path, config: str | Path, component: str | None = None, *,
-                    sample_period: float | None = None) -> VerificationProblem:
+                    sample_period: float | None = None, input_points: int = INPUT_POINTS,
+                    constants: dict[str, float] | None = None) -> VerificationProblem:
     """The verification problem of a SpaceEx model and configuration.
 
     Parameters
@@ -76,6 +114,10 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         Uniform sampling of the flows for the STL trace [s] (default: horizon / :data:`TRACE_SAMPLES`; the
         integrator's own steps would be too sparse on smooth arcs: an exactly integrated parabola takes one
         step, and its apex would not be a sample).
+    input_points : int
+        Values of each input's piecewise-constant signal (:data:`INPUT_POINTS`).
+    constants : dict or None
+        Values of the component's own constants that no bind maps (:func:`hybrid.spaceex_import.load_spaceex`).
 
     Raises
     ------
@@ -86,20 +128,49 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     cfg = parse_config(read_bytes(config, "SpaceEx configuration (--config)").decode("utf-8", "replace"),
                        str(config))
     name = component or cfg.system
-    model = load_spaceex(xml, name)
+    if isinstance(input_points, bool) or not isinstance(input_points, int) or not 1 <= input_points <= 1000:
+        raise SpaceExError("input_points", input_points, "a whole number in [1, 1000]",
+                           f"give the number of values of each input's signal (default {INPUT_POINTS})")
+    model = load_spaceex(xml, name, constants=constants)
     if cfg.horizon is None:
         raise SpaceExError(f"{config}: time-horizon", None, "a time horizon [s]", "write time-horizon = 10")
     box, modes = initial_box(model, cfg)
     initial: dict[str, Parameter | float] = {}
     for s, (lo, hi) in box.items():
         initial[s] = lo if lo == hi else Parameter(name=f"{s}_0", low=lo, high=hi)
-    formula = forbidden_formula(model, cfg, cfg.horizon)
+    formula, instant = _instant_formula(model, cfg, box)
     if formula is None:
         raise SpaceExError(f"{config}: forbidden", None, "a forbidden set (the property to verify)",
                            'write forbidden = "x >= 10" (the states that must never be reached)')
     requirements = (Requirement(name="safe", formula=formula,
                                 description=f"the forbidden set of {Path(config).name} is never reached"),)
     notes = list(model.notes)
+    period = sample_period or cfg.horizon / TRACE_SAMPLES
+    if instant is not None:
+        period = instant / math.ceil(instant / period)  # the instant on the sampling grid
+        notes.append(f"the forbidden set holds at the clock's instant {instant!r} s only: checked there "
+                     f"(always[{instant!r}, {instant!r}]), the trace sampled every {period!r} s")
+    parameters, mode = _choices(model, cfg, modes, input_points, notes)
+    notes.append("hybrid fires each transition as soon as its guard holds; SpaceEx may fire it later while the "
+                 "invariant holds: the simulated runs are runs of the SpaceEx model, not all of them")
+    system: HybridSystem | InputSignals = model.system
+    if model.inputs:
+        system = InputSignals(system=model.system, input_flows=model.input_flows, inputs=model.inputs,
+                              points=input_points, horizon=float(cfg.horizon))
+    problem = hybrid_problem(
+        name=f"spaceex-{Path(xml).stem}-{model.system.automaton.name}",
+        system=system, initial=initial, horizon=cfg.horizon, requirements=requirements,
+        parameters=parameters, initial_mode=mode, sample_period=period,
+        description=f"SpaceEx model {xml} (component {model.system.automaton.name!r}) with {config}. "
+                    + " ".join(notes),
+        source=f"{xml}:{model.system.automaton.name} --config {config}",
+    )
+    return _with_input_proofs(problem, model, initial, mode)
+
+
+def _choices(model: SpaceExModel, cfg: object, modes: list[str], input_points: int,
+             notes: list[str]) -> tuple[tuple[Parameter, ...], str | InitialLocation]:
+    """The parameters beyond the initial box (initial location, input signals) and the initial mode; notes added."""
     parameters: tuple[Parameter, ...] = ()
     mode: str | InitialLocation = modes[0]
     if len(modes) > 1:
@@ -107,15 +178,64 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         mode = InitialLocation(modes=tuple(modes))
         notes.append(f"the initial set names no location: every location is initial ({', '.join(modes)}), "
                      f"chosen by the parameter {LOCATION_PARAMETER} (rounded to an index)")
+    if model.inputs:
+        parameters = (*parameters, *input_parameters(model.inputs, input_points))
+        notes.append(f"inputs {', '.join(i.name for i in model.inputs)}: simulated as piecewise-constant signals of "
+                     f"{input_points} values over the horizon (parameters {model.inputs[0].symbol}_0, ...); "
+                     "reachability takes them as any signal within their bounds")
     if cfg.ignored:
         notes.append(f"configuration keys ignored (SpaceEx algorithm settings): {', '.join(cfg.ignored)}")
-    notes.append("hybrid fires each transition as soon as its guard holds; SpaceEx may fire it later while the "
-                 "invariant holds: the simulated runs are runs of the SpaceEx model, not all of them")
-    return hybrid_problem(
-        name=f"spaceex-{Path(xml).stem}-{model.system.automaton.name}",
-        system=model.system, initial=initial, horizon=cfg.horizon, requirements=requirements,
-        parameters=parameters, initial_mode=mode, sample_period=sample_period or cfg.horizon / TRACE_SAMPLES,
-        description=f"SpaceEx model {xml} (component {model.system.automaton.name!r}) with {config}. "
-                    + " ".join(notes),
-        source=f"{xml}:{model.system.automaton.name} --config {config}",
-    )
+    return parameters, mode
+
+
+def _clock(model: SpaceExModel, name: str, box: Mapping[str, tuple[float, float]]) -> bool:
+    """Whether state ``name`` is the time itself: flow 1 in every location, 0 initially, never reset."""
+    from hybrid.symbolic import Const, Coordinate
+
+    system = model.system
+    if name not in system.state_names or box.get(name) != (0.0, 0.0):
+        return False
+    k = system.state_names.index(name)
+    flows = model.input_flows or system.flows
+    if not all(isinstance(f.components[k], Const) and f.components[k].value == 1.0 for f in flows.values()):
+        return False
+    return all(isinstance(j.components[k], Coordinate) and j.components[k].name == name for j in system.jumps.values())
+
+
+def _instant_formula(model: SpaceExModel, cfg: object, box: Mapping[str, tuple[float, float]]
+                     ) -> tuple[str | None, float | None]:
+    """The requirement's formula, and the instant when the forbidden set is ``rest & clock == c``.
+
+    A clock that is the time (:func:`_clock`) makes ``clock == c`` the instant ``c``: the forbidden set
+    is ``rest`` at time ``c``, i.e. ``always[c, c] not (rest)``.  Read as an atom, the equality would be
+    measure-zero on a sampled run (robustness at most 0: never a counterexample).
+    """
+    from dataclasses import replace
+
+    tree = cfg.forbidden
+    parts = list(tree[1]) if tree is not None and tree[0] == "and" else []
+    for k, c in enumerate(parts):
+        if c[0] != "cmp" or c[1] != "==":
+            continue
+        for clock, value in ((c[2], c[3]), (c[3], c[2])):
+            if clock[0] == "name" and value[0] == "num" and _clock(model, clock[1], box) \
+                    and 0.0 <= float(value[1]) <= cfg.horizon:
+                rest = parts[:k] + parts[k + 1:]
+                others = rest[0] if len(rest) == 1 else ("and", tuple(rest))
+                text = forbidden_formula(model, replace(cfg, forbidden=others), cfg.horizon)
+                instant = float(value[1])
+                return f"always[{instant!r}, {instant!r}]" + text[len(f"always[0, {cfg.horizon!r}]"):], instant
+    return forbidden_formula(model, cfg, cfg.horizon), None
+
+
+def _with_input_proofs(problem: VerificationProblem, model: SpaceExModel, initial: Mapping[str, object],
+                       mode: object) -> VerificationProblem:
+    """The problem with reachability proofs taking the model's inputs (none without inputs)."""
+    from dataclasses import replace
+
+    from analysis.spaceex_reach import input_proofs
+
+    if not model.inputs:
+        return problem
+    found = input_proofs(model.system, model.input_flows, model.inputs, problem.parsed, initial, mode)
+    return replace(problem, proofs={**found, **problem.proofs}) if found else problem

@@ -35,6 +35,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .model import Conjunction, HybridAutomaton
+from .spaceex_inputs import SpaceExInput
 from .spaceex_split import MAX_CASES, Split, case_of, negate, replace, static_truth
 from .spaceex_syntax import SpaceExError
 from .symbolic import (
@@ -55,7 +56,7 @@ from .symbolic import (
 )
 from .system import HybridSystem
 
-__all__ = ["to_spaceex", "spaceex_cfg", "spaceex_names", "SPACEEX_NS"]
+__all__ = ["to_spaceex", "spaceex_cfg", "spaceex_names", "SPACEEX_NS", "model_to_spaceex"]
 
 SPACEEX_NS = "http://www-verimag.imag.fr/xml-namespaces/sspaceex"
 """XML namespace of SpaceEx model files."""
@@ -85,9 +86,10 @@ def _identifiers(names: Sequence[str]) -> dict[str, str]:
 
 
 class _Writer:
-    def __init__(self, system: HybridSystem, names: dict[str, str]) -> None:
+    def __init__(self, system: HybridSystem, names: dict[str, str], inputs: Mapping[str, str] | None = None) -> None:
         self.system = system
         self.names = names
+        self.inputs = dict(inputs or {})  # placeholder Param name -> the input's SpaceEx name
         self.split = False  # inside a transition: a piecewise node raises Split (the transition is split by cases)
 
     def number(self, value: float, where: str) -> str:
@@ -102,7 +104,7 @@ class _Writer:
         if isinstance(node, (Coordinate, MemoryRef)):
             return self.names[node.name]
         if isinstance(node, Param):
-            return self.number(node.value, where)
+            return self.inputs[node.name] if node.name in self.inputs else self.number(node.value, where)
         if isinstance(node, Apply):
             if node.op in _OPS:
                 a, b = node.args
@@ -195,7 +197,7 @@ def spaceex_names(system: HybridSystem) -> dict[str, str]:
                          *(t.name for t in a.transitions)])
 
 
-def to_spaceex(system: HybridSystem, *, component: str | None = None) -> str:
+def to_spaceex(system: HybridSystem, *, component: str | None = None, inputs: Sequence[SpaceExInput] = ()) -> str:
     """The SpaceEx XML of a symbolic system: one component, a location per mode, a transition per jump.
 
     Parameters
@@ -204,6 +206,10 @@ def to_spaceex(system: HybridSystem, *, component: str | None = None) -> str:
         Flows, jump maps, invariants, guards and resets written with :mod:`hybrid.symbolic`.
     component : str or None
         The component id (default: the automaton's name, made an identifier).
+    inputs : sequence of SpaceExInput
+        Non-deterministic inputs, read by the flows through their placeholders ``Param(input.symbol)``: each is
+        written as an uncontrolled variable without a flow, bounded in every location's invariant
+        (:func:`model_to_spaceex` writes an imported model so).
 
     Returns
     -------
@@ -220,8 +226,9 @@ def to_spaceex(system: HybridSystem, *, component: str | None = None) -> str:
     _check_names(system)
     a: HybridAutomaton = system.automaton
     memory = [m.name for m in a.memory]
-    names = spaceex_names(system)
-    w = _Writer(system, names)
+    names = _identifiers([*system.state_names, *(m.name for m in a.memory), *a.mode_names,
+                          *(t.name for t in a.transitions), *(i.name for i in inputs)])
+    w = _Writer(system, names, {i.symbol: names[i.name] for i in inputs})
     signals = _signals(system)
     root = ET.Element("sspaceex", {"xmlns": SPACEEX_NS, "version": "0.2", "math": "SpaceEx"})
     renamed = {n: v for n, v in names.items() if n != v}
@@ -233,15 +240,33 @@ def to_spaceex(system: HybridSystem, *, component: str | None = None) -> str:
     for s in (*system.state_names, *memory):
         ET.SubElement(comp, "param", {"name": names[s], "type": "real", "local": "false", "d1": "1", "d2": "1",
                                       "dynamics": "any"})
+    for i in inputs:
+        ET.SubElement(comp, "param", {"name": names[i.name], "type": "real", "local": "false", "d1": "1", "d2": "1",
+                                      "dynamics": "any", "controlled": "false"})
     for t in a.transitions:
         ET.SubElement(comp, "param", {"name": names[t.name], "type": "label", "local": "false"})
     ids = {m: str(i + 1) for i, m in enumerate(a.mode_names)}
+    bounds = [f"{w.number(i.low, 'input')} <= {names[i.name]} & {names[i.name]} <= {w.number(i.high, 'input')}"
+              for i in inputs]
     for mode in a.modes:
-        _location(comp, w, system, mode, ids[mode.name], signals, memory)
+        _location(comp, w, system, mode, ids[mode.name], signals, memory, bounds)
     for t in a.transitions:
         _transition(comp, w, system, t, ids, signals)
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def model_to_spaceex(model: Any, *, component: str | None = None) -> str:
+    """The SpaceEx XML of an imported :class:`~hybrid.spaceex_import.SpaceExModel`, its inputs written as inputs.
+
+    Without inputs this is ``to_spaceex(model.system)``; with inputs the flows read them by name (from
+    ``model.input_flows``) and every location bounds them, as the imported file did.
+    """
+    system = model.system
+    if model.inputs:
+        system = HybridSystem(automaton=system.automaton, state_names=system.state_names, flows=model.input_flows,
+                              jumps=system.jumps, output=system.output)
+    return to_spaceex(system, component=component, inputs=model.inputs)
 
 
 def _on_state(node: Any, signals: Mapping[str, Expr]) -> Any:
@@ -253,12 +278,13 @@ def _on_state(node: Any, signals: Mapping[str, Expr]) -> Any:
 
 
 def _location(comp: ET.Element, w: _Writer, system: HybridSystem, mode: Any, lid: str,
-              signals: Mapping[str, Expr], memory: Sequence[str]) -> None:
+              signals: Mapping[str, Expr], memory: Sequence[str], bounds: Sequence[str] = ()) -> None:
     where = f"system {system.automaton.name!r}: mode {mode.name!r}"
     loc = ET.SubElement(comp, "location", {"id": lid, "name": w.names[mode.name]})
-    if mode.invariant is not None:
-        ET.SubElement(loc, "invariant").text = " & ".join(
-            w.constraints(_on_state(mode.invariant, signals), f"{where}: invariant"))
+    invariant = [] if mode.invariant is None else w.constraints(_on_state(mode.invariant, signals),
+                                                                 f"{where}: invariant")
+    if invariant or bounds:
+        ET.SubElement(loc, "invariant").text = " & ".join([*invariant, *bounds])
     flow = system.flows[mode.name]
     if not isinstance(flow, SymbolicVector):
         raise SpaceExError(f"{where}: flow", "a Python function", "a symbolic flow_map(...)",

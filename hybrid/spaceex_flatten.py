@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,7 +135,9 @@ def rename(tree: Any, names: dict[str, Any], where: str, component: str) -> Any:
             raise SpaceExError(where, tree[1], "a real variable or constant", "labels are not numbers")
         if target[0] == "unbound":
             raise SpaceExError(where, tree[1], f"a value for the constant {target[1]!r}",
-                               f"map it to a number in the <bind> of its instance: <map key=\"{tree[1]}\">...</map>")
+                               f"map it to a number in the <bind> of its instance: <map key=\"{tree[1]}\">...</map>"
+                               " (a constant of the top component: load_spaceex(..., "
+                               f"constants={{{target[1]!r}: ...}}))")
         if kind == "deriv":
             if target[0] != "name":
                 raise SpaceExError(where, f"{tree[1]}'", "the derivative of a variable",
@@ -218,11 +221,22 @@ def _instantiate(components: dict[str, SpaceExComponent], cid: str, path: str, n
         _instantiate(components, bind.component, sub, child_names, out, variables, source, depth + 1)
 
 
-def _top_names(comp: SpaceExComponent, variables: dict[str, bool]) -> dict[str, Any]:
+def _top_names(comp: SpaceExComponent, variables: dict[str, bool], constants: Mapping[str, float],
+               source: str) -> dict[str, Any]:
+    known = {p.name for p in comp.params.values() if p.kind != "label" and p.constant}
+    unknown = sorted(set(constants) - known)
+    if unknown:
+        raise SpaceExError(f"{source}: constants", unknown, f"constants of component {comp.id!r} ({sorted(known)})",
+                           "give values to the top component's constants only")
     names: dict[str, Any] = {}
     for p in comp.params.values():
         if p.kind == "label":
             names[p.name] = ("label", p.name)
+        elif p.constant and p.name in constants:
+            value = constants[p.name]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise SpaceExError(f"{source}: constants[{p.name!r}]", value, "a finite number", "give a number")
+            names[p.name] = ("num", float(value))
         elif p.constant:
             names[p.name] = ("unbound", p.name)
         else:
@@ -241,8 +255,12 @@ def _conjuncts(tree: Any) -> tuple[Any, ...]:
     return tree[1] if tree[0] == "and" else (tree,)
 
 
-def flatten(components: dict[str, SpaceExComponent], system: str, source: str) -> FlatAutomaton:
+def flatten(components: dict[str, SpaceExComponent], system: str, source: str,
+            constants: Mapping[str, float] | None = None) -> FlatAutomaton:
     """The product automaton of component ``system`` (see the module docstring).
+
+    ``constants`` gives values to constants of ``system`` itself that no bind maps (SpaceEx's symbolic
+    parameters, e.g. the platoon's ``tc``); any other unbound constant is an error naming it.
 
     Raises
     ------
@@ -255,7 +273,7 @@ def flatten(components: dict[str, SpaceExComponent], system: str, source: str) -
                            "name an existing component (FILE.xml:COMPONENT or the .cfg's system = ...)")
     variables: dict[str, bool] = {}
     top = components[system]
-    names = _top_names(top, variables)
+    names = _top_names(top, variables, dict(constants or {}), source)
     instances: list[_Instance] = []
     _instantiate(components, system, "", names, instances, variables, source, 0)
     size = 1

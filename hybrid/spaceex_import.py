@@ -13,8 +13,10 @@ Mapping onto :mod:`hybrid` (docs/spaceex.md):
   SpaceEx reaches (noted in :attr:`SpaceExModel.notes`);
 * a variable without any flow that an invariant defines by ``y == e`` in every
   location is an *output* (algebraic): it is substituted by ``e`` wherever it is
-  read; any other variable without a flow is an input (SpaceEx lets it take any
-  value in the invariant at every instant) and is refused: hybrid's flows are ODEs;
+  read; any other variable without a flow is an *input* (SpaceEx lets it take any
+  value in the invariant at every instant): :mod:`hybrid.spaceex_inputs` (bounded by
+  constants in the invariants, read by flows only; a placeholder in
+  :attr:`SpaceExModel.input_flows`, held at the middle of its bounds in ``system``);
 * invariants and guards are symbolic conditions; assignments ``x := e`` become
   the jump map (a variable not assigned keeps its value);
 * a transition is named by its label (``tau`` when unlabelled), with ``_k``
@@ -27,16 +29,17 @@ Mapping onto :mod:`hybrid` (docs/spaceex.md):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .errors import HybridError
 from .model import HybridAutomaton, Mode, Transition
 from .spaceex_flatten import FlatAutomaton, flatten
+from .spaceex_inputs import SpaceExInput, find_inputs, input_signal, is_input_bound, with_inputs
 from .spaceex_model import parse_components
 from .spaceex_syntax import MAX_FILE_BYTES, SpaceExError
-from .symbolic import Compare, Const, Expr, all_true, any_true, coordinates, cos, exp, flow_map, jump_map
+from .symbolic import Compare, Const, Expr, Param, all_true, any_true, coordinates, cos, exp, flow_map, jump_map
 from .symbolic import log, sin, sqrt
 from .system import HybridSystem
 
@@ -60,6 +63,12 @@ class SpaceExModel:
         The file read.
     notes : tuple of str
         Every place where hybrid's reading differs in form from SpaceEx's (held state, must-fire guards).
+    inputs : tuple of SpaceExInput
+        The non-deterministic inputs (variables without a flow bounded by the invariants), in declaration order.
+    input_flows : dict
+        ``mode -> flow_map`` reading each input through its placeholder ``Param(input.symbol)`` (empty without
+        inputs); :func:`hybrid.spaceex_inputs.with_inputs` puts a signal in.  ``system`` holds every input at the
+        middle of its bounds (a one-piece signal of time, which reachability refuses).
     """
 
     system: HybridSystem
@@ -67,6 +76,8 @@ class SpaceExModel:
     outputs: dict[str, Any]
     source: str
     notes: tuple[str, ...]
+    inputs: tuple[SpaceExInput, ...] = ()
+    input_flows: dict[str, Any] = field(default_factory=dict)
 
 
 def read_bytes(path: str | Path, what: str) -> bytes:
@@ -79,23 +90,27 @@ def read_bytes(path: str | Path, what: str) -> bytes:
     return p.read_bytes()
 
 
-def load_spaceex(path: str | Path, component: str | None = None) -> SpaceExModel:
+def load_spaceex(path: str | Path, component: str | None = None, *,
+                 constants: dict[str, float] | None = None) -> SpaceExModel:
     """Import the SpaceEx model in file ``path`` (component ``component``; default: the last one of the file).
+
+    ``constants``: values of the component's own constants that no bind maps (else they are an error).
 
     Raises
     ------
     SpaceExError
         Naming the file, line and element of anything not supported (docs/spaceex.md).
     """
-    return import_spaceex(read_bytes(path, "SpaceEx model"), component, source=str(path))
+    return import_spaceex(read_bytes(path, "SpaceEx model"), component, source=str(path), constants=constants)
 
 
-def import_spaceex(data: bytes, component: str | None = None, *, source: str = "<spaceex>") -> SpaceExModel:
+def import_spaceex(data: bytes, component: str | None = None, *, source: str = "<spaceex>",
+                   constants: dict[str, float] | None = None) -> SpaceExModel:
     """Import a SpaceEx model from its XML bytes (see :func:`load_spaceex`)."""
     try:
         components = parse_components(data, source)
         name = component if component is not None else list(components)[-1]
-        flat = flatten(components, name, source)
+        flat = flatten(components, name, source, constants)
         return build_system(flat, source)
     except SpaceExError:
         raise
@@ -203,9 +218,10 @@ def _derivatives(flat: FlatAutomaton) -> tuple[dict[str, dict[str, Any]], set[st
     return flows, frozen
 
 
-def _outputs(flat: FlatAutomaton, flows: dict[str, dict[str, Any]]) -> tuple[list[str], dict[str, Any]]:
+def _outputs(flat: FlatAutomaton, flows: dict[str, dict[str, Any]]) -> tuple[list[str], dict[str, Any], list[str]]:
+    """The states, the outputs (``name -> tree``) and the other variables without a flow (inputs)."""
     with_flow = {v for eqs in flows.values() for v in eqs}
-    states, outputs = [], {}
+    states, outputs, inputs = [], {}, []
     for var in flat.variables:
         if var in with_flow:
             states.append(var)
@@ -219,19 +235,16 @@ def _outputs(flat: FlatAutomaton, flows: dict[str, dict[str, Any]]) -> tuple[lis
         if defs and all(d is not None and d == defs[0] for d in defs):
             outputs[var] = defs[0]
             continue
-        bounds = [c for loc in flat.locations for c in loc.invariant if var in _names_in(c)]
-        raise SpaceExError(f"{flat.locations[0].where}: variable {var!r}", "no flow in any location",
-                           "a state variable (x' == e in every location) or an output defined by an invariant y == e",
-                           f"{var} is an input of the SpaceEx model (any value{' within ' + repr(bounds[0]) if bounds else ''}"
-                           ", changing over time); hybrid's flows are ODEs: give it a flow "
-                           f"({var}' == 0 for a constant input chosen initially) or close the loop")
-    return states, outputs
+        inputs.append(var)
+    return states, outputs, inputs
 
 
 def build_system(flat: FlatAutomaton, source: str) -> SpaceExModel:
     """The :class:`SpaceExModel` of a flattened automaton (see the module docstring)."""
     flows, frozen = _derivatives(flat)
-    states, outputs = _outputs(flat, flows)
+    states, outputs, candidates = _outputs(flat, flows)
+    inputs = find_inputs(flat, candidates)
+    bound_names = {i.name for i in inputs}
     if not states:
         raise SpaceExError(f"{source}: system {flat.name!r}", "no state variable", "at least one x' == e",
                            "give the component a flow")
@@ -239,7 +252,9 @@ def build_system(flat: FlatAutomaton, source: str) -> SpaceExModel:
         outputs = {k: substitute_tree(v, outputs) for k, v in outputs.items()}
     x = coordinates(*states)
     env = {s: getattr(x, s) if s.isidentifier() else x[s] for s in states}
-    notes: list[str] = []
+    flow_env = {**env, **{i.name: Param(i.symbol, i.middle) for i in inputs}}
+    notes: list[str] = [f"input {i.name} in [{i.low!r}, {i.high!r}] (no flow: any value at every instant); held at "
+                        f"{i.middle!r} in the imported system" for i in inputs]
     modes, flow_maps = [], {}
     for loc in flat.locations:
         eqs = flows[loc.name]
@@ -252,18 +267,24 @@ def build_system(flat: FlatAutomaton, source: str) -> SpaceExModel:
             if missing:
                 raise SpaceExError(loc.where, f"no flow for {missing}", "x' == e for every state variable",
                                    "SpaceEx leaves them unconstrained (an input): give their flow")
-            comps = [to_symbolic(substitute_tree(eqs[s], outputs), env, f"{loc.where}: flow of {s}") for s in states]
+            comps = [to_symbolic(substitute_tree(eqs[s], outputs), flow_env, f"{loc.where}: flow of {s}")
+                     for s in states]
         kept = [c for c in loc.invariant if not (c[0] == "cmp" and c[1] == "==" and
-                                                 {("name", o) for o in outputs} & {c[2], c[3]})]
+                                                 {("name", o) for o in outputs} & {c[2], c[3]})
+                and is_input_bound(c, bound_names) is None]
         inv = [to_symbolic(substitute_tree(c, outputs), env, f"{loc.where}: invariant") for c in kept]
         modes.append(Mode(name=loc.name, invariant=all_true(*inv) if inv else None))
         flow_maps[loc.name] = flow_map(*comps)
-    transitions, jumps = _transitions(flat, outputs, env, states, notes)
+    transitions, jumps = _transitions(flat, outputs, env, states, notes, bound_names)
     automaton = HybridAutomaton(name=flat.name, modes=tuple(modes), transitions=tuple(transitions),
                                 variables=tuple(states), initial_mode=flat.locations[0].name,
                                 description=f"imported from SpaceEx {source} (component {flat.name!r})")
     system = HybridSystem(automaton=automaton, state_names=tuple(states), flows=flow_maps, jumps=jumps)
-    return SpaceExModel(system=system, flat=flat, outputs=outputs, source=source, notes=tuple(notes))
+    if not inputs:
+        return SpaceExModel(system=system, flat=flat, outputs=outputs, source=source, notes=tuple(notes))
+    held = with_inputs(system, flow_maps, inputs, {i.name: input_signal((i.middle,), 1.0) for i in inputs})
+    return SpaceExModel(system=held, flat=flat, outputs=outputs, source=source, notes=tuple(notes), inputs=inputs,
+                        input_flows=flow_maps)
 
 
 def _names(flat: FlatAutomaton) -> list[str]:
@@ -354,9 +375,10 @@ def _guard_trees(t: Any, values: dict[str, Any], invariants: dict[str, tuple[Any
 
 
 def _transitions(flat: FlatAutomaton, outputs: dict[str, Any], env: dict[str, Expr], states: list[str],
-                 notes: list[str]) -> tuple[list[Transition], dict[str, Any]]:
+                 notes: list[str], inputs: set[str]) -> tuple[list[Transition], dict[str, Any]]:
     transitions, jumps = [], {}
-    invariants = {loc.name: loc.invariant for loc in flat.locations}
+    invariants = {loc.name: tuple(c for c in loc.invariant if is_input_bound(c, inputs) is None)
+                  for loc in flat.locations}
     for name, t in zip(_names(flat), flat.transitions):
         if any(c[0] == "false" for c in t.guard):
             notes.append(f"transition {name!r}: guard false (never enabled); dropped")

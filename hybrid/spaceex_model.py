@@ -27,7 +27,7 @@ __all__ = [
     "MAX_LOCATIONS",
 ]
 
-MAX_LOCATIONS = 10_000
+MAX_LOCATIONS = 20_000
 """Most locations a component, or the flattened product, may have: beyond it the import is refused (bounded work)."""
 
 _LAYOUT = {"x", "y", "width", "height", "placement", "bezier"}

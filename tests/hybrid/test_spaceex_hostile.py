@@ -3,6 +3,7 @@ of another type, a hang or an entity expansion."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -126,11 +127,13 @@ def test_binary_garbage_and_a_wrong_root_are_refused():
     assert "<sspaceex>" in refused(b"<html><body/></html>")
 
 
-def test_an_input_variable_is_refused_not_frozen():
-    data = document(component('<location id="1" name="a"><invariant>-1 &lt;= u &amp; u &lt;= 1</invariant>'
+def test_an_input_variable_without_bounds_is_refused_not_frozen():
+    data = document(component('<location id="1" name="a"><invariant>-1 &lt;= u</invariant>'
                               '<flow>x\' == u</flow></location>\n', params="x,u"))
     message = refused(data)
-    assert "'u'" in message and "input" in message
+    assert "'u'" in message and "input" in message and "u in [-1.0, inf]" in message
+    bounded = data.replace(b"-1 &lt;= u<", b"-1 &lt;= u &amp; u &lt;= 1<")
+    assert [(i.name, i.low, i.high) for i in import_spaceex(bounded, source="u.xml").inputs] == [("u", -1.0, 1.0)]
 
 
 def test_the_configuration_refuses_what_is_not_a_box():
@@ -170,3 +173,45 @@ def test_a_long_chain_of_locations_imports_and_runs_in_bounded_time():
     # x = t; the chain moves on at every integer: 20 jumps, in location l20 at the end
     assert [e.time for e in run.events] == pytest.approx([float(k) for k in range(1, 21)], abs=1e-9)
     assert run.final_mode == "l20"
+
+
+def chain(n: int) -> bytes:
+    locations = "".join(f'<location id="{i}" name="l{i}"><invariant>x &lt;= {i + 1}</invariant>'
+                        f"<flow>x' == 1</flow></location>\n" for i in range(n))
+    transitions = "".join(f'<transition source="{i}" target="{i + 1}"><guard>x &gt;= {i + 1}</guard></transition>\n'
+                          for i in range(n - 1))
+    return document(component(locations + transitions))
+
+
+def cpu_seconds_to_import(data: bytes) -> tuple[float, int]:
+    start = time.process_time()  # CPU time of this process: the machine's other jobs do not count
+    model = import_spaceex(data, source="chain.xml")
+    return time.process_time() - start, len(model.system.automaton.modes)
+
+
+def cpu_seconds_to_validate(system) -> float:
+    start = time.process_time()
+    for _ in range(3):
+        dataclasses.replace(system)  # HybridSystem.__post_init__: the validation of every flow and jump map
+    return time.process_time() - start
+
+
+def test_import_and_validation_grow_linearly_with_the_locations():
+    # A quadratic step makes 4x the locations cost 16x; linear work costs 4x.  The import's bound 7 leaves room
+    # for timer noise and caches; the validation alone (where the quadratic scan of the mode names per flow was)
+    # is held to 10.
+    small_data, large_data = chain(MAX_LOCATIONS // 8), chain(MAX_LOCATIONS // 2)
+    small, n_small = cpu_seconds_to_import(small_data)
+    large, n_large = cpu_seconds_to_import(large_data)
+    assert (n_small, n_large) == (MAX_LOCATIONS // 8, MAX_LOCATIONS // 2)
+    assert large / small < 7.0, (small, large)
+    small_system = import_spaceex(small_data, source="chain.xml").system
+    large_system = import_spaceex(large_data, source="chain.xml").system
+    ratio = cpu_seconds_to_validate(large_system) / cpu_seconds_to_validate(small_system)
+    assert ratio < 10.0, ratio
+
+
+def test_the_largest_accepted_automaton_imports_in_bounded_time():
+    seconds, modes = cpu_seconds_to_import(chain(MAX_LOCATIONS))
+    assert modes == MAX_LOCATIONS and seconds < 30.0
+    assert f"more than {MAX_LOCATIONS} locations" in refused(chain(MAX_LOCATIONS + 1), within=30.0)

@@ -1,0 +1,135 @@
+"""Reachability for SpaceEx models with non-deterministic inputs (the ``ModeInput`` route).
+
+A SpaceEx input ``u(t) ∈ [low, high]`` (:mod:`hybrid.spaceex_inputs`) enters the flow of every
+location affinely: ``ẋ = A x + c + B u``.  :func:`input_reach` reads ``B`` exactly from the flows
+(the input's placeholder taken as a coordinate: :func:`analysis.reach.affine.affine_vector`), builds
+the input-free system (``u = 0``) and runs :func:`analysis.reach.reach` with
+``inputs={mode: ModeInput(matrix=B, bounds=(low, high))}``.  :class:`InputReachProof` decides a
+requirement of the STL safety fragment on that flowpipe (:func:`analysis.reach.verdict.decide`).
+
+The independent re-check (:mod:`analysis.reach.recheck`) does not take inputs yet: its interval
+Picard tube would have to carry the input's set through every step.  The proof therefore says
+``rechecked=False`` and why, and ``verify`` never reports such a requirement *proven*; the
+producer's decision and margin are in the evidence.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+from hybrid.spaceex_inputs import SpaceExInput, with_inputs
+from hybrid.symbolic import Coordinate, flow_map, substitute
+from hybrid.system import HybridSystem
+
+from analysis.verification import Proof
+
+__all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs", "MAX_FLOWPIPES"]
+
+MAX_FLOWPIPES = 16
+"""Flowpipes of one input proof (one per jump set): arbitrary switching (PLAA01's guards always hold) would
+otherwise start one per segment up to the jump bound; beyond, the flowpipe is inconclusive and proves nothing."""
+
+NOT_RECHECKED = ("not re-checked: the independent re-checker (analysis.reach.recheck) does not take "
+                 "non-deterministic inputs yet, so this is the producer's decision only")
+
+
+def input_reach_model(system: HybridSystem, input_flows: Mapping[str, Any],
+                      inputs: Sequence[SpaceExInput]) -> tuple[HybridSystem, dict[str, Any]]:
+    """The input-free affine system and ``{mode: ModeInput}`` of a model with inputs.
+
+    Raises
+    ------
+    analysis.reach.affine.AffineError
+        A flow that is not affine in the state and the inputs (a product of an input and a state), or an
+        input coefficient that is not a double (``B`` is passed in floats; it must be exact).
+    """
+    from analysis.reach import ModeInput
+    from analysis.reach.affine import AffineError, affine_vector
+
+    names = (*system.state_names, *(i.name for i in inputs))
+    as_coordinates = {i.symbol: Coordinate(i.name, len(system.state_names) + k) for k, i in enumerate(inputs)}
+    matrices: dict[str, Any] = {}
+    n = len(system.state_names)
+    for mode, flow in input_flows.items():
+        forms = affine_vector(flow_map(*(substitute(c, params=as_coordinates) for c in flow.components)), names,
+                              role=f"flow of location {mode!r} (states and inputs)")
+        rows = [[f.coefficients[n + k] for k in range(len(inputs))] for f in forms]
+        if any(Fraction(float(q)) != q for row in rows for q in row):
+            raise AffineError(f"flow of location {mode!r}: an input coefficient is not a double",
+                              "write the input's coefficients as single numbers")
+        matrices[mode] = ModeInput(matrix=[[float(q) for q in row] for row in rows],
+                                   bounds=([i.low for i in inputs], [i.high for i in inputs]))
+    zero = with_inputs(system, input_flows, inputs, {i.name: 0.0 for i in inputs})
+    return zero, matrices
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class InputReachProof:
+    """``() -> Proof`` of one requirement by a flowpipe with the model's inputs (never re-checked: see module)."""
+
+    system: HybridSystem
+    input_flows: Mapping[str, Any]
+    inputs: tuple[SpaceExInput, ...]
+    fragment: Any
+    initial: tuple[tuple[str, float, float], ...]
+    initial_mode: str
+    time_step: float | None = None
+    max_jumps: int | None = None
+
+    def __call__(self) -> Proof:
+        """The proof (never raises: what reachability cannot handle gives a proof that does not hold)."""
+        from hybrid.errors import ModelDefinitionError, ParameterError
+
+        from analysis.reach import reach
+        from analysis.reach.affine import AffineError
+        from analysis.reach.model import affine_model
+        from analysis.reach.verdict import MAX_SEGMENTS, METHOD, decide, default_max_jumps, default_time_step
+
+        method = METHOD.split(", re-checked")[0] + " with bounded non-deterministic inputs"
+        end = max(self.fragment.end, 1e-9)
+        step = min(default_time_step(end) if self.time_step is None else self.time_step, end)
+        jumps = default_max_jumps(end) if self.max_jumps is None else self.max_jumps
+        start = time.perf_counter()
+        try:
+            zero, matrices = input_reach_model(self.system, self.input_flows, self.inputs)
+            result = reach(zero, {k: (lo, hi) for k, lo, hi in self.initial}, horizon=end, time_step=step,
+                           initial_mode=self.initial_mode, max_jumps=jumps, inputs=matrices,
+                           max_segments=MAX_SEGMENTS, max_flowpipes=MAX_FLOWPIPES)
+            holds, margin, reason = decide(result, self.fragment, affine_model(zero))
+        except (AffineError, ParameterError, ModelDefinitionError) as exc:
+            return Proof(holds=False, method=method, evidence=f"not decided by reachability: {exc}", rechecked=False)
+        seconds = time.perf_counter() - start
+        bounds = ", ".join(f"{i.name} in [{i.low:g}, {i.high:g}]" for i in self.inputs)
+        evidence = (f"reachability with inputs {bounds}: {reason}"
+                    + (f", margin {margin:.6g}" if math.isfinite(margin) else "")
+                    + f"; {len(result.segments)} segments, {len(result.jumps)} jumps, step {step:g} s; "
+                    f"{seconds:.2f} s; " + NOT_RECHECKED)
+        assumptions = (f"the initial box {dict((k, (lo, hi)) for k, lo, hi in self.initial)}",
+                       f"the inputs {bounds} (any measurable signal)",
+                       f"the window [{self.fragment.start:g}, {self.fragment.end:g}] s")
+        return Proof(holds=holds, method=method, evidence=evidence, rechecked=False, assumptions=assumptions)
+
+
+def input_proofs(system: HybridSystem, input_flows: Mapping[str, Any], inputs: Sequence[SpaceExInput],
+                 parsed: Sequence[Any], initial: Mapping[str, Any], initial_mode: Any) -> dict[str, InputReachProof]:
+    """``{requirement: InputReachProof}`` for the requirements in the safety fragment (a single initial mode)."""
+    from analysis.reach.fragment import NotInFragment, safety_fragment
+
+    if not isinstance(initial_mode, str):
+        return {}
+    box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
+    out = {}
+    for p in parsed:
+        try:
+            fragment = safety_fragment(p.formula.tree, system.state_names, ("mode",))
+        except NotInFragment:
+            continue
+        out[p.name] = InputReachProof(system=system, input_flows=dict(input_flows), inputs=tuple(inputs),
+                                      fragment=fragment, initial=box, initial_mode=initial_mode)
+    return out
+

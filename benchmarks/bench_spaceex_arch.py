@@ -1,0 +1,66 @@
+"""The ARCH-COMP AFF instances shipped as SpaceEx files: visnav's verdict next to the published one, with times.
+
+Run: ``.venv/bin/python benchmarks/bench_spaceex_arch.py [--budget N] [--only NAME]``.
+
+Each instance is verified as ``visnav verify FILE.xml --config FILE.cfg`` does (the guided search with the
+budget, seed 0, and the reachability proofs the problem carries).  The instances that take minutes (the
+building's searches, PLAN01's flowpipe over 40 s) are here rather than in the tests.  The table says, per
+instance, the published verdict, visnav's, whether a flowpipe decided it and whether that was re-checked, and
+the seconds.  A row whose verdict differs from the published one is marked ``DIFFERS`` with its reason (see
+docs/spaceex.md, "Published verdicts").
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1] / "tests" / "data" / "spaceex" / "arch2017"
+B, P, S = ROOT / "Building" / "SpaceEx", ROOT / "Platoon" / "SpaceEx", ROOT / "specs"
+
+# name, model, cfg, published verdict, the verdict visnav can give and why it may differ
+INSTANCES = (
+    ("BLDC01-BDS01", B / "BLDC01.xml", B / "BLDC01-BDS01.cfg", "safe", "not_falsified", "stiff: no flowpipe"),
+    ("BLDF01-BDS01", B / "BLDF01.xml", B / "BLDF01-BDS01.cfg", "safe", "not_falsified", "stiff: no flowpipe"),
+    ("BLDF01-BDU01", B / "BLDF01.xml", B / "BLDF01-BDU01.cfg", "unsafe", "falsified", ""),
+    ("BLDC01-BDU01", B / "BLDC01.xml", S / "BLDC01-BDU01.cfg", "unsafe", "falsified", ""),
+    ("BLDC01-BDU02", B / "BLDC01.xml", S / "BLDC01-BDU02.cfg", "unsafe", "falsified", ""),
+    ("BLDF01-BDU02", B / "BLDF01.xml", S / "BLDF01-BDU02.cfg", "unsafe", "falsified", ""),
+    ("PLAD01-BND42", P / "PLAD01-BND.xml", S / "PLAD01-BND42.cfg", "safe", "not_falsified",
+     "flowpipe with inputs not re-checked"),
+    ("PLAD01-BND30", P / "PLAD01-BND.xml", S / "PLAD01-BND30.cfg", "safe", "not_falsified", "flowpipe too wide"),
+    ("PLAA01-BND42", P / "PLAA01-BND.xml", S / "PLAA01-BND42.cfg", "safe", "incomplete", "Zeno at t = 0"),
+    ("PLAN01-UNB50", P / "PLAN01-UNB.xml", S / "PLAN01-UNB50.cfg", "safe", "not_falsified", "finite horizon"),
+    ("GRBX01-MES01", ROOT / "Gear" / "SpaceEx" / "GRBX01-MES01.xml", ROOT / "Gear" / "SpaceEx" / "GRBX01-MES01.cfg",
+     "safe", "not_falsified", "every location initial"),
+)
+
+
+def main() -> None:
+    from analysis.spaceex import spaceex_problem
+    from analysis.verdicts import verify
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--budget", type=int, default=120, help="simulations per instance (verify's default)")
+    parser.add_argument("--only", default=None, help="run one instance (its name)")
+    args = parser.parse_args()
+    print(f"{'instance':14} {'published':9} {'visnav':14} {'flowpipe':34} {'seconds':>8}")
+    for name, xml, cfg, published, expected, why in INSTANCES:
+        if args.only and name != args.only:
+            continue
+        start = time.perf_counter()
+        problem = spaceex_problem(xml, cfg)
+        result = verify(problem, budget=args.budget, seed=0)
+        seconds = time.perf_counter() - start
+        proof = result.requirement("safe").proof
+        pipe = "none" if proof is None else f"{'holds' if proof.holds else 'undecided'}, " \
+                                            f"{'re-checked' if proof.rechecked else 'not re-checked'}"
+        verdict = result.requirement("safe").verdict
+        note = "" if verdict == expected else f"  UNEXPECTED (expected {expected})"
+        differs = "" if (published == "safe") == (verdict in ("proven", "not_falsified")) else f"  DIFFERS: {why}"
+        print(f"{name:14} {published:9} {verdict:14} {pipe:34} {seconds:8.1f}{note}{differs}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,150 @@
+"""The published ARCH-COMP AFF verdicts of the shipped SpaceEx files, and what visnav can and cannot claim.
+
+Yardsticks: the closed form of the building's linear dynamics (``scipy.linalg.expm`` of the affine matrix, the
+input's worst piecewise-constant signal and the worst corner of the initial box chosen by sign), and the
+published platoon input matrix ``B = e_2`` (JuliaReach's ARCH model).  The searches that take minutes (the
+building's full falsification) are in ``benchmarks/bench_spaceex_arch.py``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from analysis.reach.affine import affine_vector
+from analysis.spaceex import INPUT_POINTS, InputSignals, spaceex_problem
+from analysis.spaceex_reach import NOT_RECHECKED, input_reach_model
+from analysis.falsification import evaluate
+from analysis.verdicts import verify
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex" / "arch2017"
+BUILDING = DATA / "Building" / "SpaceEx"
+PLATOON = DATA / "Platoon" / "SpaceEx"
+SPECS = DATA / "specs"
+
+
+def test_the_platoon_input_matrix_is_the_published_one():
+    problem = spaceex_problem(PLATOON / "PLAD01-BND.xml", SPECS / "PLAD01-BND42.cfg")
+    build = problem.simulate.build
+    assert isinstance(build, InputSignals) and build.points == INPUT_POINTS
+    assert [p.name for p in problem.parameters] == [f"input_aL_{k}" for k in range(INPUT_POINTS)]
+    assert all((p.low, p.high) == (-9.0, 1.0) for p in problem.parameters)
+    zero, inputs = input_reach_model(build.system, build.input_flows, build.inputs)
+    assert set(inputs) == set(zero.automaton.mode_names)
+    for spec in inputs.values():
+        assert np.array_equal(np.array(spec.matrix), np.eye(len(zero.state_names))[:, [1]])  # v1' = -a1 + aL
+        assert spec.bounds == ([-9.0], [1.0])
+
+
+def test_plad01_bnd42_is_decided_by_the_flowpipe_but_never_reported_proven():
+    problem = spaceex_problem(PLATOON / "PLAD01-BND.xml", SPECS / "PLAD01-BND42.cfg")
+    assert problem.requirements[0].formula == "always[0, 20.0] not ((e1 <= (-42.0)) or (e2 <= (-42.0)) or " \
+                                              "(e3 <= (-42.0)))"
+    proof = problem.proofs["safe"]()
+    # ARCH-COMP AFF: PLAD01-BND42 safe.  The producer decides it; the re-checker takes no inputs: never
+    # rechecked, never proven
+    assert proof.holds and not proof.rechecked and not proof.proven
+    margin = float(proof.evidence.split("margin ")[1].split(";")[0])
+    assert NOT_RECHECKED in proof.evidence and "aL in [-9, 1]" in proof.evidence
+    result = verify(problem, budget=6, seed=0)
+    assert result.verdict == "not_falsified" and result.requirement("safe").verdict == "not_falsified"
+    # the flowpipe's margin is a lower bound of the true one, the runs' robustness an upper bound (a sampled
+    # run's minimum distance to -42 m); BND30 is published safe too, so the true margin is at least 12 m
+    lowest = result.requirement("safe").robustness
+    assert 0.0 < margin <= lowest and lowest >= 12.0
+
+
+def test_plad01_bnd30_is_not_decided_by_the_flowpipe():
+    problem = spaceex_problem(PLATOON / "PLAD01-BND.xml", SPECS / "PLAD01-BND30.cfg")
+    proof = problem.proofs["safe"]()
+    # published safe, but only with tighter sets than ours (JuliaReach needs octagonal templates)
+    assert not proof.holds and not proof.rechecked and "not decided" in proof.evidence
+
+
+def test_plaa01_arbitrary_switching_cannot_be_simulated_and_is_incomplete():
+    problem = spaceex_problem(PLATOON / "PLAA01-BND.xml", SPECS / "PLAA01-BND42.cfg")
+    # guards always enabled: hybrid's must-semantics switches forever at t = 0 (Zeno): the run ends early and
+    # decides nothing (verify's verdict is incomplete: benchmarks/bench_spaceex_arch.py, with the flowpipe)
+    outcome = evaluate(problem, [0.5] * len(problem.parameters))
+    assert outcome.status == "incomplete" and outcome.end == "zeno" and outcome.end_time == 0.0
+    assert outcome.satisfied == (None,)
+
+
+def building_closed_form(problem):
+    """A, B of the building (the input's column) read as the affine forms of the imported flows."""
+    build = problem.simulate.build
+    zero, inputs = input_reach_model(build.system, build.input_flows, build.inputs)
+    mode = zero.automaton.mode_names[0]
+    names = zero.state_names
+    a = np.array([[float(q) for q in f.coefficients] for f in affine_vector(zero.flows[mode], names)])
+    return names, a, np.array(inputs[mode].matrix, dtype=float)[:, 0]
+
+
+def test_bldf01_bdu01_the_closed_form_worst_case_violates_and_replays():
+    problem = spaceex_problem(BUILDING / "BLDF01.xml", BUILDING / "BLDF01-BDU01.cfg")
+    names, a, b = building_closed_form(problem)
+    i25 = names.index("x25")
+    # x25(t*) = r(t*) x0 + int_0^t* r(t* - s) b u(s) ds; with u = 1 on the first piece (2 s > t*) and x0 at the
+    # corner chosen by the signs of r(t*): the largest x25(t*) over the box (t* = 0.08 s, where the search found it)
+    t_star = 0.08
+    r = expm(a * t_star)[i25]
+    n = len(names)
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n], aug[:n, n] = a, b
+    forced = (expm(aug * t_star) @ np.append(np.zeros(n), 1.0))[i25]
+    point = {p.name: (p.high if p.name.startswith("input") else (p.high if r[names.index(p.name[:-2])] > 0
+                                                                else p.low)) for p in problem.parameters}
+    x0 = np.array([point.get(f"{s}_0", 0.0) for s in names])
+    peak = r @ x0 + forced * 1.0
+    assert peak > 0.004 + 3e-4  # published unsafe: x25 <= 0.004 violated
+    trace = problem.simulate(point)
+    times, x25 = trace.signal("time"), trace.signal("x25")
+    k = int(np.argmin(np.abs(times - t_star)))
+    assert abs(times[k] - t_star) < 1e-9 and x25[k] == pytest.approx(peak, rel=1e-6)
+    assert problem.parsed[0].formula.robustness(trace) < -3e-4
+
+
+def test_the_building_bdu02_instant_both_ways():
+    # shipped cfg: forbidden x25 < -0.00078 at t == 20, the clock's instant (not a measure-zero atom)
+    shipped = spaceex_problem(BUILDING / "BLDF01.xml", BUILDING / "BLDF01-BDU02.cfg")
+    assert shipped.requirements[0].formula == "always[20.0, 20.0] not (x25 < (-0.00078))"
+    names, a, b = building_closed_form(shipped)
+    i25 = names.index("x25")
+    # the smallest x25(20) over the box and the ten-piece input signals (sign-wise): far above -0.00078
+    n, h = len(names), 20.0 / INPUT_POINTS
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n], aug[:n, n] = a, b
+    step = (expm(aug * h) @ np.append(np.zeros(n), 1.0))[:n]
+    pieces = [(expm(a * (20.0 - (k + 1) * h)) @ step)[i25] for k in range(INPUT_POINTS)]
+    r = expm(a * 20.0)[i25]
+    box = {p.name: (p.low, p.high) for p in shipped.parameters}
+    lowest = sum(min(r[j] * box[f"{s}_0"][0], r[j] * box[f"{s}_0"][1]) for j, s in enumerate(names)
+                 if f"{s}_0" in box) + sum(min(g * 0.8, g * 1.0) for g in pieces)
+    assert -2e-4 < lowest < 0.0 and lowest > -0.00078
+    # the published BDU02 (x25(20) <= -0.78e-3, violated): every run violates it, the first one is a counterexample
+    spec = spaceex_problem(BUILDING / "BLDF01.xml", SPECS / "BLDF01-BDU02.cfg")
+    assert spec.requirements[0].formula == "always[20.0, 20.0] not (x25 > (-0.00078))"
+    result = verify(spec, budget=1, seed=0)
+    assert result.verdict == "falsified"
+    found = result.requirement("safe").counterexample
+    # robustness -0.00078 - x25(20), at most -0.00078 - lowest (the closed form's smallest x25(20))
+    assert found.time == pytest.approx(20.0, abs=1e-9)
+    assert -0.00078 - 2e-4 < found.robustness <= -0.00078 - lowest + 1e-9
+
+
+def test_the_building_bds01_flowpipe_cannot_be_computed_so_nothing_is_proven():
+    problem = spaceex_problem(BUILDING / "BLDC01.xml", BUILDING / "BLDC01-BDS01.cfg")
+    proof = problem.proofs["safe"]()
+    # stiff (|A| ~ 1.2e4): the step the series needs (3.4e-4 s) makes 59,000 segments over 20 s, above the
+    # verdicts' segment bound; the proof says so and does not hold
+    assert not proof.holds and not proof.rechecked and "time_step" in proof.evidence
+    with_input = spaceex_problem(BUILDING / "BLDF01.xml", BUILDING / "BLDF01-BDS01.cfg").proofs["safe"]()
+    assert not with_input.holds and "not decided by reachability" in with_input.evidence
+
+
+def test_bad_input_points_are_named():
+    with pytest.raises(Exception, match="input_points"):
+        spaceex_problem(PLATOON / "PLAD01-BND.xml", SPECS / "PLAD01-BND42.cfg", input_points=0)
