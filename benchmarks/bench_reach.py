@@ -68,7 +68,7 @@ def run_hylaa(instance: ri.Instance) -> dict[str, Any]:
     from reach_hylaa import hylaa_run
 
     o = instance.options
-    step = min([o["time_step"], *o.get("mode_time_steps", {}).values()])
+    step = instance.hylaa_step or min([o["time_step"], *o.get("mode_time_steps", {}).values()])
     return hylaa_run(instance.system, instance.box, instance.initial_mode, instance.unsafe, o["horizon"], step)
 
 

@@ -14,7 +14,11 @@ outside the project's environment (``pip install --no-deps --target DIR``) and p
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -83,6 +87,20 @@ def _automaton(model: Any, unsafe: Any) -> tuple[Any, str | None]:
     return ha, None
 
 
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """GLPK's C library prints its simplex log on file descriptor 1: silence it for the run."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 1)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
 def hylaa_run(system: Any, box: dict[str, tuple[float, float]], initial_mode: str | None, unsafe: Any,
               horizon: float, step: float) -> dict[str, Any]:
     """Hylaa's verdict (``"safe"``/``"unsafe"`` at its step instants) and its wall time [s], or why it did not run.
@@ -114,7 +132,8 @@ def hylaa_run(system: Any, box: dict[str, tuple[float, float]], initial_mode: st
     settings.plot.plot_mode = PlotSettings.PLOT_NONE
     settings.stdout = HylaaSettings.STDOUT_NONE
     try:
-        result = Core(ha, settings).run(init)
+        with _quiet():
+            result = Core(ha, settings).run(init)
     except Exception as exc:  # a peer's failure is reported, never hidden
         return {"verdict": None, "seconds": time.perf_counter() - start,
                 "note": f"Hylaa failed: {type(exc).__name__}: {str(exc)[:120]}"}

@@ -48,6 +48,7 @@ class Instance:
     planted_inside: tuple[Any, ...] = ()
     planted_outside: tuple[Any, ...] = ()
     simulation: dict[str, Any] = field(default_factory=dict)
+    hylaa_step: float | None = None
     note: str = ""
 
 
@@ -206,7 +207,7 @@ def _spacecraft(name: str, abort: bool) -> Instance:
         options["jump_cluster"] = 25
     return Instance(
         name=name, system=system, box=box, initial_mode=mode, options=options, requirement=requirement,
-        unsafe=tuple(unsafe), simulation=dict(duration=horizon),
+        unsafe=tuple(unsafe), simulation=dict(duration=horizon), hylaa_step=0.1,
         planted_inside=(_unsafe("start corner x <= -924.99", v.x <= -924.99, states),),
         note="ARCH-COMP spacecraft rendezvous (linearised), tests/data/spaceex/visnav/ (SOURCE.md)")
 
@@ -233,7 +234,7 @@ def bldc01() -> Instance:
         name="BLDC01-BDS01", system=system, box=box, initial_mode=mode,
         options=dict(horizon=horizon, time_step=3.3e-4, max_jumps=0, merge_segments=200, max_segments=400_000),
         requirement=requirement, unsafe=(_unsafe("x25 >= 0.0051", x25 >= 0.0051, states),),
-        simulation=dict(duration=horizon), note="ARCH-COMP17 building, tests/data/spaceex/arch2017/ (SOURCE.md)")
+        simulation=dict(duration=horizon), hylaa_step=0.01, note="ARCH-COMP17 building, tests/data/spaceex/arch2017/ (SOURCE.md)")
 
 
 BUILDERS: dict[str, Callable[[], Instance]] = {

@@ -47,7 +47,7 @@ def _inside(segment: Any, points: np.ndarray, rng: np.random.Generator) -> np.nd
     return ok & np.all(np.abs((points - z.center) @ d.T) <= reach + slack, axis=1)
 
 
-def _runs(instance: Any, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _runs(instance: Any, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     from hybrid.continuous import simulate_continuous
 
     names = instance.system.state_names
@@ -72,12 +72,12 @@ def _runs(instance: Any, count: int, seed: int) -> tuple[np.ndarray, np.ndarray,
         times.append(np.asarray(tr.times))
         modes.extend(tr.modes)
         points.append(np.asarray(tr.states))
-    return np.concatenate(times), np.array(modes), np.concatenate(points)
+    return np.concatenate(times), np.array(modes), np.concatenate(points), len(starts)
 
 
 def simulations_inside(instance: Any, result: Any, count: int, seed: int = 0) -> dict[str, Any]:
     """Executor runs against the flowpipe: ``{"runs", "points", "outside", "example"}``."""
-    times, modes, points = _runs(instance, count, seed)
+    times, modes, points, runs = _runs(instance, count, seed)
     rng = np.random.default_rng(seed + 1)
     covered = np.zeros(times.size, dtype=bool)
     order = np.argsort(times, kind="stable")
@@ -94,7 +94,7 @@ def simulations_inside(instance: Any, result: Any, count: int, seed: int = 0) ->
     if missing.size:
         i = int(missing[0])
         example = {"t": float(times[i]), "mode": str(modes[i]), "x": [float(v) for v in points[i]]}
-    return {"runs": int(min(max(count, 1), len(times))), "points": int(times.size), "outside": int(missing.size),
+    return {"runs": int(runs), "points": int(times.size), "outside": int(missing.size),
             "example": example}
 
 

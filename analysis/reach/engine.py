@@ -421,7 +421,8 @@ def _clip_union(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedra: Sequence
         if position > 0:
             boxes.append((lo, hi))  # inside every halfspace: clipping would change nothing
             continue
-        if any(definitely_outside(z, h) for h in poly):
+        # a row with one non-zero coefficient is decided as tightly by clip_box on the box (the hull of z)
+        if any(definitely_outside(z, h) for h in poly if np.count_nonzero(h.normal) > 1):
             continue
         clipped = tighten_box(z, lo, hi, poly) if tight else clip_box(lo, hi, poly)
         if clipped is not None:
