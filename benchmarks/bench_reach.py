@@ -32,6 +32,9 @@ sys.path.insert(0, str(HERE.parent))
 
 import reach_instances as ri  # noqa: E402  (benchmarks/ is not a package)
 
+LONG_RUN = 20.0
+"""A run longer than this [s] is not repeated (the median is then of fewer runs; ``runs`` says how many)."""
+
 
 def _verdict(instance: ri.Instance, result: Any) -> tuple[str, float, str]:
     from analysis.reach import safety_fragment
@@ -57,9 +60,11 @@ def run_ours(instance: ri.Instance, repeats: int) -> tuple[dict[str, Any], Any]:
         start = time.perf_counter()
         result = reach(instance.system, instance.box, initial_mode=instance.initial_mode, **instance.options)
         times.append(time.perf_counter() - start)
+        if times[-1] > LONG_RUN:
+            break
     verdict, margin, reason = _verdict(instance, result)
     distances = {u.name: result.distance_to(u) for u in instance.unsafe}
-    return {"verdict": verdict, "seconds": statistics.median(times), "width": _width(result),
+    return {"verdict": verdict, "seconds": statistics.median(times), "runs": len(times), "width": _width(result),
             "margin": margin, "reason": reason, "status": result.status, "segments": len(result.segments),
             "min_distance": min(distances.values()) if distances else math.nan}, result
 
