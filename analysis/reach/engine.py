@@ -149,19 +149,10 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     analysis.reach.affine.AffineError
         The system is not symbolic, or not affine (naming the part).
     """
-    _check_number("horizon", horizon, lambda v: v > 0, "a finite time horizon > 0 [s]")
-    _check_number("time_step", time_step, lambda v: 0 < v <= horizon,
-                  f"a step 0 < time_step <= horizon = {horizon!r} [s]")
-    for name, value, low in (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
-                             ("merge_segments", merge_segments, 1),
-                             ("max_segments", max_segments, 1), ("max_flowpipes", max_flowpipes, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ReachError(name, value, f"an int >= {low}", f"give {name} as a whole number >= {low}")
-    _check_number("size_limit", size_limit, lambda v: v > 0, "a finite radius > 0")
-    if jump_cluster is not None and (isinstance(jump_cluster, bool) or not isinstance(jump_cluster, int)
-                                     or jump_cluster < 1):
-        raise ReachError("jump_cluster", jump_cluster, "None or an int >= 1",
-                         "give the number of consecutive segments per jump, or None for one jump per flowpipe")
+    _check_options(horizon, time_step, size_limit, jump_cluster,
+                   (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
+                    ("merge_segments", merge_segments, 1), ("max_segments", max_segments, 1),
+                    ("max_flowpipes", max_flowpipes, 1)))
     model = affine_model(system)
     steps = _mode_steps(mode_time_steps, model, float(horizon))
     mode = model.initial_mode if initial_mode is None else initial_mode
@@ -179,6 +170,21 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     return ReachResult(system=result.system, state_names=result.state_names, horizon=result.horizon,
                        max_jumps=max_jumps, time_step=result.time_step, segments=result.segments,
                        jumps=result.jumps, terminations=result.terminations, distances=distances)
+
+
+def _check_options(horizon: Any, time_step: Any, size_limit: Any, jump_cluster: Any,
+                   counts: Sequence[tuple[str, Any, int]]) -> None:
+    _check_number("horizon", horizon, lambda v: v > 0, "a finite time horizon > 0 [s]")
+    _check_number("time_step", time_step, lambda v: 0 < v <= horizon,
+                  f"a step 0 < time_step <= horizon = {horizon!r} [s]")
+    for name, value, low in counts:
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ReachError(name, value, f"an int >= {low}", f"give {name} as a whole number >= {low}")
+    _check_number("size_limit", size_limit, lambda v: v > 0, "a finite radius > 0")
+    if jump_cluster is not None and (isinstance(jump_cluster, bool) or not isinstance(jump_cluster, int)
+                                     or jump_cluster < 1):
+        raise ReachError("jump_cluster", jump_cluster, "None or an int >= 1",
+                         "give the number of consecutive segments per jump, or None for one jump per flowpipe")
 
 
 def _check_number(name: str, value: Any, ok: Any, expected: str) -> None:

@@ -42,7 +42,7 @@ MAX_CONDITION = 1e10
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ErrorTracker:
-    """The bound propagation of the module docstring (all arrays real and non-negative but ``w_abs``'s source).
+    """The bound propagation of the module docstring (every array real and non-negative).
 
     Attributes
     ----------
