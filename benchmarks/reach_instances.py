@@ -9,11 +9,11 @@ which take unsafe polyhedra), and *planted* sets for the soundness benchmark:
   placed with a closed form: reachable, so a flowpipe that "proves" one of them is unsound;
 * ``planted_outside``: the same, just outside: unreachable (closed form), proving them measures precision.
 
-The spacecraft instances (SRNA01, SRA01) are read from ``tests/data/spaceex/visnav/`` and the building (BLDC01)
+The spacecraft instances (SRNA01, SRA01, SRA02) are read from ``tests/data/spaceex/visnav/`` and the building (BLDC01)
 from the ARCH-COMP 2017 file in ``tests/data/spaceex/arch2017/``, through hybrid's SpaceEx import.
 
 ``PUBLISHED``: the verdicts the ARCH-COMP AFF category reports give for CORA and JuliaReach (both verify
-SRNA01, SRA01 and BLDC01-BDS01 safe in the ARCH-COMP19 report, M. Althoff et al., "ARCH-COMP19 Category Report:
+SRNA01, SRA01, SRA02 and BLDC01-BDS01 safe in the ARCH-COMP19 report, M. Althoff et al., "ARCH-COMP19 Category Report:
 Continuous and Hybrid Systems with Linear Continuous Dynamics", EPiC Series in Computing 61, and in the later
 editions).  Their runtimes were measured on other machines; they are given only where this project has them
 verbatim, otherwise ``None`` (see ``docs/reachability.md``, "Benchmarks").
@@ -218,8 +218,13 @@ def srna01() -> Instance:
 
 
 def sra01() -> Instance:
-    """SRA01: abort at a time in [120, 125] min into the passive (uncontrolled) mode (300 min)."""
+    """SRA01: abort at t = 120 min into the passive (uncontrolled) mode (300 min)."""
     return _spacecraft("SRA01", abort=True)
+
+
+def sra02() -> Instance:
+    """SRA02: abort at a time in [120, 125] min (CORA's ``rendezvous_SRA01.m`` model file has this window)."""
+    return _spacecraft("SRA02", abort=True)
 
 
 def bldc01() -> Instance:
@@ -239,7 +244,7 @@ def bldc01() -> Instance:
 
 BUILDERS: dict[str, Callable[[], Instance]] = {
     "bouncing ball": bouncing_ball, "thermostat": thermostat, "switched pair": switched_pair,
-    "two tanks": two_tanks, "SRNA01": srna01, "SRA01": sra01, "BLDC01-BDS01": bldc01}
+    "two tanks": two_tanks, "SRNA01": srna01, "SRA01": sra01, "SRA02": sra02, "BLDC01-BDS01": bldc01}
 """Every instance by name, in the table's order."""
 
 QUICK = ("bouncing ball", "thermostat", "switched pair", "two tanks")
@@ -250,6 +255,8 @@ PUBLISHED: dict[str, tuple[Published, ...]] = {
                Published(tool="JuliaReach", verdict="safe", report=ARCH19)),
     "SRA01": (Published(tool="CORA", verdict="safe", report=ARCH19),
               Published(tool="JuliaReach", verdict="safe", report=ARCH19)),
+    "SRA02": (Published(tool="CORA", verdict="safe", report=ARCH19),
+              Published(tool="JuliaReach", verdict="safe", report=ARCH19)),
     "BLDC01-BDS01": (Published(tool="CORA", verdict="safe", report=ARCH19),
                      Published(tool="JuliaReach", verdict="safe", report=ARCH19)),
 }
@@ -257,5 +264,5 @@ PUBLISHED: dict[str, tuple[Published, ...]] = {
 is the closed form's (``EXPECTED``)."""
 
 EXPECTED = {"bouncing ball": "safe", "thermostat": "safe", "switched pair": "safe", "two tanks": "safe",
-            "SRNA01": "safe", "SRA01": "safe", "BLDC01-BDS01": "safe"}
+            "SRNA01": "safe", "SRA01": "safe", "SRA02": "safe", "BLDC01-BDS01": "safe"}
 """The verdict every instance should get: the closed form's (small instances) or the published one (ARCH)."""
