@@ -38,14 +38,13 @@ def quick():
 
 
 def test_quick_rows_get_the_expected_verdicts(quick):
-    doc, took = quick
+    doc, _ = quick
     rows = {r["name"]: r for r in doc["rows"] if r.get("kind") != "nonlinear"}
     assert set(rows) == {"bouncing ball", "thermostat", "switched pair", "two tanks"}
     for name, row in rows.items():
         assert row["ours"]["verdict"] == row["expected"] == "safe", (name, row["ours"].get("reason"))
         assert row["ours"]["status"] == "complete"
         assert 0.0 < row["ours"]["margin"] <= TRUE_SLACK[name], name  # sound: never above the true slack
-    assert took < 120.0  # well under a minute on an idle core; generous for a shared CI machine
 
 
 def test_quick_soundness(quick):
