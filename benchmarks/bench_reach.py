@@ -149,7 +149,8 @@ def table(doc: dict[str, Any]) -> str:
         if sims:
             sound += f"; {sims['runs']} runs, {sims['outside']}/{sims['points']} points outside"
         lines.append(f"{row['name']:<15} {o['verdict']:<8} {_fmt(o['seconds']):>8} {_fmt(o.get('width')):>9} "
-                     f"{str(h.get('verdict') or '-'):<7} {_fmt(h.get('seconds')):>8} {_fmt(row.get('ratio'), '.2f'):>6}  "
+                     f"{str(h.get('verdict') or '-'):<7} {_fmt(h.get('seconds')):>8} "
+                     f"{_fmt(row.get('ratio'), '.2f'):>6}  "
                      f"{pub or '(not an ARCH-COMP instance: closed form)':<40} {sound}")
     notes = [f"  {r['name']}: {r['ours']['reason']}" for r in doc["rows"] if r["ours"]["verdict"] != "safe"
              and "reason" in r["ours"]]

@@ -240,7 +240,8 @@ def bldc01() -> Instance:
         options=dict(horizon=horizon, time_step=3.3e-4, max_jumps=0, merge_segments=200, max_segments=400_000),
         requirement=requirement, unsafe=(_unsafe("x25 >= 0.0051", x25 >= 0.0051, states),),
         planted_inside=(_unsafe("start corner x25 >= 0.000099", x25 >= 0.000099, states),),
-        simulation=dict(duration=horizon), hylaa_step=0.01, note="ARCH-COMP17 building, tests/data/spaceex/arch2017/ (SOURCE.md)")
+        simulation=dict(duration=horizon), hylaa_step=0.01,
+        note="ARCH-COMP17 building, tests/data/spaceex/arch2017/ (SOURCE.md)")
 
 
 BUILDERS: dict[str, Callable[[], Instance]] = {

@@ -161,7 +161,8 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     start = initial_zonotope(initial, model.state_names)
     run = _Run(model=model, step=float(time_step), horizon=float(horizon), max_jumps=max_jumps, order=order,
                stored_order=stored_order, size_limit=float(size_limit), max_segments=max_segments,
-               mode_steps=steps, cluster=jump_cluster, merge=merge_segments, inputs=_inputs(inputs, model), dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
+               mode_steps=steps, cluster=jump_cluster, merge=merge_segments, inputs=_inputs(inputs, model),
+               dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
     _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes)
     result = ReachResult(system=model.name, state_names=model.state_names, horizon=run.horizon,
                          max_jumps=max_jumps, time_step=run.step, segments=tuple(run.segments),
@@ -295,7 +296,8 @@ def _explore(run: _Run, first: _Work, max_flowpipes: int) -> None:
         collected = _flow(run, work)
         if collected and work.jumps >= run.max_jumps:
             run.terminations.append(Termination(
-                reason="max_jumps", mode=work.mode, time=min(c[2] for v in collected.values() for c in v), jumps=work.jumps,
+                reason="max_jumps", mode=work.mode, time=min(c[2] for v in collected.values() for c in v),
+                jumps=work.jumps,
                 detail=f"jump bound {run.max_jumps} reached in mode {work.mode!r}: "
                        f"{', '.join(sorted(collected))} may fire after it (not followed)"))
             continue

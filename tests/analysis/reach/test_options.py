@@ -32,8 +32,8 @@ def _runs_inside(result, seed):
     for t0 in [19.5, 20.5, *rng.uniform(19.5, 20.5, size=20)]:
         tr = simulate_continuous(ROOM, (t0,), duration=12.0, rtol=1e-10, atol=1e-12)
         for t, mode, x in zip(tr.times, tr.modes, np.asarray(tr.states)):
-            assert any(s.mode == mode and s.t_lo - 1e-6 <= t <= s.t_hi + 1e-6 and s.lo[0] - 1e-6 <= x[0] <= s.hi[0] + 1e-6
-                       for s in result.segments), (t0, t, mode, x)
+            assert any(s.mode == mode and s.t_lo - 1e-6 <= t <= s.t_hi + 1e-6
+                       and s.lo[0] - 1e-6 <= x[0] <= s.hi[0] + 1e-6 for s in result.segments), (t0, t, mode, x)
 
 
 def test_jump_clusters_split_the_jumps_and_stay_sound():
