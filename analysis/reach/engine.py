@@ -35,7 +35,7 @@ from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, AffineTransition, affine_model
 from .result import ReachJump, ReachResult, ReachSegment, Termination
 from .series import MAX_NORM_STEP
-from .sets import UnsafeSet, clip_box, definitely_outside, polyhedra_to_float, tighten_box
+from .sets import UnsafeSet, box_position, clip_box, definitely_outside, polyhedra_to_float, tighten_box
 from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_order, round_down, round_up, with_error
 
 __all__ = ["ReachError", "ModeInput", "reach"]
@@ -80,6 +80,9 @@ class _Run:
     stored_order: int
     size_limit: float
     max_segments: int
+    mode_steps: Mapping[str, float]
+    cluster: int | None
+    merge: int
     inputs: Mapping[str, tuple[list[list[Fraction]], Zonotope]]
     dynamics: dict[str, tuple[ModeDynamics, float]]
     segments: list[ReachSegment]
@@ -91,7 +94,9 @@ class _Run:
 def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initial_mode: str | None = None,
           max_jumps: int = 10, inputs: Mapping[str, ModeInput] | None = None, unsafe: Sequence[UnsafeSet] = (),
           order: int = 20, stored_order: int = 10, size_limit: float = 1e6, max_segments: int = 200_000,
-          max_flowpipes: int = 1_000, progress: Callable[[float], None] | None = None) -> ReachResult:
+          max_flowpipes: int = 1_000, mode_time_steps: Mapping[str, float] | None = None,
+          jump_cluster: int | None = None, merge_segments: int = 1,
+          progress: Callable[[float], None] | None = None) -> ReachResult:
     """An over-approximation of the states a symbolic affine hybrid system reaches.
 
     Parameters
@@ -120,6 +125,19 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
         A segment whose box radius exceeds this ends the run inconclusively (``"blow_up"``).
     max_segments, max_flowpipes : int
         Limits on the stored segments and on the flowpipes (memory and time are bounded).
+    mode_time_steps : mapping {mode: float} or None
+        A step [s] per mode, replacing ``time_step`` there (``0 < step <= horizon``): a fast mode needs a
+        short step (the first segment's bloating grows with ``‖A‖·step``), a slow one does not.
+    jump_cluster : int or None
+        ``None`` (default): one jump per transition per flowpipe, from the box hull of every segment that
+        may meet the guard.  ``k >= 1``: the segments meeting a guard are grouped into runs of at most
+        ``k`` consecutive segments (a segment that does not meet it ends a run), and each run jumps on its
+        own with its own box and time interval.  Smaller boxes, more flowpipes (``max_flowpipes``).
+    merge_segments : int
+        ``1`` (default): every flowed segment is stored (its zonotope reduced to ``stored_order``).
+        ``m > 1``: each stored segment is the box hull of up to ``m`` consecutive flowed segments over
+        the union of their times (the zonotope is that box): memory for long, high-dimensional runs.
+        Guards, invariants and jumps still use every segment; only the stored result is coarser.
     progress : callable or None
         ``progress(t)`` after each flowpipe, ``t`` [s] the latest time its segments reached so far.
 
@@ -134,22 +152,20 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     analysis.reach.affine.AffineError
         The system is not symbolic, or not affine (naming the part).
     """
-    _check_number("horizon", horizon, lambda v: v > 0, "a finite time horizon > 0 [s]")
-    _check_number("time_step", time_step, lambda v: 0 < v <= horizon,
-                  f"a step 0 < time_step <= horizon = {horizon!r} [s]")
-    for name, value, low in (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
-                             ("max_segments", max_segments, 1), ("max_flowpipes", max_flowpipes, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ReachError(name, value, f"an int >= {low}", f"give {name} as a whole number >= {low}")
-    _check_number("size_limit", size_limit, lambda v: v > 0, "a finite radius > 0")
+    _check_options(horizon, time_step, size_limit, jump_cluster,
+                   (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
+                    ("merge_segments", merge_segments, 1), ("max_segments", max_segments, 1),
+                    ("max_flowpipes", max_flowpipes, 1)))
     model = affine_model(system)
+    steps = _mode_steps(mode_time_steps, model, float(horizon))
     mode = model.initial_mode if initial_mode is None else initial_mode
     if mode not in model.modes:
         raise ReachError("initial_mode", initial_mode, f"one of {list(model.modes)}", "name a mode of the automaton")
     start = initial_zonotope(initial, model.state_names)
     run = _Run(model=model, step=float(time_step), horizon=float(horizon), max_jumps=max_jumps, order=order,
                stored_order=stored_order, size_limit=float(size_limit), max_segments=max_segments,
-               inputs=_inputs(inputs, model), dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
+               mode_steps=steps, cluster=jump_cluster, merge=merge_segments, inputs=_inputs(inputs, model),
+               dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
     _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes, progress)
     result = ReachResult(system=model.name, state_names=model.state_names, horizon=run.horizon,
                          max_jumps=max_jumps, time_step=run.step, segments=tuple(run.segments),
@@ -160,10 +176,45 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
                        jumps=result.jumps, terminations=result.terminations, distances=distances)
 
 
+def _check_options(horizon: Any, time_step: Any, size_limit: Any, jump_cluster: Any,
+                   counts: Sequence[tuple[str, Any, int]]) -> None:
+    _check_number("horizon", horizon, lambda v: v > 0, "a finite time horizon > 0 [s]")
+    _check_number("time_step", time_step, lambda v: 0 < v <= horizon,
+                  f"a step 0 < time_step <= horizon = {horizon!r} [s]")
+    for name, value, low in counts:
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ReachError(name, value, f"an int >= {low}", f"give {name} as a whole number >= {low}")
+    _check_number("size_limit", size_limit, lambda v: v > 0, "a finite radius > 0")
+    if jump_cluster is not None and (isinstance(jump_cluster, bool) or not isinstance(jump_cluster, int)
+                                     or jump_cluster < 1):
+        raise ReachError("jump_cluster", jump_cluster, "None or an int >= 1",
+                         "give the number of consecutive segments per jump, or None for one jump per flowpipe")
+
+
 def _check_number(name: str, value: Any, ok: Any, expected: str) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
             or not math.isfinite(float(value)) or not ok(float(value)):
         raise ReachError(name, value, expected, f"give {name} as {expected}")
+
+
+def _mode_steps(steps: Mapping[str, float] | None, model: AffineHybridModel, horizon: float) -> dict[str, float]:
+    if steps is None:
+        return {}
+    if not isinstance(steps, Mapping):
+        raise ReachError("mode_time_steps", steps, "a mapping {mode: step}", "key each step by the name of its mode")
+    out = {}
+    for mode, step in steps.items():
+        if mode not in model.modes:
+            raise ReachError("mode_time_steps", {mode: step}, f"modes among {list(model.modes)}",
+                             "key each step by the name of its mode")
+        _check_number(f"mode_time_steps[{mode!r}]", step, lambda v: 0 < v <= horizon,
+                      f"a step 0 < step <= horizon = {horizon!r} [s]")
+        out[mode] = float(step)
+    return out
+
+
+def _step(run: _Run, mode: str) -> float:
+    return run.mode_steps.get(mode, run.step)
 
 
 def _unsafe(unsafe: Sequence[UnsafeSet]) -> tuple[UnsafeSet, ...]:
@@ -217,11 +268,13 @@ def _dynamics(run: _Run, mode: str) -> tuple[ModeDynamics, float]:
         c = [q / Fraction(scale) for q in c]
         a = [list(row) for row in m.a]
         norm = max([sum(abs(q) for q in row) + abs(ci) for row, ci in zip(a, c)] + [Fraction(0)])
-        if float(norm) * run.step > MAX_NORM_STEP:
+        step = _step(run, mode)
+        if float(norm) * step > MAX_NORM_STEP:
             limit = MAX_NORM_STEP / float(norm)
-            raise ReachError("time_step", run.step, f"a step with ‖A‖·time_step <= {MAX_NORM_STEP:g} in mode "
+            name = f"mode_time_steps[{mode!r}]" if mode in run.mode_steps else "time_step"
+            raise ReachError(name, step, f"a step with ‖A‖·time_step <= {MAX_NORM_STEP:g} in mode "
                              f"{mode!r} (‖A‖ = {float(norm):.6g})", f"use time_step <= {limit:.3g}")
-        dyn = mode_dynamics(mode, a, c, run.step, b, u)
+        dyn = mode_dynamics(mode, a, c, step, b, u)
         run.dynamics[mode] = (dyn, scale)
     return run.dynamics[mode]
 
@@ -250,13 +303,14 @@ def _explore(run: _Run, first: _Work, max_flowpipes: int, progress: Callable[[fl
             progress(reached)
         if collected and work.jumps >= run.max_jumps:
             run.terminations.append(Termination(
-                reason="max_jumps", mode=work.mode, time=min(v[2] for v in collected.values()), jumps=work.jumps,
+                reason="max_jumps", mode=work.mode, time=min(c[2] for v in collected.values() for c in v),
+                jumps=work.jumps,
                 detail=f"jump bound {run.max_jumps} reached in mode {work.mode!r}: "
                        f"{', '.join(sorted(collected))} may fire after it (not followed)"))
             continue
         for t in run.model.outgoing(work.mode):
-            if t.name in collected:
-                queue.append(_jump(run, work, t, *collected[t.name]))
+            for cluster in collected.get(t.name, ()):
+                queue.append(_jump(run, work, t, *cluster[:4]))
 
 
 def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.ndarray, t_lo: float,
@@ -279,7 +333,8 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
 
 
 def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
-    """One flowpipe: stores its segments and termination; returns ``{transition: [lo, hi, t_lo, t_hi]}``."""
+    """One flowpipe: stores its segments and termination; returns ``{transition: [[lo, hi, t_lo, t_hi, ...], ...]}``
+    (one entry per cluster of segments meeting the guard, see ``jump_cluster``)."""
     mode = run.model.modes[work.mode]
     n = len(run.model.state_names)
     guards = [(t.name, polyhedra_to_float(t.guard)) for t in run.model.outgoing(work.mode)]
@@ -290,11 +345,12 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     lo, hi = interval_hull(work.start)
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
                                      zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
-    _collect(collected, guards, work.start, lo, hi, work.t_lo, work.t_hi)
+    _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
     dyn, scale = _dynamics(run, work.mode)
+    pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)
     for k, segment in enumerate(segments(dyn, _augment(work.start, scale), run.order)):
-        t_lo = float(round_down(round_down(work.t_lo + k * run.step)))
-        t_hi = float(round_up(round_up(work.t_hi + (k + 1) * run.step)))
+        t_lo = float(round_down(round_down(work.t_lo + k * dyn.step)))
+        t_hi = float(round_up(round_up(work.t_hi + (k + 1) * dyn.step)))
         stop = _stop_reason(run, work, k, segment, n, t_lo)
         if stop is not None:
             run.terminations.append(stop)
@@ -307,17 +363,45 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
                 reason="left_invariant", mode=work.mode, time=t_lo, jumps=work.jumps,
                 detail=f"the flowpipe left the invariant of mode {work.mode!r} by t = {t_lo:.6g} s"))
             break
+        _store(run, work, pending, z, box, t_lo, t_hi)
+        _collect(run, collected, flowed_guards, z, box[0], box[1], t_lo, t_hi, k)
+    if pending:
+        _flush(run, work, pending)
+    return collected
+
+
+def _store(run: _Run, work: _Work, pending: list[Any], z: Zonotope, box: tuple[np.ndarray, np.ndarray],
+           t_lo: float, t_hi: float) -> None:
+    """Stores a flowed segment (``merge == 1``) or adds it to the pending merged one."""
+    if run.merge == 1:
         kept = reduce_order(z, run.stored_order)
         run.stored[0] += kept.dimension * (kept.order + 3)
         run.segments.append(ReachSegment(mode=work.mode, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps,
                                          zonotope=kept, lo=box[0], hi=box[1]))
-        _collect(collected, flowed_guards, z, box[0], box[1], t_lo, t_hi)
-    return collected
+        return
+    if not pending:
+        pending.extend([box[0], box[1], t_lo, t_hi, 1])
+    else:
+        pending[0] = np.minimum(pending[0], box[0])
+        pending[1] = np.maximum(pending[1], box[1])
+        pending[3] = t_hi
+        pending[4] += 1
+    if pending[4] >= run.merge:
+        _flush(run, work, pending)
+
+
+def _flush(run: _Run, work: _Work, pending: list[Any]) -> None:
+    lo, hi, t_lo, t_hi, _ = pending
+    kept = from_box(lo, hi)  # holds the box exactly (radius rounded up)
+    run.stored[0] += kept.dimension * (kept.order + 3)
+    run.segments.append(ReachSegment(mode=work.mode, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps,
+                                     zonotope=kept, lo=lo, hi=hi))
+    pending.clear()
 
 
 def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope, n: int, t_lo: float) -> Termination | None:
     where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
-    if work.t_lo + k * run.step > run.horizon:
+    if work.t_lo + k * _step(run, work.mode) > run.horizon:
         return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
                                                     f"{work.mode!r}", **where)
     if not segment.is_finite():
@@ -346,7 +430,14 @@ def _clip_union(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedra: Sequence
     """
     boxes = []
     for poly in polyhedra:
-        if any(definitely_outside(z, h) for h in poly):
+        position = box_position(lo, hi, poly)  # the box holds z: a cheap proven pre-test
+        if position < 0:
+            continue
+        if position > 0:
+            boxes.append((lo, hi))  # inside every halfspace: clipping would change nothing
+            continue
+        # a row with one non-zero coefficient is decided as tightly by clip_box on the box (the hull of z)
+        if any(definitely_outside(z, h) for h in poly if np.count_nonzero(h.normal) > 1):
             continue
         clipped = tighten_box(z, lo, hi, poly) if tight else clip_box(lo, hi, poly)
         if clipped is not None:
@@ -356,18 +447,21 @@ def _clip_union(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedra: Sequence
     return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
 
-def _collect(collected: dict[str, list[Any]], guards: Sequence[tuple[str, Any]], z: Zonotope, lo: np.ndarray,
-             hi: np.ndarray, t_lo: float, t_hi: float) -> None:
+def _collect(run: _Run, collected: dict[str, list[list[Any]]], guards: Sequence[tuple[str, Any]], z: Zonotope,
+             lo: np.ndarray, hi: np.ndarray, t_lo: float, t_hi: float, index: int) -> None:
+    """Adds segment ``index`` (-1: the entry set) to the jump clusters of every guard it may meet."""
     for name, polyhedra in guards:
         box = _clip_union(z, lo, hi, polyhedra, tight=True)
         if box is None:
             continue
-        if name not in collected:
-            collected[name] = [box[0], box[1], t_lo, t_hi]
+        clusters = collected.setdefault(name, [])
+        last = clusters[-1] if clusters else None
+        if last is not None and (run.cluster is None or (last[5] == index - 1 and last[4] < run.cluster)):
+            last[0] = np.minimum(last[0], box[0])
+            last[1] = np.maximum(last[1], box[1])
+            last[2] = min(last[2], t_lo)
+            last[3] = max(last[3], t_hi)
+            last[4] += 1
+            last[5] = index
         else:
-            entry = collected[name]
-            entry[0] = np.minimum(entry[0], box[0])
-            entry[1] = np.maximum(entry[1], box[1])
-            entry[2] = min(entry[2], t_lo)
-            entry[3] = max(entry[3], t_hi)
-
+            clusters.append([box[0], box[1], t_lo, t_hi, 1, index])

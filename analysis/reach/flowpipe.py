@@ -30,6 +30,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from .errorbound import ErrorTracker, error_tracker
 from .series import MatrixEnclosure, bloating_matrices, exp_enclosure
 from .zonotope import (
     UNIT_ROUNDOFF,
@@ -63,6 +64,9 @@ class ModeDynamics:
         ``D >= 0`` (interpolation error of the first segment).
     input_step : Zonotope or None
         ``V``: every state change a full step of input can cause (zero centre); ``None`` without input.
+    tracker : ErrorTracker or None
+        Bounds the accumulated rounding errors in an eigenbasis (:mod:`analysis.reach.errorbound`) instead of
+        the error zonotope; built only when the zonotope would wrap (``ρ(|Φ|) > 1``) and the basis is proven.
     """
 
     mode: str
@@ -70,6 +74,7 @@ class ModeDynamics:
     phi: MatrixEnclosure
     deviation: np.ndarray
     input_step: Zonotope | None
+    tracker: ErrorTracker | None = None
 
 
 def mode_dynamics(mode: str, a: list[list[Fraction]], c: list[Fraction], step: float,
@@ -108,7 +113,11 @@ def mode_dynamics(mode: str, a: list[list[Fraction]], c: list[Fraction], step: f
         top = np.hstack([scaled, box_generators(extra)])
         gens = np.vstack([top, np.zeros((1, top.shape[1]))])
         input_step = Zonotope(center=np.zeros(n + 1), generators=gens)
-    return ModeDynamics(mode=mode, step=step, phi=phi, deviation=deviation, input_step=input_step)
+    tracker = None
+    abs_phi = np.abs(phi.center)
+    if np.all(np.isfinite(abs_phi)) and float(np.max(np.abs(np.linalg.eigvals(abs_phi)))) > 1.0 + 1e-9:
+        tracker = error_tracker(np.array([[float(q) for q in row] for row in aug]), phi.center, phi.radius)
+    return ModeDynamics(mode=mode, step=step, phi=phi, deviation=deviation, input_step=input_step, tracker=tracker)
 
 
 def first_segment(dyn: ModeDynamics, start: Zonotope) -> Zonotope:
@@ -141,12 +150,19 @@ def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotop
     input_error = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
     input_sum = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
     phi_c, phi_r = dyn.phi.center, dyn.phi.radius
+    tracker = dyn.tracker
+    bound = tracker.start() if tracker is not None else None
     while True:
+        if tracker is not None:
+            error = Zonotope(center=np.zeros(dim), generators=box_generators(tracker.box(bound)))
         yield Zonotope(center=main.center,
                        generators=np.hstack([main.generators, error.generators, input_sum.generators]))
         main, e_main = linear_map(main, phi_c, phi_r)
-        error, e_error = linear_map(error, phi_c, phi_r)
-        error = reduce_order(with_error(error, upper(e_main + e_error, 2)), ERROR_ORDER)
+        if tracker is not None:  # no wrapping: the errors' moduli in the eigenbasis (errorbound.py)
+            bound = tracker.step(bound, e_main)
+        else:
+            error, e_error = linear_map(error, phi_c, phi_r)
+            error = reduce_order(with_error(error, upper(e_main + e_error, 2)), ERROR_ORDER)
         if mapped_input is not None:
             input_sum = reduce_order(Zonotope(center=input_sum.center, generators=np.hstack(
                 [input_sum.generators, mapped_input.generators, input_error.generators])), order)

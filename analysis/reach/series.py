@@ -126,16 +126,38 @@ def exp_enclosure(a: Sequence[Sequence[Fraction]], step: Fraction) -> MatrixEncl
     return MatrixEnclosure(center, radius)
 
 
+def _float_up_matrix(matrix: Sequence[Sequence[Fraction]]) -> np.ndarray:
+    """Floats ``>=`` the (non-negative) exact entries."""
+    out = np.array([[float(q) for q in row] for row in matrix], dtype=float).reshape(len(matrix), -1)
+    for i, row in enumerate(matrix):
+        for j, q in enumerate(row):
+            if Fraction(out[i, j]) < q:
+                out[i, j] = float(round_up(out[i, j]))
+    return out
+
+
 def bloating_matrices(a: Sequence[Sequence[Fraction]], step: Fraction) -> tuple[np.ndarray, np.ndarray]:
-    """Upper bounds of ``D = e^{|A|δ} − I − |A|δ`` and ``S = Σ_{k>=1} |A|^k δ^{k+1}/(k+1)!`` (both ``>= 0``)."""
+    """Upper bounds of ``D = e^{|A|δ} − I − |A|δ`` and ``S = Σ_{k>=1} |A|^k δ^{k+1}/(k+1)!`` (both ``>= 0``).
+
+    Every term is non-negative, so the series are summed in floating point and bounded from above: each term
+    ``(|A|δ)^k / k!`` is the previous one times ``|A|δ`` (rounded up entrywise) over ``k``, inflated by
+    :func:`~analysis.reach.zonotope.upper` for its ``n + 2`` roundings, which keeps it above the exact term;
+    the tails beyond the truncation order are the rigorous bounds of :func:`_tail`.
+    """
     m = [[abs(q) * step for q in row] for row in a]
     norm = _norm(m)
     order = _order(float(norm))
-    total, den = _series(m, order, 2, 0)
-    d_center, d_error = _to_float(total, den)
-    d_upper = upper(d_center + d_error + _tail(norm, order), 2)
-    total, den = _series(m, order, 1, 1)
-    s_center, s_error = _to_float(total, den)
+    size = len(m)
+    mf = _float_up_matrix(m)
+    term = np.eye(size)
+    d_sum = np.zeros((size, size))
+    s_sum = np.zeros((size, size))
+    for k in range(1, order + 1):
+        term = upper((term @ mf) / k, size + 2)
+        if k >= 2:
+            d_sum = d_sum + term
+        s_sum = s_sum + term / (k + 1)
+    d_upper = upper(d_sum + _tail(norm, order), order + 2)
     # S = δ Σ_{k>=1} (|A|δ)^k / (k+1)!
-    s_upper = upper((s_center + s_error + _tail(norm, order, 1)) * float(step), 3)
+    s_upper = upper((upper(s_sum, 2 * order + 2) + _tail(norm, order, 1)) * float(step), 3)
     return np.maximum(d_upper, 0.0), np.maximum(s_upper, 0.0)

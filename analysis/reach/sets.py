@@ -37,6 +37,7 @@ __all__ = [
     "to_float",
     "polyhedra_to_float",
     "definitely_outside",
+    "box_position",
     "clip_box",
     "tighten_box",
     "UnsafeSet",
@@ -78,6 +79,32 @@ def definitely_outside(z: Zonotope, h: FloatHalfspace) -> bool:
     """Whether every point of ``z`` violates ``h`` (proven: ``min_z a·x > b``)."""
     lo, _ = support_bounds(z, h.normal, h.residual)
     return lo > h.offset
+
+
+def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]) -> int:
+    """Where the box ``[lo, hi]`` lies against the polyhedron: ``-1`` proven outside one halfspace,
+    ``1`` proven inside every halfspace, ``0`` undecided (a cheap pre-test before the zonotope's).
+
+    Per row, ``min/max a·x`` over the box are bounded as in :func:`clip_box` (the rounding of the sums
+    and the residual of a non-float normal accounted for), so ``-1`` and ``1`` are proven.
+    """
+    if not halfspaces:
+        return 1
+    normals = np.array([h.normal for h in halfspaces])
+    residuals = np.array([h.residual for h in halfspaces])
+    offsets = np.array([h.offset for h in halfspaces])
+    n = normals.shape[1]
+    a_lo, a_hi = normals * lo, normals * hi
+    mins = np.minimum(a_lo, a_hi).sum(axis=1)
+    maxs = np.maximum(a_lo, a_hi).sum(axis=1)
+    mag = np.maximum(np.abs(lo), np.abs(hi))
+    size = np.maximum(np.abs(a_lo), np.abs(a_hi)).sum(axis=1)
+    slack = upper(gamma(n + 2) * (size + np.abs(offsets)) + residuals @ mag, n + 4)
+    if np.any(mins - slack > offsets):
+        return -1
+    if np.all(maxs + slack < offsets):  # strict: a rounded sum equal to the offset proves nothing
+        return 1
+    return 0
 
 
 def clip_box(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]
@@ -195,35 +222,54 @@ def _dual_bound(z: Zonotope, direction: np.ndarray, halfspaces: Sequence[FloatHa
     return float(round_up(round_up(top + shift + err + UNIT_ROUNDOFF * abs(top + shift))))
 
 
+def _multipliers(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, sweeps: int = 4) -> np.ndarray:
+    """Multipliers ``λ >= 0`` nearly minimising the dual ``λ·β + Σ_i |c_i − (αᵀλ)_i|`` (float, a suggestion).
+
+    The dual of ``max c·ξ`` over ``ξ ∈ [-1, 1]^m``, ``α ξ <= β`` is convex and piecewise linear in ``λ``; each
+    coordinate is minimised exactly in turn (its minimum lies at 0 or at a breakpoint ``r_i / α_ji``).  One
+    row: exact.  Several: cyclic descent, which may stop above the optimum; any ``λ >= 0`` gives a valid bound.
+    """
+    k = alpha.shape[0]
+    lam = np.zeros(k)
+    resid = c.copy()
+    for _ in range(sweeps if k > 1 else 1):
+        for j in range(k):
+            a = alpha[j]
+            r = resid + a * lam[j]
+            nz = a != 0.0
+            cands = np.concatenate([[0.0], r[nz] / a[nz]])
+            cands = cands[np.isfinite(cands) & (cands >= 0.0)]
+            values = cands * beta[j] + np.abs(r[None, :] - cands[:, None] * a[None, :]).sum(axis=1)
+            lam[j] = cands[int(np.argmin(values))]
+            resid = r - a * lam[j]
+    return lam
+
+
 def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]
                 ) -> tuple[np.ndarray, np.ndarray] | None:
     """A box containing ``z ∩ [lo, hi] ∩ {a_k·x <= b_k}``, tighter than :func:`clip_box` (``None``: empty).
 
     After :func:`clip_box`, each bound ``max/min x_i`` over ``z ∩ {halfspaces}`` is bounded by
-    :func:`_dual_bound` with the multipliers of a linear program (scipy's HiGHS): the program only
-    *suggests* the multipliers; the bound is valid for any of them, so an inaccurate or failed
-    program can only make it looser, never wrong.
+    :func:`_dual_bound` with multipliers from :func:`_multipliers` (exact coordinate descent on the dual of the
+    linear program, cheaper than a solver call): the multipliers are only a suggestion, the bound is valid for
+    any of them, so an inexact choice can only make it looser, never wrong.
     """
     box = clip_box(lo, hi, halfspaces)
     if box is None or not halfspaces or z.order == 0:
         return box
-    from scipy.optimize import linprog
-
     lo, hi = box
     g = z.generators
     normals = np.array([h.normal for h in halfspaces])
     offsets = np.array([h.offset for h in halfspaces])
-    a_ub = normals @ g
-    b_ub = offsets - normals @ z.center
+    alpha = normals @ g
+    beta = offsets - normals @ z.center
     n = z.dimension
     for i in range(n):
         for sign in (1.0, -1.0):
             e = np.zeros(n)
             e[i] = sign
-            res = linprog(-(e @ g), A_ub=a_ub, b_ub=b_ub, bounds=[(-1.0, 1.0)] * g.shape[1], method="highs")
-            if res.status != 0 or res.ineqlin is None:
-                continue
-            bound = _dual_bound(z, e, halfspaces, -np.asarray(res.ineqlin.marginals))
+            lam = _multipliers(sign * g[i], alpha, beta)
+            bound = _dual_bound(z, e, halfspaces, lam)
             if sign > 0:
                 hi[i] = min(hi[i], bound)
             else:
