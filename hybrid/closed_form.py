@@ -1,0 +1,400 @@
+"""Closed-form flows of affine modes, and fast point evaluation of a step's dense output.
+
+A mode whose symbolic flow (:func:`hybrid.symbolic.flow_map`) is *exactly* affine in the state,
+``ẋ = A x + b`` (read from the expression tree in exact rationals, never sampled: a product of two
+states, the time ``t``, ``min``/``max``/``abs``/``ite`` of the state, a transcendental function or a
+plain Python flow is not affine), has the solution
+
+.. math:: x(t_0 + τ) = e^{Aτ} x_0 + \\int_0^τ e^{As} b \\, ds
+          = [I_n \\; 0] \\exp\\left(\\begin{bmatrix} A & b \\\\ 0 & 0 \\end{bmatrix} τ\\right)
+            \\begin{bmatrix} x_0 \\\\ 1 \\end{bmatrix}.
+
+:func:`hybrid.continuous.simulate_continuous` (``closed_form="auto"``) then steps the mode with
+:class:`ClosedFormSolver` instead of a Runge–Kutta solver: the steps are pieces of the exact solution
+(length at most ``0.5 / ρ(A)``, ρ the spectral radius, and ``max_step``), their dense output *is* the
+solution, and the event search (:func:`hybrid.events.find_switch`, :func:`hybrid.events.locate_event`) runs
+on it unchanged, so the guards, the invariant and the stop functions are watched and located by the same
+rules and to the same ``event_tol`` as on a numerical step.  Only the integration error is gone.
+
+:class:`AffinePropagator` evaluates the solution by the cheapest exact route: a scalar mode by
+``x₀ e^{aτ} + b τ φ₁(aτ)`` (``φ₁(z) = (e^z − 1)/z`` by ``expm1``); a nilpotent augmented matrix (a chain
+of integrators: the bouncing ball) by its finite Taylor polynomial; a diagonalisable ``A`` with
+well-conditioned eigenvectors and a well-conditioned ``A`` by its eigen-decomposition around the
+equilibrium; anything else by :func:`scipy.linalg.expm` of the augmented matrix at each time.
+
+:func:`point_evaluator` is the fast scalar evaluation of a step's dense output the event search uses: the
+closed form's own, and for scipy's explicit Runge–Kutta interpolants the same formula as scipy's in plain
+floats.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from .symbolic_core import Apply, Const, Coordinate, MemoryRef, Param, SymbolicVector
+
+try:  # the explicit Runge-Kutta interpolants, for a fast scalar evaluation (see point_evaluator)
+    from scipy.integrate._ivp.rk import Dop853DenseOutput as _Dop853DenseOutput
+    from scipy.integrate._ivp.rk import RkDenseOutput as _RkDenseOutput
+except ImportError:  # pragma: no cover - private names moved: fall back to interp(t)
+    _Dop853DenseOutput = _RkDenseOutput = type("_Unavailable", (), {})
+
+__all__ = [
+    "AffineFlow",
+    "affine_flow",
+    "AffinePropagator",
+    "ClosedFormSolver",
+    "point_evaluator",
+    "STEP_FRACTION",
+    "EIGEN_CONDITION",
+]
+
+STEP_FRACTION = 0.5
+"""A closed-form step lasts at most this over the spectral radius of ``A`` [s] (no limit when it is 0)."""
+
+EIGEN_CONDITION = 1e6
+"""Largest condition number of the eigenvectors (and of ``A``) for which the eigen route is used."""
+
+_CACHE_LIMIT = 10_000
+_CACHE: dict[tuple[int, tuple[tuple[str, float], ...]], tuple[Any, AffineFlow | None]] = {}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class AffineFlow:
+    """``ẋ = A x + b``, read exactly from a symbolic flow.
+
+    Attributes
+    ----------
+    matrix : ndarray, shape (n, n)
+        ``A`` [1/s] (read-only).
+    offset : ndarray, shape (n,)
+        ``b`` [state unit / s] (read-only).
+    step : float
+        The longest closed-form step [s]: :data:`STEP_FRACTION` over the spectral radius of ``A``
+        (``inf`` when it is 0: a chain of integrators, whose solution is a polynomial).
+    route : tuple
+        How :class:`AffinePropagator` evaluates the solution (``"scalar"``, ``"poly"``, ``"eigen"`` or
+        ``"expm"`` and what it needs), decided once per flow.
+    """
+
+    matrix: np.ndarray
+    offset: np.ndarray
+    step: float
+    route: tuple[Any, ...]
+
+
+def affine_flow(flow: Any, dimension: int, memory: Mapping[str, float]) -> AffineFlow | None:
+    """The exact affine form of a mode's flow, or ``None`` when it is not exactly affine (or not symbolic).
+
+    Parameters
+    ----------
+    flow : hybrid.symbolic.SymbolicVector or callable
+        The mode's flow; only a symbolic ``flow_map`` can be read.
+    dimension : int
+        Number of states ``n``.
+    memory : Mapping[str, float]
+        The memory during the segment (constant on it): a memory variable the flow reads is a constant.
+
+    Returns
+    -------
+    AffineFlow or None
+        Cached per flow object and memory values read (a system built once is read once).
+    """
+    if not isinstance(flow, SymbolicVector) or flow.kind != "flow" or len(flow.components) != dimension:
+        return None
+    reads = tuple(sorted((k, float(v)) for k, v in memory.items()))
+    key = (id(flow), reads)
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit[1]
+    result = _read(flow, dimension, memory)
+    if len(_CACHE) >= _CACHE_LIMIT:
+        _CACHE.clear()
+    _CACHE[key] = (flow, result)  # the flow is kept alive with its form, so its id stays unique
+    return result
+
+
+def _read(flow: SymbolicVector, n: int, memory: Mapping[str, float]) -> AffineFlow | None:
+    memo: dict[int, tuple[list[Fraction], Fraction] | None] = {}
+    rows, offsets = [], []
+    for component in flow.components:
+        form = _form(component, n, memory, memo)
+        if form is None:
+            return None
+        rows.append([float(c) for c in form[0]])
+        offsets.append(float(form[1]))
+    matrix, offset = np.array(rows, dtype=float), np.array(offsets, dtype=float)
+    if not (np.all(np.isfinite(matrix)) and np.all(np.isfinite(offset))):
+        return None
+    matrix.setflags(write=False)
+    offset.setflags(write=False)
+    radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
+    return AffineFlow(matrix=matrix, offset=offset, step=STEP_FRACTION / radius if radius > 0.0 else math.inf,
+                      route=_route(matrix, offset))
+
+
+def _form(node: Any, n: int, memory: Mapping[str, float],
+          memo: dict[int, tuple[list[Fraction], Fraction] | None]) -> tuple[list[Fraction], Fraction] | None:
+    """``(coefficients, constant)`` of ``node`` in exact rationals, ``None`` when it is not affine."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    out: tuple[list[Fraction], Fraction] | None = None
+    if isinstance(node, (Const, Param)):
+        out = ([Fraction(0)] * n, Fraction(node.value)) if math.isfinite(node.value) else None
+    elif isinstance(node, Coordinate):
+        if 0 <= node.index < n:
+            coefficients = [Fraction(0)] * n
+            coefficients[node.index] = Fraction(1)
+            out = (coefficients, Fraction(0))
+    elif isinstance(node, MemoryRef):
+        value = memory.get(node.name)
+        out = ([Fraction(0)] * n, Fraction(float(value))) if value is not None and math.isfinite(value) else None
+    elif isinstance(node, Apply):
+        args = [_form(a, n, memory, memo) for a in node.args]
+        out = None if any(a is None for a in args) else _apply(node.op, args)  # type: ignore[arg-type]
+    memo[key] = out  # Time, Ite, Select, Unsupported: not affine
+    return out
+
+
+def _apply(op: str, args: list[tuple[list[Fraction], Fraction]]) -> tuple[list[Fraction], Fraction] | None:
+    def constant(form: tuple[list[Fraction], Fraction]) -> bool:
+        return not any(form[0])
+
+    if op in ("add", "sub"):
+        sign = 1 if op == "add" else -1
+        return [a + sign * b for a, b in zip(args[0][0], args[1][0])], args[0][1] + sign * args[1][1]
+    if op == "neg":
+        return [-a for a in args[0][0]], -args[0][1]
+    if op == "mul":
+        if constant(args[0]) or constant(args[1]):
+            k, other = (args[0][1], args[1]) if constant(args[0]) else (args[1][1], args[0])
+            return [k * a for a in other[0]], k * other[1]
+        return None
+    if op == "div":
+        if not constant(args[1]) or args[1][1] == 0:
+            return None
+        k = 1 / args[1][1]
+        return [k * a for a in args[0][0]], k * args[0][1]
+    if op == "pow" and constant(args[1]) and args[1][1].denominator == 1:
+        power = int(args[1][1])
+        if power == 1:
+            return args[0]
+        if constant(args[0]) and (power >= 0 or args[0][1] != 0):
+            return [Fraction(0)] * len(args[0][0]), args[0][1] ** power
+        return None
+    if op in ("abs", "min", "max") and all(constant(a) for a in args):
+        values = [a[1] for a in args]
+        value = abs(values[0]) if op == "abs" else (min(values) if op == "min" else max(values))
+        return [Fraction(0)] * len(args[0][0]), value
+    return None  # a transcendental function, or min/max/abs of the state: not affine
+
+
+# ---------------------------------------------------------------------- the solution
+class AffinePropagator:
+    """``x(t)`` of ``ẋ = A x + b`` from ``(t0, x0)``, exactly (to rounding), by the cheapest route.
+
+    Parameters
+    ----------
+    flow : AffineFlow
+    t0 : float
+        Initial time [s].
+    x0 : sequence of float, shape (n,)
+        Initial state.
+    """
+
+    __slots__ = ("t0", "x0", "_point", "_many")
+
+    def __init__(self, flow: AffineFlow, t0: float, x0: Sequence[float]) -> None:
+        self.t0 = float(t0)
+        self.x0 = np.array(x0, dtype=float)
+        self._point, self._many = _evaluators(flow.route, self.x0)
+
+    def point(self, t: float) -> tuple[float, ...]:
+        """State at one time ``t`` [s], shape ``(n,)`` as a tuple of floats."""
+        return self._point(t - self.t0)
+
+    def __call__(self, t: float | np.ndarray) -> np.ndarray:
+        """State at ``t``: shape ``(n,)`` for a scalar, ``(n, k)`` for ``k`` times (scipy's dense-output shape)."""
+        if np.ndim(t) == 0:
+            return np.array(self._point(float(t) - self.t0))
+        tau = np.asarray(t, dtype=float) - self.t0
+        return self._many(tau.reshape(-1)).reshape(self.x0.size, *tau.shape)
+
+
+def _route(a: np.ndarray, b: np.ndarray) -> tuple[Any, ...]:
+    """How to evaluate the solution: ("scalar", a, b), ("poly", M), ("eigen", ...) or ("expm", M)."""
+    n = b.size
+    if n == 1:
+        return ("scalar", float(a[0, 0]), float(b[0]))
+    augmented = np.zeros((n + 1, n + 1))
+    augmented[:n, :n], augmented[:n, n] = a, b
+    power = augmented.copy()
+    for _ in range(n):
+        power = power @ augmented
+    if not power.any():  # nilpotent: the Taylor series stops at degree n
+        return ("poly", augmented)
+    try:
+        if np.linalg.cond(a) <= EIGEN_CONDITION:
+            values, vectors = np.linalg.eig(a)
+            if np.linalg.cond(vectors) <= EIGEN_CONDITION:
+                equilibrium = np.linalg.solve(a, -b)
+                return ("eigen", values, vectors, np.linalg.inv(vectors), equilibrium)
+    except np.linalg.LinAlgError:
+        pass
+    return ("expm", augmented)
+
+
+def _evaluators(route: tuple[Any, ...], x0: np.ndarray) -> tuple[Callable[[float], tuple[float, ...]],
+                                                                   Callable[[np.ndarray], np.ndarray]]:
+    kind = route[0]
+    if kind == "scalar":
+        a, b, x = route[1], route[2], float(x0[0])
+
+        def scalar(tau: float) -> tuple[float, ...]:
+            z = a * tau
+            growth = math.exp(z)
+            return (x * growth + b * (math.expm1(z) / a if z != 0.0 else tau),)
+
+        def scalar_many(tau: np.ndarray) -> np.ndarray:
+            z = a * tau
+            if a == 0.0:
+                return (x + b * tau)[None, :]
+            return (x * np.exp(z) + b * (np.expm1(z) / a))[None, :]
+
+        return scalar, scalar_many
+    if kind == "poly":
+        m = route[1]
+        n = x0.size
+        term = np.append(x0, 1.0)
+        terms = [term]
+        for k in range(1, n + 1):  # M^k x̃0 / k!
+            term = m @ term / k
+            terms.append(term)
+        coefficients = np.array(terms)[::-1, :n]  # highest degree first, shape (n + 1, n)
+        rows = coefficients.tolist()
+
+        def poly(tau: float) -> tuple[float, ...]:
+            acc = rows[0]
+            for row in rows[1:]:
+                acc = [c * tau + r for c, r in zip(acc, row)]
+            return tuple(acc)
+
+        def poly_many(tau: np.ndarray) -> np.ndarray:
+            acc = np.repeat(coefficients[0][:, None], tau.size, axis=1)
+            for row in coefficients[1:]:
+                acc = acc * tau + row[:, None]
+            return acc
+
+        return poly, poly_many
+    if kind == "eigen":
+        values, vectors, inverse, equilibrium = route[1:]
+        weights = inverse @ (x0 - equilibrium)
+
+        def eigen_many(tau: np.ndarray) -> np.ndarray:
+            out = vectors @ (weights[:, None] * np.exp(np.outer(values, tau)))
+            return (out.real if np.iscomplexobj(out) else out) + equilibrium[:, None]
+
+        return (lambda tau: tuple(eigen_many(np.array([tau]))[:, 0].tolist())), eigen_many
+    from scipy.linalg import expm
+
+    m = route[1]
+    start = np.append(x0, 1.0)
+    n = x0.size
+
+    def expm_many(tau: np.ndarray) -> np.ndarray:
+        return np.stack([(expm(m * s) @ start)[:n] for s in tau], axis=1) if tau.size else np.empty((n, 0))
+
+    return (lambda tau: tuple((expm(m * tau) @ start)[:n].tolist())), expm_many
+
+
+class ClosedFormSolver:
+    """The scipy ``OdeSolver`` interface the executor uses (``step``, ``t``, ``t_old``, ``y``, ``status``,
+    ``dense_output``, ``nfev``), stepping the exact solution of an affine mode.
+
+    Parameters
+    ----------
+    flow : AffineFlow
+    t0, t_bound : float
+        Start and end of the integration [s].
+    x0 : sequence of float, shape (n,)
+    max_step : float
+        The user's step limit [s] (with :attr:`AffineFlow.step`).
+    """
+
+    nfev = 0
+
+    def __init__(self, flow: AffineFlow, t0: float, x0: Sequence[float], t_bound: float, max_step: float) -> None:
+        self.propagator = AffinePropagator(flow, t0, x0)
+        self.t = self.t_old = float(t0)
+        self.t_bound = float(t_bound)
+        self.h = min(max_step, flow.step)
+        self.y = np.array(x0, dtype=float)
+        self.status = "running" if self.t < self.t_bound else "finished"
+
+    def step(self) -> str | None:
+        """Advance one piece of the solution; ``status`` becomes ``"finished"`` at ``t_bound``, ``"failed"``
+        when the state is no longer finite."""
+        self.t_old = self.t
+        t_new = self.t + self.h
+        self.t = self.t_bound if t_new >= self.t_bound or self.t_bound - t_new < 1e-12 * self.h else t_new
+        self.y = np.array(self.propagator.point(self.t))
+        if not np.all(np.isfinite(self.y)):
+            self.status = "failed"
+            return "the closed-form solution of the affine flow overflowed (it grows without bound)"
+        if self.t >= self.t_bound:
+            self.status = "finished"
+        return None
+
+    def dense_output(self) -> AffinePropagator:
+        """The exact solution (valid over the whole segment, not only the last step)."""
+        return self.propagator
+
+
+def point_evaluator(interp: Any) -> Callable[[float], tuple[float, ...]]:
+    """Fast scalar evaluation of a step's dense output (same formula as scipy's).
+
+    scipy's ``DenseOutput.__call__`` costs ~15 µs for one time (array plumbing); event location calls it a
+    dozen times per event, so the two explicit Runge–Kutta interpolants are evaluated here in plain floats
+    (Horner's scheme), and an :class:`AffinePropagator` by its own scalar route.  Other solvers fall back to
+    ``interp(t)``.
+    """
+    if isinstance(interp, AffinePropagator):
+        return interp.point
+    if isinstance(interp, _RkDenseOutput):
+        t_old, h = float(interp.t_old), float(interp.h)
+        rows = interp.Q.tolist()
+        y_old = interp.y_old.tolist()
+
+        def rk(t: float) -> tuple[float, ...]:
+            x = (t - t_old) / h
+            out = []
+            for y0, q in zip(y_old, rows):
+                acc = 0.0
+                for c in reversed(q):
+                    acc = acc * x + c
+                out.append(y0 + h * x * acc)
+            return tuple(out)
+
+        return rk
+    if isinstance(interp, _Dop853DenseOutput):
+        t_old, h = float(interp.t_old), float(interp.h)
+        layers = [f.tolist() for f in reversed(interp.F)]
+        y_old = interp.y_old.tolist()
+
+        def dop(t: float) -> tuple[float, ...]:
+            x = (t - t_old) / h
+            y = [0.0] * len(y_old)
+            for i, f in enumerate(layers):
+                factor = x if i % 2 == 0 else 1.0 - x
+                y = [(a + b) * factor for a, b in zip(y, f)]
+            return tuple(a + b for a, b in zip(y, y_old))
+
+        return dop
+    return lambda t: tuple(interp(t).tolist())
