@@ -239,9 +239,11 @@ class HybridSimulation:
         if mode is None and not system.automaton.initial_mode_given:  # the invariants decide it
             x = tuple(float(x0[s]) for s in self.state_names)
             mode = initial_mode_of(system.automaton, system.signals(0.0, x), system.automaton.initial_memory())
+        options = dict(self.options)
+        if self.sample_period is not None:  # the trace is on its own grid: affine modes in closed form
+            options.setdefault("closed_form", True)
         trajectory = simulate_continuous(
-            system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode,
-            **dict(self.options),
+            system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode, **options,
         )
         trace = trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period)
         return _ended(trace, trajectory.termination, getattr(trajectory, "detail", ""), self.final_stops)
@@ -352,9 +354,12 @@ def hybrid_problem(
         mode whose invariant holds at the point's initial state (an error naming the candidates when none or
         several hold: a definition error of the model, reported as such).
     sample_period : float or None
-        Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).
+        Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).  With a sample
+        period the trace does not depend on the solver's steps, so the modes whose symbolic flow is exactly
+        affine are solved in closed form (``closed_form=True`` of :func:`hybrid.simulate_continuous`, unless
+        ``options`` says otherwise); without one the trace is the solver's step points.
     options : Mapping or None
-        Keyword arguments of :func:`hybrid.simulate_continuous` (``rtol``, ``max_step``, ...).
+        Keyword arguments of :func:`hybrid.simulate_continuous` (``rtol``, ``max_step``, ``closed_form``, ...).
     structural, check_box :
         The structural checks: a callable, or by default :func:`hybrid.check` of the
         nominal system over ``check_box`` (a :class:`hybrid.Box` of the states, or one per

@@ -9,12 +9,16 @@ plain Python flow is not affine), has the solution
           = [I_n \\; 0] \\exp\\left(\\begin{bmatrix} A & b \\\\ 0 & 0 \\end{bmatrix} τ\\right)
             \\begin{bmatrix} x_0 \\\\ 1 \\end{bmatrix}.
 
-:func:`hybrid.continuous.simulate_continuous` (``closed_form="auto"``) then steps the mode with
+:func:`hybrid.continuous.simulate_continuous` (``closed_form=True``; :func:`analysis.problems.hybrid_problem`
+sets it when the trace has its own sample period) then steps the mode with
 :class:`ClosedFormSolver` instead of a Runge–Kutta solver: the steps are pieces of the exact solution
 (length at most ``0.5 / ρ(A)``, ρ the spectral radius, and ``max_step``), their dense output *is* the
 solution, and the event search (:func:`hybrid.events.find_switch`, :func:`hybrid.events.locate_event`) runs
 on it unchanged, so the guards, the invariant and the stop functions are watched and located by the same
-rules and to the same ``event_tol`` as on a numerical step.  Only the integration error is gone.
+rules and to the same ``event_tol`` as on a numerical step.  Only the integration error is gone.  A
+one-state mode whose watches are affine in the state goes further (:func:`scalar_switch`): each watch is
+monotone along the flow, so the first switch-on is the root of the closed form, computed, then confirmed by
+evaluating the watches at both ends of a bracket of width ``event_tol`` — no step search at all.
 
 :class:`AffinePropagator` evaluates the solution by the cheapest exact route: a scalar mode by
 ``x₀ e^{aτ} + b τ φ₁(aτ)`` (``φ₁(z) = (e^z − 1)/z`` by ``expm1``); a nilpotent augmented matrix (a chain
@@ -51,6 +55,9 @@ __all__ = [
     "AffinePropagator",
     "ClosedFormSolver",
     "point_evaluator",
+    "scalar_watch_forms",
+    "scalar_switch",
+    "ScalarSwitch",
     "STEP_FRACTION",
     "EIGEN_CONDITION",
 ]
@@ -108,8 +115,7 @@ def affine_flow(flow: Any, dimension: int, memory: Mapping[str, float]) -> Affin
     """
     if not isinstance(flow, SymbolicVector) or flow.kind != "flow" or len(flow.components) != dimension:
         return None
-    reads = tuple(sorted((k, float(v)) for k, v in memory.items()))
-    key = (id(flow), reads)
+    key = (id(flow), tuple(sorted((k, float(v)) for k, v in memory.items())) if memory else ())
     hit = _CACHE.get(key)
     if hit is not None:
         return hit[1]
@@ -209,22 +215,38 @@ class AffinePropagator:
         Initial state.
     """
 
-    __slots__ = ("t0", "x0", "_point", "_many")
+    __slots__ = ("t0", "x0", "_scalar", "_point", "_many")
 
     def __init__(self, flow: AffineFlow, t0: float, x0: Sequence[float]) -> None:
         self.t0 = float(t0)
         self.x0 = np.array(x0, dtype=float)
-        self._point, self._many = _evaluators(flow.route, self.x0)
+        route = flow.route
+        if route[0] == "scalar":  # the common case, evaluated inline (no closures to build per segment)
+            self._scalar = (route[1], route[2], float(self.x0[0]))
+        else:
+            self._scalar = None
+            self._point, self._many = _evaluators(route, self.x0)
 
     def point(self, t: float) -> tuple[float, ...]:
         """State at one time ``t`` [s], shape ``(n,)`` as a tuple of floats."""
+        if self._scalar is not None:
+            a, b, x = self._scalar
+            tau = t - self.t0
+            z = a * tau
+            return (x * math.exp(z) + b * (math.expm1(z) / a if z != 0.0 else tau),)
         return self._point(t - self.t0)
 
     def __call__(self, t: float | np.ndarray) -> np.ndarray:
         """State at ``t``: shape ``(n,)`` for a scalar, ``(n, k)`` for ``k`` times (scipy's dense-output shape)."""
         if np.ndim(t) == 0:
-            return np.array(self._point(float(t) - self.t0))
+            return np.array(self.point(float(t)))
         tau = np.asarray(t, dtype=float) - self.t0
+        if self._scalar is not None:
+            a, b, x = self._scalar
+            flat = tau.reshape(-1)
+            z = a * flat
+            out = (x + b * flat) if a == 0.0 else (x * np.exp(z) + b * (np.expm1(z) / a))
+            return out.reshape(1, *tau.shape)
         return self._many(tau.reshape(-1)).reshape(self.x0.size, *tau.shape)
 
 
@@ -254,21 +276,6 @@ def _route(a: np.ndarray, b: np.ndarray) -> tuple[Any, ...]:
 def _evaluators(route: tuple[Any, ...], x0: np.ndarray) -> tuple[Callable[[float], tuple[float, ...]],
                                                                    Callable[[np.ndarray], np.ndarray]]:
     kind = route[0]
-    if kind == "scalar":
-        a, b, x = route[1], route[2], float(x0[0])
-
-        def scalar(tau: float) -> tuple[float, ...]:
-            z = a * tau
-            growth = math.exp(z)
-            return (x * growth + b * (math.expm1(z) / a if z != 0.0 else tau),)
-
-        def scalar_many(tau: np.ndarray) -> np.ndarray:
-            z = a * tau
-            if a == 0.0:
-                return (x + b * tau)[None, :]
-            return (x * np.exp(z) + b * (np.expm1(z) / a))[None, :]
-
-        return scalar, scalar_many
     if kind == "poly":
         m = route[1]
         n = x0.size
@@ -332,6 +339,7 @@ class ClosedFormSolver:
 
     def __init__(self, flow: AffineFlow, t0: float, x0: Sequence[float], t_bound: float, max_step: float) -> None:
         self.propagator = AffinePropagator(flow, t0, x0)
+        self.flow = flow
         self.t = self.t_old = float(t0)
         self.t_bound = float(t_bound)
         self.h = min(max_step, flow.step)
@@ -398,3 +406,124 @@ def point_evaluator(interp: Any) -> Callable[[float], tuple[float, ...]]:
 
         return dop
     return lambda t: tuple(interp(t).tolist())
+
+
+# ---------------------------------------------------------------------- events of a scalar affine mode
+_FORMS: dict[tuple[Any, ...], tuple[Any, tuple[tuple[float, float], ...] | None]] = {}
+
+
+def scalar_watch_forms(outgoing: Sequence[Any], invariant: Any, memory: Mapping[str, float]
+                       ) -> tuple[tuple[float, float], ...] | None:
+    """``(c_k, d_k)`` with ``phi_k = c_k x + d_k`` for every watch of a one-state mode, or ``None``.
+
+    The watches are the guards of ``outgoing`` (``-g`` for a downward crossing) then the invariant's
+    ``-inv`` (:func:`hybrid.watch_values.watch_terms`), read exactly; ``None`` when one is not symbolic or
+    not affine in the state (a conjunction, ``abs``, ...).  Cached per guard objects and memory values.
+    """
+    key = (id(outgoing), id(invariant), tuple(sorted((k, float(v)) for k, v in memory.items())) if memory else ())
+    hit = _FORMS.get(key)
+    if hit is not None:
+        return hit[1]
+    from .watch_values import watch_terms
+
+    terms = watch_terms(outgoing, invariant)
+    forms: tuple[tuple[float, float], ...] | None = None
+    if terms:
+        memo: dict[int, tuple[list[Fraction], Fraction] | None] = {}
+        read = [_form(term, 1, memory, memo) for term in terms]
+        if all(f is not None for f in read):
+            forms = tuple((float(f[0][0]), float(f[1])) for f in read)  # type: ignore[index]
+    if len(_FORMS) >= _CACHE_LIMIT:
+        _FORMS.clear()
+    _FORMS[key] = ((outgoing, invariant), forms)  # keeps the ids unique
+    return forms
+
+
+def _first_switch(flow: AffineFlow, x0: float, form: tuple[float, float], phi0: float, kind: str) -> float:
+    """When ``phi = c x(τ) + d`` first switches on from ``phi0`` (``inf``: never); ``phi`` is monotone in ``τ``."""
+    c, d = form
+    off = phi0 <= 0.0 if (kind == "strict" or kind == "from_zero") else phi0 < 0.0
+    a, b = float(flow.matrix[0, 0]), float(flow.offset[0])
+    if not off or c == 0.0 or c * (a * x0 + b) <= 0.0:  # on already (it cannot switch on again), or not rising
+        return math.inf
+    target = -d / c
+    if a == 0.0:
+        tau = (target - x0) / b
+    else:
+        rest = -b / a
+        ratio = (target - rest) / (x0 - rest)
+        if not ratio > 0.0:
+            return math.inf
+        tau = math.log(ratio) / a
+    return tau if tau > 0.0 else 0.0 if tau == tau else math.inf
+
+
+@dataclass(frozen=True, slots=True)
+class ScalarSwitch:
+    """The end of a one-state affine segment found on the closed form (see :func:`scalar_switch`).
+
+    ``time``, ``state``: the segment's end; ``candidates``: the watches switched on there (empty: the horizon
+    was reached); ``left_time``, ``left_state``, ``left_values``, ``values``: the final bracket, as
+    :class:`hybrid.events.LocatedEvent`; ``evaluations``: of the watches.
+    """
+
+    time: float
+    state: tuple[float, ...]
+    values: list[float]
+    candidates: list[int]
+    left_time: float
+    left_state: tuple[float, ...]
+    left_values: list[float]
+    evaluations: int
+
+
+def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], watches: Sequence[Any],
+                  phi0: list[float], solver: ClosedFormSolver, flow: AffineFlow,
+                  forms: Sequence[tuple[float, float]], event_tol: float) -> ScalarSwitch | None:
+    """The first switch-on of a one-state affine mode's affine watches, on the closed form; ``None``: undecided.
+
+    Each ``phi_k(τ) = c_k x(τ) + d_k`` is monotone (``x`` is), so it switches on at most once, at the root
+    of the closed form: the earliest root ``τ*`` is computed, then the watches are *evaluated* (by
+    ``values``, as the event search does) at ``t0 + τ*`` and ``event_tol`` before, the bracket moved by its
+    width until nothing is on at its left end and a watch is on at its right end — the event search's
+    result (:func:`hybrid.events.locate_event`: the right end of a bracket of width ``event_tol``), found
+    without searching.  ``None`` (the caller runs the search instead) when rounding leaves it undecided.
+    """
+    from .events import switched_on
+
+    prop = solver.propagator
+    t0, t_end, x0 = prop.t0, solver.t_bound, float(prop.x0[0])
+    first = min(_first_switch(flow, x0, f, p, w.kind) for f, p, w in zip(forms, phi0, watches))
+    evaluations = 1
+    if not t0 + first <= t_end:
+        state = prop.point(t_end)
+        phi = values(t_end, state)
+        if switched_on(watches, phi0, phi):
+            return None
+        return ScalarSwitch(time=t_end, state=state, values=phi, candidates=[], left_time=t_end, left_state=state,
+                            left_values=phi, evaluations=evaluations)
+    hi = max(t0 + first, math.nextafter(t0, math.inf))
+    width = max(event_tol, 4.0 * math.ulp(max(abs(t0), abs(t_end))))
+    step = math.ulp(hi)
+    for _ in range(48):  # the root, rounded: move right until a watch is on, by 1, 4, 16, ... ulp up to the width
+        state = prop.point(hi)
+        phi = values(hi, state)
+        evaluations += 1
+        on = switched_on(watches, phi0, phi)
+        if on:
+            break
+        if hi >= t_end:
+            return None
+        hi, step = min(hi + step, t_end), min(4.0 * step, width)
+    else:
+        return None
+    for _ in range(16):  # then left until none is on at the bracket's left end
+        lo = max(hi - width, t0)
+        left_state = prop.point(lo) if lo > t0 else tuple(prop.x0.tolist())
+        left = values(lo, left_state) if lo > t0 else phi0
+        evaluations += lo > t0
+        if not switched_on(watches, phi0, left):
+            return ScalarSwitch(time=hi, state=state, values=phi, candidates=on, left_time=lo,
+                                left_state=left_state, left_values=left, evaluations=evaluations)
+        hi, state, phi, on = lo, left_state, left, switched_on(watches, phi0, left)
+    return None

@@ -37,7 +37,7 @@ from .symbolic_core import (
     minimum,
 )
 
-__all__ = ["watch_function", "structure_key"]
+__all__ = ["watch_function", "watch_terms", "structure_key"]
 
 _CACHE_LIMIT = 10_000
 _CACHE: dict[Any, Callable[..., tuple[float, ...]] | None] = {}
@@ -95,6 +95,25 @@ def _level(term: Any) -> Expr | None:
     return None
 
 
+def watch_terms(outgoing: Sequence[Transition], invariant: Any) -> list[Expr] | None:
+    """The symbolic ``phi`` of a mode's watches (guards in ``outgoing`` order, then ``-inv``), or ``None``.
+
+    ``None`` when a guard or the invariant is not symbolic; an empty list when nothing is watched.
+    """
+    terms: list[Expr] = []
+    for tr in outgoing:
+        level = _level(tr.guard)
+        if level is None:
+            return None
+        terms.append(-level if tr.direction < 0 else level)
+    if invariant is not None:
+        level = _level(invariant)
+        if level is None:
+            return None
+        terms.append(-level)
+    return terms
+
+
 def watch_function(outgoing: Sequence[Transition], invariant: Any,
                    ) -> Callable[[Sequence[float], Mapping[str, float]], tuple[float, ...]] | None:
     """``phi(v, m)``: the values of a mode's watches, guards in ``outgoing`` order then the invariant's ``-inv``.
@@ -111,17 +130,7 @@ def watch_function(outgoing: Sequence[Transition], invariant: Any,
     callable or None
         ``None`` when a guard or the invariant is not symbolic (or cannot be compiled).
     """
-    terms: list[Expr] = []
-    for tr in outgoing:
-        level = _level(tr.guard)
-        if level is None:
-            return None
-        terms.append(-level if tr.direction < 0 else level)
-    if invariant is not None:
-        level = _level(invariant)
-        if level is None:
-            return None
-        terms.append(-level)
+    terms = watch_terms(outgoing, invariant)
     if not terms:
         return None
     key = tuple(structure_key(t) for t in terms)
