@@ -1,7 +1,7 @@
 """Closed-form flows of affine modes, and fast point evaluation of a step's dense output.
 
 A mode whose symbolic flow (:func:`hybrid.symbolic.flow_map`) is *exactly* affine in the state,
-``ẋ = A x + b`` (read from the expression tree in exact rationals, never sampled: a product of two
+``ẋ = A x + b`` (read from the expression tree, never sampled: a product of two
 states, the time ``t``, ``min``/``max``/``abs``/``ite`` of the state, a transcendental function or a
 plain Python flow is not affine), has the solution
 
@@ -36,7 +36,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -127,14 +126,14 @@ def affine_flow(flow: Any, dimension: int, memory: Mapping[str, float]) -> Affin
 
 
 def _read(flow: SymbolicVector, n: int, memory: Mapping[str, float]) -> AffineFlow | None:
-    memo: dict[int, tuple[list[Fraction], Fraction] | None] = {}
+    memo: dict[int, tuple[list[float], float] | None] = {}
     rows, offsets = [], []
     for component in flow.components:
         form = _form(component, n, memory, memo)
         if form is None:
             return None
-        rows.append([float(c) for c in form[0]])
-        offsets.append(float(form[1]))
+        rows.append(form[0])
+        offsets.append(form[1])
     matrix, offset = np.array(rows, dtype=float), np.array(offsets, dtype=float)
     if not (np.all(np.isfinite(matrix)) and np.all(np.isfinite(offset))):
         return None
@@ -146,22 +145,23 @@ def _read(flow: SymbolicVector, n: int, memory: Mapping[str, float]) -> AffineFl
 
 
 def _form(node: Any, n: int, memory: Mapping[str, float],
-          memo: dict[int, tuple[list[Fraction], Fraction] | None]) -> tuple[list[Fraction], Fraction] | None:
-    """``(coefficients, constant)`` of ``node`` in exact rationals, ``None`` when it is not affine."""
+          memo: dict[int, tuple[list[float], float] | None]) -> tuple[list[float], float] | None:
+    """``(coefficients, constant)`` of ``node``, ``None`` when it is not affine (structure read exactly; the
+    coefficients in floats: a coefficient differs from the rational one by rounding, ~1e-16 relative)."""
     key = id(node)
     if key in memo:
         return memo[key]
-    out: tuple[list[Fraction], Fraction] | None = None
+    out: tuple[list[float], float] | None = None
     if isinstance(node, (Const, Param)):
-        out = ([Fraction(0)] * n, Fraction(node.value)) if math.isfinite(node.value) else None
+        out = ([0.0] * n, node.value) if math.isfinite(node.value) else None
     elif isinstance(node, Coordinate):
         if 0 <= node.index < n:
-            coefficients = [Fraction(0)] * n
-            coefficients[node.index] = Fraction(1)
-            out = (coefficients, Fraction(0))
+            coefficients = [0.0] * n
+            coefficients[node.index] = 1.0
+            out = (coefficients, 0.0)
     elif isinstance(node, MemoryRef):
         value = memory.get(node.name)
-        out = ([Fraction(0)] * n, Fraction(float(value))) if value is not None and math.isfinite(value) else None
+        out = ([0.0] * n, float(value)) if value is not None and math.isfinite(value) else None
     elif isinstance(node, Apply):
         args = [_form(a, n, memory, memo) for a in node.args]
         out = None if any(a is None for a in args) else _apply(node.op, args)  # type: ignore[arg-type]
@@ -169,8 +169,8 @@ def _form(node: Any, n: int, memory: Mapping[str, float],
     return out
 
 
-def _apply(op: str, args: list[tuple[list[Fraction], Fraction]]) -> tuple[list[Fraction], Fraction] | None:
-    def constant(form: tuple[list[Fraction], Fraction]) -> bool:
+def _apply(op: str, args: list[tuple[list[float], float]]) -> tuple[list[float], float] | None:
+    def constant(form: tuple[list[float], float]) -> bool:
         return not any(form[0])
 
     if op in ("add", "sub"):
@@ -186,19 +186,19 @@ def _apply(op: str, args: list[tuple[list[Fraction], Fraction]]) -> tuple[list[F
     if op == "div":
         if not constant(args[1]) or args[1][1] == 0:
             return None
-        k = 1 / args[1][1]
-        return [k * a for a in args[0][0]], k * args[0][1]
-    if op == "pow" and constant(args[1]) and args[1][1].denominator == 1:
+        k = args[1][1]
+        return [a / k for a in args[0][0]], args[0][1] / k
+    if op == "pow" and constant(args[1]) and float(args[1][1]).is_integer():
         power = int(args[1][1])
         if power == 1:
             return args[0]
         if constant(args[0]) and (power >= 0 or args[0][1] != 0):
-            return [Fraction(0)] * len(args[0][0]), args[0][1] ** power
+            return [0.0] * len(args[0][0]), args[0][1] ** power
         return None
     if op in ("abs", "min", "max") and all(constant(a) for a in args):
         values = [a[1] for a in args]
         value = abs(values[0]) if op == "abs" else (min(values) if op == "min" else max(values))
-        return [Fraction(0)] * len(args[0][0]), value
+        return [0.0] * len(args[0][0]), value
     return None  # a transcendental function, or min/max/abs of the state: not affine
 
 
@@ -429,10 +429,10 @@ def scalar_watch_forms(outgoing: Sequence[Any], invariant: Any, memory: Mapping[
     terms = watch_terms(outgoing, invariant)
     forms: tuple[tuple[float, float], ...] | None = None
     if terms:
-        memo: dict[int, tuple[list[Fraction], Fraction] | None] = {}
+        memo: dict[int, tuple[list[float], float] | None] = {}
         read = [_form(term, 1, memory, memo) for term in terms]
         if all(f is not None for f in read):
-            forms = tuple((float(f[0][0]), float(f[1])) for f in read)  # type: ignore[index]
+            forms = tuple((f[0][0], f[1]) for f in read)  # type: ignore[index]
     if len(_FORMS) >= _CACHE_LIMIT:
         _FORMS.clear()
     _FORMS[key] = ((outgoing, invariant), forms)  # keeps the ids unique
