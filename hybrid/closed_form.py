@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from .events import LocatedEvent, is_on, switched_on
 from .symbolic_core import Apply, Const, Coordinate, MemoryRef, Param, SymbolicVector
 
 try:  # the explicit Runge-Kutta interpolants, for a fast scalar evaluation (see point_evaluator)
@@ -238,6 +239,11 @@ class AffinePropagator:
 
     def __call__(self, t: float | np.ndarray) -> np.ndarray:
         """State at ``t``: shape ``(n,)`` for a scalar, ``(n, k)`` for ``k`` times (scipy's dense-output shape)."""
+        if self._scalar is not None and t.__class__ is np.ndarray and t.ndim == 1:  # the trace's grid
+            a, b, x = self._scalar
+            tau = t - self.t0
+            z = a * tau
+            return ((x + b * tau) if a == 0.0 else (x * np.exp(z) + b * (np.expm1(z) / a)))[None, :]
         if np.ndim(t) == 0:
             return np.array(self.point(float(t)))
         tau = np.asarray(t, dtype=float) - self.t0
@@ -443,7 +449,7 @@ def _first_switch(flow: AffineFlow, x0: float, form: tuple[float, float], phi0: 
     """When ``phi = c x(τ) + d`` first switches on from ``phi0`` (``inf``: never); ``phi`` is monotone in ``τ``."""
     c, d = form
     off = phi0 <= 0.0 if (kind == "strict" or kind == "from_zero") else phi0 < 0.0
-    a, b = float(flow.matrix[0, 0]), float(flow.offset[0])
+    _, a, b = flow.route  # ("scalar", a, b)
     if not off or c == 0.0 or c * (a * x0 + b) <= 0.0:  # on already (it cannot switch on again), or not rising
         return math.inf
     target = -d / c
@@ -476,6 +482,16 @@ class ScalarSwitch:
     left_values: list[float]
     evaluations: int
 
+    def event(self, watches: Sequence[Any]) -> tuple[Any, tuple[int, ...]]:
+        """The :class:`hybrid.events.LocatedEvent` (``None`` at the horizon) and the invariant or stop watches
+        on there (as the executor's search reports them)."""
+        if not self.candidates:
+            return None, ()
+        located = LocatedEvent(time=self.time, state=self.state, values=self.values, left_time=self.left_time,
+                               left_state=self.left_state, left_values=self.left_values)
+        return located, tuple(k for k in self.candidates if watches[k].role != "guard"
+                              and is_on(watches[k].kind, self.values[k]))
+
 
 def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], watches: Sequence[Any],
                   phi0: list[float], solver: ClosedFormSolver, flow: AffineFlow,
@@ -489,11 +505,12 @@ def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], wat
     result (:func:`hybrid.events.locate_event`: the right end of a bracket of width ``event_tol``), found
     without searching.  ``None`` (the caller runs the search instead) when rounding leaves it undecided.
     """
-    from .events import switched_on
-
     prop = solver.propagator
     t0, t_end, x0 = prop.t0, solver.t_bound, float(prop.x0[0])
-    first = min(_first_switch(flow, x0, f, p, w.kind) for f, p, w in zip(forms, phi0, watches))
+    first = math.inf
+    for form, phi, watch in zip(forms, phi0, watches):
+        tau = _first_switch(flow, x0, form, phi, watch.kind)
+        first = tau if tau < first else first
     evaluations = 1
     if not t0 + first <= t_end:
         state = prop.point(t_end)

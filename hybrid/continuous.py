@@ -636,9 +636,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     if t < opts.t_end:
         phi_old = values(t, x)
         watches = arm_watches(watches, phi_old, disarmed)
-    rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
-    refiner = (Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
-                       opts.event_tol, t) if watches and opts.sign_checks and opts.refine_depth else None)
+    refiner = None
     resolution = 0.0
     run.last_point = (t, x)
     if t < opts.t_end:
@@ -654,12 +652,11 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
             times.append(found.time)
             states.append(found.state)
             interpolants.append(solver.propagator)
-            if found.candidates:
-                event = LocatedEvent(time=found.time, state=found.state, values=found.values,
-                                     left_time=found.left_time, left_state=found.left_state,
-                                     left_values=found.left_values)
-                on = tuple(k for k in found.candidates if watches[k].role != "guard"
-                           and is_on(watches[k].kind, found.values[k]))
+            event, on = found.event(watches)
+        elif watches and opts.sign_checks and opts.refine_depth:
+            rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
+            refiner = Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
+                              opts.event_tol, t)
         while solver.status == "running":
             if steps_before + steps >= opts.max_steps:
                 failure = (f"more than max_steps = {opts.max_steps} solver steps (at t = {solver.t:.17g} s in "
