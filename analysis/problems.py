@@ -63,9 +63,13 @@ __all__ = [
 def _grid(t_start: float, t_end: float, step_times: np.ndarray, period: float | None) -> np.ndarray:
     if period is None or t_end <= t_start:
         return step_times
-    inner = t_start + period * np.arange(1, int(math.floor((t_end - t_start) / period)) + 1)
-    inner = inner[inner < t_end]
-    return np.concatenate(([t_start], inner, [t_end]))
+    grid = [t_start]  # t_start + period * i in plain floats: the same IEEE products and sums as numpy's
+    for i in range(1, int(math.floor((t_end - t_start) / period)) + 1):
+        t = t_start + period * i
+        if t < t_end:
+            grid.append(t)
+    grid.append(t_end)
+    return np.array(grid)
 
 
 def trace_from_trajectory(

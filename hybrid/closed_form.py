@@ -349,7 +349,7 @@ class ClosedFormSolver:
         self.t = self.t_old = float(t0)
         self.t_bound = float(t_bound)
         self.h = min(max_step, flow.step)
-        self.y = np.array(x0, dtype=float)
+        self.y = self.propagator.x0
         self.status = "running" if self.t < self.t_bound else "finished"
 
     def step(self) -> str | None:

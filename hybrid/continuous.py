@@ -410,6 +410,7 @@ class _Run:
         self.unresolved = UnresolvedLog()
         self.last_point: tuple[float, tuple[float, ...]] | None = None  # last accepted (t, x), for DivergenceError
         self.compiled: dict[str, Callable[..., tuple[float, ...]] | None] = {}  # per mode, see values()
+        self.watch_sets: dict[str, tuple[Watch, ...]] = {}  # per mode, see watches()
 
     def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
         """:class:`DivergenceError` for a :class:`NumericalFailure` raised at ``(t, x)`` in ``mode``.
@@ -480,13 +481,17 @@ class _Run:
         return fun
 
     def watches(self, mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]) -> tuple[Watch, ...]:
-        """The watches of a segment starting at ``(t, x)``."""
+        """The watches of a segment starting at ``(t, x)`` (immutable: built once per mode)."""
+        known = self.watch_sets.get(mode)
+        if known is not None:
+            return known
         out = [Watch(role="guard", name=tr.name, kind="level" if tr.direction == 0 else "crossing", transition=tr)
                for tr in self.outgoing[mode]]
         if self.invariants[mode] is not None:
             out.append(Watch(role="invariant", name=mode, kind="strict"))
         out += [Watch(role="stop", name=name, kind="level") for name in self.stops]
-        return tuple(out)
+        self.watch_sets[mode] = tuple(out)
+        return self.watch_sets[mode]
 
     def values(
         self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
