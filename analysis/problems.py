@@ -42,7 +42,8 @@ import numpy as np
 
 from hybrid import HybridSystem
 from hybrid.model import initial_mode_of
-from hybrid.continuous import HybridTrajectory, simulate_continuous
+from hybrid.closed_form import sample_segments
+from hybrid.continuous import FlowSegment, HybridTrajectory, simulate_continuous
 from hybrid.sampled import Plant, SampledTrace, simulate_sampled
 
 from analysis.requirements import Requirement
@@ -97,17 +98,18 @@ def trace_from_trajectory(
         system's variables (when given and not states); label ``mode``.
     """
     times: list[np.ndarray] = []
-    states: list[np.ndarray] = []
+    states: list[np.ndarray | None] = []
     modes: list[str] = []
-    jumps: list[np.ndarray] = []
-
+    jumps: list[int] = []
+    pieces: list[tuple[int, FlowSegment, np.ndarray]] = []  # (chunk, segment, grid): sampled at the end, together
     memory_chunks: list[Mapping[str, float] | None] = []
 
-    def add(t: np.ndarray, x: np.ndarray, mode: str, jump: int, mem: Sequence[tuple[str, float]] | None) -> None:
+    def add(t: np.ndarray, x: np.ndarray | None, mode: str, jump: int, mem: Sequence[tuple[str, float]] | None
+            ) -> None:
         times.append(t)
         states.append(x)
         modes.extend([mode] * t.size)
-        jumps.append(np.full(t.size, jump, dtype=int))
+        jumps.append(jump)
         memory_chunks.append(None if mem is None else dict(mem))
 
     covered = {seg.jump for seg in trajectory.segments}
@@ -123,13 +125,16 @@ def trace_from_trajectory(
                 add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
             pending += 1
         t = _grid(seg.t_start, seg.t_end, seg.times, sample_period)
-        x = seg.states if t is seg.times else np.asarray(seg(t)).T.reshape(t.size, -1)
-        add(t, x, seg.mode, seg.jump, seg.memory)
+        if t is not seg.times:
+            pieces.append((len(states), seg, t))
+        add(t, seg.states if t is seg.times else None, seg.mode, seg.jump, seg.memory)
     for e in events[pending:]:
         if e.jump not in covered:
             add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
+    for (k, _, _), x in zip(pieces, sample_segments([(seg, t) for _, seg, t in pieces])):
+        states[k] = x
     t_all = np.concatenate(times)
-    x_all = np.concatenate(states)
+    x_all = np.concatenate(states)  # type: ignore[arg-type]
     signals = {name: x_all[:, i] for i, name in enumerate(trajectory.state_names)}
     signals.update(_memory_signals(memory_chunks, [t.size for t in times], exclude=signals))
     if system is not None and system.output is not None:
@@ -137,7 +142,8 @@ def trace_from_trajectory(
         for i, name in enumerate(system.automaton.variables):
             if name not in signals:
                 signals[name] = values[:, i]
-    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=np.concatenate(jumps))
+    counter = np.repeat(np.array(jumps, dtype=int), [t.size for t in times])
+    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=counter)
 
 
 def _memory_signals(chunks: Sequence[Mapping[str, float] | None], sizes: Sequence[int],
