@@ -58,6 +58,7 @@ __all__ = [
     "sample_segments",
     "scalar_watch_forms",
     "scalar_switch",
+    "closed_form_switch",
     "ScalarSwitch",
     "STEP_FRACTION",
     "EIGEN_CONDITION",
@@ -569,3 +570,23 @@ def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], wat
                                 left_state=left_state, left_values=left, evaluations=evaluations)
         hi, state, phi, on = lo, left_state, left, switched_on(watches, phi0, left)
     return None
+
+
+def closed_form_switch(solver: Any, values: Callable[[float, tuple[float, ...]], list[float]],
+                       watches: Sequence[Any], phi: list[float], *, outgoing: Sequence[Any], invariant: Any,
+                       memory: Mapping[str, float], system: Any, stops: bool, max_step: float,
+                       event_tol: float) -> ScalarSwitch | None:
+    """The end of a segment on the closed form (:func:`scalar_switch`) where it applies, else ``None``.
+
+    It applies to a :class:`ClosedFormSolver` of a one-state mode whose watches (``phi``, their values at the
+    start) are the affine guards of ``outgoing`` and the affine ``invariant`` of the state itself: the
+    ``system`` has no output map, the run no stop function (``stops``) and no ``max_step`` (a step limit
+    asks for the steps).  ``None``: the executor steps and searches as usual.
+    """
+    if not (isinstance(solver, ClosedFormSolver) and solver.propagator.x0.size == 1 and watches and not stops
+            and system.output is None and max_step == math.inf):
+        return None
+    forms = scalar_watch_forms(outgoing, invariant, memory)
+    if forms is None or len(forms) != len(watches):
+        return None
+    return scalar_switch(values, watches, phi, solver, solver.flow, forms, event_tol)

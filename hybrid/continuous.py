@@ -68,7 +68,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
 
-from .closed_form import ClosedFormSolver, ScalarSwitch, affine_flow, point_evaluator, scalar_switch, scalar_watch_forms
+from .closed_form import ClosedFormSolver, affine_flow, closed_form_switch, point_evaluator
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError
 from .events import (
@@ -88,7 +88,7 @@ from .events import (
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
 from .model import Transition, not_a_number
 from .system import HybridSystem, call_user, real_value
-from .watch_values import watch_function
+from .watch_values import evaluate_watches, watch_function
 from .system import format_state as _fmt
 
 __all__ = [
@@ -508,16 +508,7 @@ class _Run:
             compiled = self.compiled[mode] = watch_function(self.outgoing[mode], self.invariants[mode])
         if compiled is not None:
             try:
-                v = x if self.system.output is None else self.system.output(t, x)
-                fast = [float(c) for c in compiled(v, memory)]
-                if len(v) != self.n_signals or len(fast) != len(watches):
-                    raise ValueError
-                for value in fast:
-                    if value != value:
-                        raise ValueError
-                for value in v:
-                    if value != value:
-                        raise ValueError
+                fast = evaluate_watches(compiled, self.system.output, t, x, memory, self.n_signals, len(watches))
                 self.guard_evaluations += len(watches)
                 return fast
             except Exception:
@@ -650,7 +641,9 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
                   METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
                                        rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step))
         want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
-        found = (_closed_form_switch(run, opts, mode, seg_memory, values, watches, phi_old, solver)
+        found = (closed_form_switch(solver, values, watches, phi_old, outgoing=run.outgoing[mode], memory=seg_memory,
+                                    invariant=run.invariants[mode], system=run.system, stops=bool(run.stops),
+                                    max_step=opts.max_step, event_tol=opts.event_tol)
                  if steps_before < opts.max_steps else None)
         if found is not None:  # one piece of the exact solution, its event found on the closed form
             steps, roots, solver.status = 1, found.evaluations, "finished"
@@ -715,21 +708,6 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
         run.refinement_evaluations += refiner.evaluations
     return _SegmentResult(segment=segment, event=event, on=on, watches=watches, steps=steps, rhs=rhs, roots=roots,
                           failure=failure, resolution=resolution, disarmed=disarmed)
-
-
-def _closed_form_switch(run: _Run, opts: _Options, mode: str, memory: Mapping[str, float],
-                        values: Callable[[float, tuple[float, ...]], list[float]], watches: Sequence[Watch],
-                        phi: list[float], solver: Any) -> ScalarSwitch | None:
-    """The segment's end on the closed form (:func:`hybrid.closed_form.scalar_switch`) when it applies:
-    a one-state affine mode whose watches are affine guards and invariant of the state (no output map,
-    no stop function); ``None``: step and search as usual."""
-    if not (isinstance(solver, ClosedFormSolver) and solver.propagator.x0.size == 1 and watches
-            and not run.stops and run.system.output is None and opts.max_step == math.inf):
-        return None
-    forms = scalar_watch_forms(run.outgoing[mode], run.invariants[mode], memory)
-    if forms is None or len(forms) != len(watches):
-        return None
-    return scalar_switch(values, watches, phi, solver, solver.flow, forms, opts.event_tol)
 
 
 def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
@@ -1030,12 +1008,8 @@ def simulate_continuous(
         Keep the dense output of every step (for :meth:`HybridTrajectory.sample`).
     closed_form : bool
         ``True``: a mode whose symbolic flow is exactly affine, ``ẋ = A x + b``, is solved in closed form
-        (:mod:`hybrid.closed_form`) instead of with ``method``: steps of the exact solution (at most
-        ``0.5 / ρ(A)`` long and ``max_step``), watched and located by the same event search, or, for a
-        one-state mode whose watches are affine in the state (no output map, no stop function, no
-        ``max_step``), one step to the event found on the closed form; no integration error, far fewer
-        steps, so :attr:`FlowSegment.times` are few (sample the dense output, which is the exact solution,
-        for a plot).  ``False`` (default): every mode with ``method``, the step points the solver's.
+        (:mod:`hybrid.closed_form`: same event rules and ``event_tol``, no integration error, few steps:
+        sample the dense output, the exact solution, for a plot).  ``False`` (default): ``method`` everywhere.
 
     Returns
     -------

@@ -37,7 +37,7 @@ from .symbolic_core import (
     minimum,
 )
 
-__all__ = ["watch_function", "watch_terms", "structure_key"]
+__all__ = ["watch_function", "watch_terms", "evaluate_watches", "structure_key"]
 
 _CACHE_LIMIT = 10_000
 _CACHE: dict[Any, Callable[..., tuple[float, ...]] | None] = {}
@@ -146,3 +146,24 @@ def watch_function(outgoing: Sequence[Transition], invariant: Any,
         _CACHE.clear()
     _CACHE[key] = fn
     return fn
+
+
+def evaluate_watches(compiled: Callable[..., tuple[float, ...]], output: Callable[..., Any] | None, t: float,
+                     x: Sequence[float], memory: Mapping[str, float], n_signals: int, count: int) -> list[float]:
+    """The ``count`` watch values of :func:`watch_function`'s ``compiled`` at ``(t, x)``, as floats.
+
+    ``output``: the system's output map (``None``: the signals are the state).  Raises ``ValueError`` on any
+    doubt (a wrong length, a NaN signal or value): the caller then evaluates the functions one by one and
+    raises the error that names the culprit.
+    """
+    v = x if output is None else output(t, x)
+    out = [float(c) for c in compiled(v, memory)]
+    if len(v) != n_signals or len(out) != count:
+        raise ValueError
+    for value in out:
+        if value != value:
+            raise ValueError
+    for value in v:
+        if value != value:
+            raise ValueError
+    return out
