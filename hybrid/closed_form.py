@@ -392,8 +392,10 @@ def sample_segments(pieces: Sequence[tuple[Any, np.ndarray]]) -> list[np.ndarray
         z = a * tau
         linear = a == 0.0
         x = np.where(linear, x0 + b * tau, x0 * np.exp(z) + b * (np.expm1(z) / np.where(linear, 1.0, a)))
-        for i, part in zip(group, np.split(x, np.cumsum(sizes)[:-1])):
-            out[i] = part.reshape(-1, 1)
+        column, start = x.reshape(-1, 1), 0
+        for i, size in zip(group, sizes.tolist()):
+            out[i] = column[start:start + size]
+            start += size
     return [x if x is not None else np.asarray(seg(t)).T.reshape(t.size, -1) for x, (seg, t) in zip(out, pieces)]
 
 

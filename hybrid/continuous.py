@@ -443,6 +443,8 @@ class _Run:
             raise self.diverged(err, mode, t, x) from err
 
     def signals(self, mode: str, t: float, x: Sequence[float]) -> tuple[float, ...]:
+        if self.system.output is None:  # HybridSystem.signals without the call: the state itself
+            return tuple([float(c) for c in x])
         return self.checked(self.system.signals, mode, t, x, t, x, mode)
 
     def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
