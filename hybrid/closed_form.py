@@ -62,10 +62,15 @@ __all__ = [
     "ScalarSwitch",
     "STEP_FRACTION",
     "EIGEN_CONDITION",
+    "EXPM_SIZE",
 ]
 
 STEP_FRACTION = 0.5
 """A closed-form step lasts at most this over the spectral radius of ``A`` [s] (no limit when it is 0)."""
+
+EXPM_SIZE = 8
+"""Largest augmented matrix (``n + 1``) evaluated by :func:`scipy.linalg.expm` at each time; a larger system
+without a cheaper exact route (defective, ill-conditioned eigenvectors) keeps the numerical solver."""
 
 EIGEN_CONDITION = 1e6
 """Largest condition number of the eigenvectors (and of ``A``) for which the eigen route is used."""
@@ -142,9 +147,12 @@ def _read(flow: SymbolicVector, n: int, memory: Mapping[str, float]) -> AffineFl
         return None
     matrix.setflags(write=False)
     offset.setflags(write=False)
+    route = _route(matrix, offset)
+    if route[0] == "expm" and n + 1 > EXPM_SIZE:  # no cheap exact route: the numerical solver is faster
+        return None
     radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
     return AffineFlow(matrix=matrix, offset=offset, step=STEP_FRACTION / radius if radius > 0.0 else math.inf,
-                      route=_route(matrix, offset))
+                      route=route)
 
 
 def _form(node: Any, n: int, memory: Mapping[str, float],
@@ -271,11 +279,13 @@ def _route(a: np.ndarray, b: np.ndarray) -> tuple[Any, ...]:
     if not power.any():  # nilpotent: the Taylor series stops at degree n
         return ("poly", augmented)
     try:
-        if np.linalg.cond(a) <= EIGEN_CONDITION:
+        if np.linalg.cond(a) <= EIGEN_CONDITION:  # around the equilibrium
             values, vectors = np.linalg.eig(a)
             if np.linalg.cond(vectors) <= EIGEN_CONDITION:
-                equilibrium = np.linalg.solve(a, -b)
-                return ("eigen", values, vectors, np.linalg.inv(vectors), equilibrium)
+                return ("eigen", values, vectors, np.linalg.inv(vectors), np.linalg.solve(a, -b), False)
+        values, vectors = np.linalg.eig(augmented)  # a singular A (inputs, clocks): the augmented matrix
+        if np.linalg.cond(vectors) <= EIGEN_CONDITION:
+            return ("eigen", values, vectors, np.linalg.inv(vectors), np.zeros(n + 1), True)
     except np.linalg.LinAlgError:
         pass
     return ("expm", augmented)
@@ -309,12 +319,13 @@ def _evaluators(route: tuple[Any, ...], x0: np.ndarray) -> tuple[Callable[[float
 
         return poly, poly_many
     if kind == "eigen":
-        values, vectors, inverse, equilibrium = route[1:]
-        weights = inverse @ (x0 - equilibrium)
+        values, vectors, inverse, rest, augmented = route[1:]
+        n = x0.size
+        weights = inverse @ ((np.append(x0, 1.0) if augmented else x0) - rest)
 
         def eigen_many(tau: np.ndarray) -> np.ndarray:
-            out = vectors @ (weights[:, None] * np.exp(np.outer(values, tau)))
-            return (out.real if np.iscomplexobj(out) else out) + equilibrium[:, None]
+            out = vectors[:n] @ (weights[:, None] * np.exp(np.outer(values, tau)))
+            return (out.real if np.iscomplexobj(out) else out) + rest[:n, None]
 
         return (lambda tau: tuple(eigen_many(np.array([tau]))[:, 0].tolist())), eigen_many
     from scipy.linalg import expm
@@ -341,16 +352,19 @@ class ClosedFormSolver:
     x0 : sequence of float, shape (n,)
     max_step : float
         The user's step limit [s] (with :attr:`AffineFlow.step`).
+    watched : bool
+        Whether anything is watched along the flow; if not, the steps are as long as ``max_step`` allows.
     """
 
     nfev = 0
 
-    def __init__(self, flow: AffineFlow, t0: float, x0: Sequence[float], t_bound: float, max_step: float) -> None:
+    def __init__(self, flow: AffineFlow, t0: float, x0: Sequence[float], t_bound: float, max_step: float,
+                 watched: bool = True) -> None:
         self.propagator = AffinePropagator(flow, t0, x0)
         self.flow = flow
         self.t = self.t_old = float(t0)
         self.t_bound = float(t_bound)
-        self.h = min(max_step, flow.step)
+        self.h = min(max_step, flow.step) if watched else max_step  # nothing to watch: no step limit but yours
         self.y = self.propagator.x0
         self.status = "running" if self.t < self.t_bound else "finished"
 

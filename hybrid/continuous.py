@@ -251,7 +251,7 @@ class HybridTrajectory:
         uniform samples of the watched functions in any step (step length over
         ``sign_checks + 1``).  Every window longer than this in which a guard,
         the invariant or a stop function is on was seen.  ``0.0`` when nothing
-        was watched.
+        was watched, or every flow's event was found on a closed form (``closed_form``).
     unresolved : tuple of UnresolvedWindow
         Where a shorter window could not be ruled out at the finest refinement
         (the samples were still closer to zero than the function can move
@@ -639,7 +639,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     run.last_point = (t, x)
     if t < opts.t_end:
         affine = affine_flow(run.system.flows[mode], len(x), seg_memory) if opts.closed_form else None
-        solver = (ClosedFormSolver(affine, t, x, opts.t_end, opts.max_step) if affine is not None else
+        solver = (ClosedFormSolver(affine, t, x, opts.t_end, opts.max_step, bool(watches)) if affine is not None else
                   METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
                                        rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step))
         want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
