@@ -24,7 +24,9 @@ evaluating the watches at both ends of a bracket of width ``event_tol`` — no s
 ``x₀ e^{aτ} + b τ φ₁(aτ)`` (``φ₁(z) = (e^z − 1)/z`` by ``expm1``); a nilpotent augmented matrix (a chain
 of integrators: the bouncing ball) by its finite Taylor polynomial; a diagonalisable ``A`` with
 well-conditioned eigenvectors and a well-conditioned ``A`` by its eigen-decomposition around the
-equilibrium; anything else by :func:`scipy.linalg.expm` of the augmented matrix at each time.
+equilibrium, a singular ``A`` by the augmented matrix's; anything else by :func:`scipy.linalg.expm` of the
+augmented matrix at each time, for small systems only (:data:`EXPM_SIZE`; a larger one is not solved in
+closed form: :func:`affine_flow` gives ``None``).
 
 :func:`point_evaluator` is the fast scalar evaluation of a step's dense output the event search uses: the
 closed form's own, and for scipy's explicit Runge–Kutta interpolants the same formula as scipy's in plain
