@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
 from hybrid import HybridAutomaton, HybridSystem, Mode, Transition
@@ -96,12 +97,14 @@ def _oscillator(guard_level: float, a: np.ndarray, b: np.ndarray, stops=None):
 
 
 @pytest.mark.parametrize("a, b, route", [
-    (np.array([[-0.1, 2.0], [-2.0, -0.1]]), np.array([0.0, 0.3]), "eigen"),  # complex eigenvalues
-    (np.array([[-1.0, 0.0], [0.0, 0.0]]), np.array([0.5, 1.0]), "expm"),  # singular, not nilpotent: scipy's expm
+    (np.array([[-0.1, 2.0], [-2.0, -0.1]]), np.array([0.0, 0.3]), ("eigen", False)),  # complex eigenvalues
+    (np.array([[-1.0, 1.0], [0.0, 0.0]]), np.array([0.5, 0.0]), ("eigen", True)),  # an input: augmented matrix
+    (np.array([[-1.0, 0.0], [0.0, 0.0]]), np.array([0.5, 1.0]), ("expm",)),  # a clock: defective, scipy's expm
 ])
 def test_two_state_modes_against_the_matrix_exponential_and_rk45(a, b, route):
     system = _oscillator(0.25, a, b)
-    assert affine_flow(system.flows["run"], 2, {}).route[0] == route
+    found = affine_flow(system.flows["run"], 2, {}).route
+    assert (found[0], *found[5:]) == route
     x0 = (0.0, 0.0)
     run = simulate_continuous(system, x0, duration=20.0, closed_form=True)
     rk = simulate_continuous(system, x0, duration=20.0, rtol=1e-12, atol=1e-14)
@@ -158,3 +161,30 @@ def test_a_propagator_evaluates_one_time_and_many_alike():
     exact = 2.0 + 2.0 * np.exp(-0.5 * (t - 2.0))
     np.testing.assert_allclose(prop(t)[0], exact, rtol=1e-15)
     assert prop.point(2.5)[0] == pytest.approx(exact[1], rel=1e-15) and prop(2.0).tolist() == [4.0]
+
+
+def _chain(n: int):
+    """x_i' = x_{i+1} - x_i, x_{n-1}' = 0.5: a Jordan block at -1 and a clock (defective, not nilpotent)."""
+    names = [f"x{i}" for i in range(n)]
+    x = coordinates(*names)
+    return flow_map(*[getattr(x, names[i + 1]) - getattr(x, names[i]) for i in range(n - 1)], 0.5 + 0.0 * x.x0)
+
+
+def test_a_large_system_without_a_cheap_route_keeps_the_numerical_solver():
+    assert affine_flow(_chain(8), 8, {}) is None
+    small = affine_flow(_chain(4), 4, {})  # small: scipy's expm at each time
+    assert small is not None and small.route[0] == "expm"
+    t = np.array([0.0, 0.7, 2.0])
+    x0 = (1.0, -1.0, 0.5, 0.0)
+    ode = solve_ivp(lambda _, x: [x[1] - x[0], x[2] - x[1], x[3] - x[2], 0.5], (0.0, 2.0), x0, method="DOP853",
+                    t_eval=t, rtol=1e-13, atol=1e-15)  # an independent route: a high-order integrator
+    np.testing.assert_allclose(AffinePropagator(small, 0.0, x0)(t), ode.y, rtol=1e-10, atol=1e-12)
+
+
+def test_an_unwatched_flow_is_one_step_of_the_exact_solution():
+    x = coordinates("p", "q")
+    automaton = HybridAutomaton(name="free", modes=(Mode(name="run"),), transitions=(), variables=("p", "q"))
+    system = HybridSystem(automaton=automaton, state_names=("p", "q"), flows={"run": flow_map(x.q, -x.p)})
+    run = simulate_continuous(system, (1.0, 0.0), duration=50.0, closed_form=True)
+    assert run.stats.steps == 1 and run.segments[0].times.tolist() == [0.0, 50.0]
+    np.testing.assert_allclose(run.final_state, (math.cos(50.0), -math.sin(50.0)), atol=1e-13)
