@@ -95,3 +95,16 @@ def test_a_picklable_simulator_runs_its_batch_in_a_process_pool():
     assert [t.times.tobytes() for t in pooled] == [t.times.tobytes() for t in alone]
     assert [t.signals["T"].tobytes() for t in pooled] == [t.signals["T"].tobytes() for t in alone]
     assert len({t.signals["T"].tobytes() for t in pooled}) == 3
+
+
+def test_a_zero_band_thermostat_ends_in_zeno_at_the_analytic_time_on_both_paths():
+    zero = load_problem(THERMOSTAT.replace(":problem", ":zero_band"))
+    point = {"T0": 20.3, "rate": 0.1}
+    exact, rk = zero.simulate(point), numerical(zero)(point)
+    assert exact.termination == rk.termination == "zeno"
+    # off from 20.3 °C: T reaches the setpoint 20 °C at t = ln(10.3 / 10) / 0.1, and both guards hold there
+    t_z = math.log(10.3 / 10.0) / 0.1
+    assert float(exact.times[-1]) == pytest.approx(t_z, abs=1e-11)
+    assert float(rk.times[-1]) == pytest.approx(t_z, abs=1e-8)
+    for req in zero.parsed:
+        assert (float(req.formula.robustness(exact)) >= 0) == (float(req.formula.robustness(rk)) >= 0)
