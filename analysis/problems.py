@@ -42,7 +42,8 @@ import numpy as np
 
 from hybrid import HybridSystem
 from hybrid.model import initial_mode_of
-from hybrid.continuous import HybridTrajectory, simulate_continuous
+from hybrid.closed_form import sample_segments
+from hybrid.continuous import FlowSegment, HybridTrajectory, simulate_continuous
 from hybrid.sampled import Plant, SampledTrace, simulate_sampled
 
 from analysis.requirements import Requirement
@@ -63,9 +64,13 @@ __all__ = [
 def _grid(t_start: float, t_end: float, step_times: np.ndarray, period: float | None) -> np.ndarray:
     if period is None or t_end <= t_start:
         return step_times
-    inner = t_start + period * np.arange(1, int(math.floor((t_end - t_start) / period)) + 1)
-    inner = inner[inner < t_end]
-    return np.concatenate(([t_start], inner, [t_end]))
+    grid = [t_start]  # t_start + period * i in plain floats: the same IEEE products and sums as numpy's
+    for i in range(1, int(math.floor((t_end - t_start) / period)) + 1):
+        t = t_start + period * i
+        if t < t_end:
+            grid.append(t)
+    grid.append(t_end)
+    return np.array(grid)
 
 
 def trace_from_trajectory(
@@ -93,17 +98,18 @@ def trace_from_trajectory(
         system's variables (when given and not states); label ``mode``.
     """
     times: list[np.ndarray] = []
-    states: list[np.ndarray] = []
+    states: list[np.ndarray | None] = []
     modes: list[str] = []
-    jumps: list[np.ndarray] = []
-
+    jumps: list[int] = []
+    pieces: list[tuple[int, FlowSegment, np.ndarray]] = []  # (chunk, segment, grid): sampled at the end, together
     memory_chunks: list[Mapping[str, float] | None] = []
 
-    def add(t: np.ndarray, x: np.ndarray, mode: str, jump: int, mem: Sequence[tuple[str, float]] | None) -> None:
+    def add(t: np.ndarray, x: np.ndarray | None, mode: str, jump: int, mem: Sequence[tuple[str, float]] | None
+            ) -> None:
         times.append(t)
         states.append(x)
         modes.extend([mode] * t.size)
-        jumps.append(np.full(t.size, jump, dtype=int))
+        jumps.append(jump)
         memory_chunks.append(None if mem is None else dict(mem))
 
     covered = {seg.jump for seg in trajectory.segments}
@@ -119,13 +125,16 @@ def trace_from_trajectory(
                 add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
             pending += 1
         t = _grid(seg.t_start, seg.t_end, seg.times, sample_period)
-        x = seg.states if t is seg.times else np.asarray(seg(t)).T.reshape(t.size, -1)
-        add(t, x, seg.mode, seg.jump, seg.memory)
+        if t is not seg.times:
+            pieces.append((len(states), seg, t))
+        add(t, seg.states if t is seg.times else None, seg.mode, seg.jump, seg.memory)
     for e in events[pending:]:
         if e.jump not in covered:
             add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
+    for (k, _, _), x in zip(pieces, sample_segments([(seg, t) for _, seg, t in pieces])):
+        states[k] = x
     t_all = np.concatenate(times)
-    x_all = np.concatenate(states)
+    x_all = np.concatenate(states)  # type: ignore[arg-type]
     signals = {name: x_all[:, i] for i, name in enumerate(trajectory.state_names)}
     signals.update(_memory_signals(memory_chunks, [t.size for t in times], exclude=signals))
     if system is not None and system.output is not None:
@@ -133,7 +142,8 @@ def trace_from_trajectory(
         for i, name in enumerate(system.automaton.variables):
             if name not in signals:
                 signals[name] = values[:, i]
-    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=np.concatenate(jumps))
+    counter = np.repeat(np.array(jumps, dtype=int), [t.size for t in times])
+    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=counter)
 
 
 def _memory_signals(chunks: Sequence[Mapping[str, float] | None], sizes: Sequence[int],
@@ -244,9 +254,11 @@ class HybridSimulation:
         if mode is None and not system.automaton.initial_mode_given:  # the invariants decide it
             x = tuple(float(x0[s]) for s in self.state_names)
             mode = initial_mode_of(system.automaton, system.signals(0.0, x), system.automaton.initial_memory())
+        options = dict(self.options)
+        if self.sample_period is not None:  # the trace is on its own grid: affine modes in closed form
+            options.setdefault("closed_form", True)
         trajectory = simulate_continuous(
-            system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode,
-            **dict(self.options),
+            system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode, **options,
         )
         trace = trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period)
         return _ended(trace, trajectory.termination, getattr(trajectory, "detail", ""), self.final_stops)
@@ -357,9 +369,12 @@ def hybrid_problem(
         mode whose invariant holds at the point's initial state (an error naming the candidates when none or
         several hold: a definition error of the model, reported as such).
     sample_period : float or None
-        Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).
+        Uniform sampling of the flows for the STL trace (:func:`trace_from_trajectory`).  With a sample
+        period the trace does not depend on the solver's steps, so the modes whose symbolic flow is exactly
+        affine are solved in closed form (``closed_form=True`` of :func:`hybrid.simulate_continuous`, unless
+        ``options`` says otherwise); without one the trace is the solver's step points.
     options : Mapping or None
-        Keyword arguments of :func:`hybrid.simulate_continuous` (``rtol``, ``max_step``, ...).
+        Keyword arguments of :func:`hybrid.simulate_continuous` (``rtol``, ``max_step``, ``closed_form``, ...).
     structural, check_box :
         The structural checks: a callable, or by default :func:`hybrid.check` of the
         nominal system over ``check_box`` (a :class:`hybrid.Box` of the states, or one per

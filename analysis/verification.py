@@ -325,7 +325,10 @@ class VerificationProblem:
     def trace(self, point: Mapping[str, float]) -> SignalTrace:
         """``simulate(point)``, with every parameter a formula reads and the trace lacks added as a constant
         signal (``always (d >= d_min)`` with ``d_min`` a parameter of the box)."""
-        trace = self.simulate(point)
+        return self._with_parameters(point, self.simulate(point))
+
+    def _with_parameters(self, point: Mapping[str, float], trace: Any) -> Any:
+        """``trace`` with the parameters a formula reads and it lacks added as constant signals."""
         if not isinstance(trace, SignalTrace):
             return trace
         read = set().union(*(r.formula.signals for r in self.parsed)) if self.parsed else set()
@@ -335,6 +338,24 @@ class VerificationProblem:
         signals = {**trace.signals, **{name: np.full(trace.n, float(point[name])) for name in missing}}
         return SignalTrace(times=trace.times, signals=signals, labels=trace.labels, jumps=trace.jumps,
                            termination=trace.termination, termination_detail=trace.termination_detail)
+
+    def traces(self, points: Sequence[Mapping[str, float]], executor: Any = None) -> list[SignalTrace]:
+        """:meth:`trace` of every point, in order: the same traces as one by one.
+
+        Parameters
+        ----------
+        points : sequence of Mapping[str, float]
+            Points of the box (parameter name -> value), e.g. a Monte-Carlo batch or a finite-difference stencil.
+        executor : concurrent.futures.Executor or None
+            ``None``: in this process.  An executor (a process pool, :func:`analysis.campaigns.campaign_executor`'s
+            backend's ``executor``) runs the simulations there with ``map`` (the simulator must pickle: a
+            module-level object, as :func:`analysis.problems.hybrid_problem` builds with a picklable system);
+            every simulation is deterministic, so the traces do not depend on the executor.
+        """
+        batch = [dict(p) for p in points]
+        if executor is None:
+            return [self.trace(p) for p in batch]
+        return [self._with_parameters(p, t) for p, t in zip(batch, executor.map(self.simulate, batch))]
 
     def nominal(self) -> dict[str, float]:
         """The nominal point."""

@@ -68,12 +68,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
 
-try:  # the explicit Runge-Kutta interpolants, for a fast scalar evaluation (see _point_evaluator)
-    from scipy.integrate._ivp.rk import Dop853DenseOutput as _Dop853DenseOutput
-    from scipy.integrate._ivp.rk import RkDenseOutput as _RkDenseOutput
-except ImportError:  # pragma: no cover - private names moved: fall back to interp(t)
-    _Dop853DenseOutput = _RkDenseOutput = type("_Unavailable", (), {})
-
+from .closed_form import ClosedFormSolver, affine_flow, closed_form_switch, point_evaluator
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
 from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError
 from .events import (
@@ -93,6 +88,7 @@ from .events import (
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
 from .model import Transition, not_a_number
 from .system import HybridSystem, call_user, real_value
+from .watch_values import evaluate_watches, watch_function
 from .system import format_state as _fmt
 
 __all__ = [
@@ -255,7 +251,7 @@ class HybridTrajectory:
         uniform samples of the watched functions in any step (step length over
         ``sign_checks + 1``).  Every window longer than this in which a guard,
         the invariant or a stop function is on was seen.  ``0.0`` when nothing
-        was watched.
+        was watched, or every flow's event was found on a closed form (``closed_form``).
     unresolved : tuple of UnresolvedWindow
         Where a shorter window could not be ruled out at the finest refinement
         (the samples were still closer to zero than the function can move
@@ -413,6 +409,8 @@ class _Run:
         self.refinement_evaluations = 0
         self.unresolved = UnresolvedLog()
         self.last_point: tuple[float, tuple[float, ...]] | None = None  # last accepted (t, x), for DivergenceError
+        self.compiled: dict[str, Callable[..., tuple[float, ...]] | None] = {}  # per mode, see values()
+        self.watch_sets: dict[str, tuple[Watch, ...]] = {}  # per mode, see watches()
 
     def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
         """:class:`DivergenceError` for a :class:`NumericalFailure` raised at ``(t, x)`` in ``mode``.
@@ -445,6 +443,8 @@ class _Run:
             raise self.diverged(err, mode, t, x) from err
 
     def signals(self, mode: str, t: float, x: Sequence[float]) -> tuple[float, ...]:
+        if self.system.output is None:  # HybridSystem.signals without the call: the state itself
+            return tuple([float(c) for c in x])
         return self.checked(self.system.signals, mode, t, x, t, x, mode)
 
     def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
@@ -483,23 +483,38 @@ class _Run:
         return fun
 
     def watches(self, mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]) -> tuple[Watch, ...]:
-        """The watches of a segment starting at ``(t, x)``."""
+        """The watches of a segment starting at ``(t, x)`` (immutable: built once per mode)."""
+        known = self.watch_sets.get(mode)
+        if known is not None:
+            return known
         out = [Watch(role="guard", name=tr.name, kind="level" if tr.direction == 0 else "crossing", transition=tr)
                for tr in self.outgoing[mode]]
         if self.invariants[mode] is not None:
             out.append(Watch(role="invariant", name=mode, kind="strict"))
         out += [Watch(role="stop", name=name, kind="level") for name in self.stops]
-        return tuple(out)
+        self.watch_sets[mode] = tuple(out)
+        return self.watch_sets[mode]
 
     def values(
         self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
     ) -> list[float]:
         """``phi`` of every watch (see :class:`Watch`).
 
-        A fast pass calls the user functions directly; if anything raises or
+        A fast pass calls the user functions directly (all the symbolic guards and the invariant of the
+        mode as one compiled function, :func:`hybrid.watch_values.watch_function`); if anything raises or
         is not a real number, a careful pass re-evaluates them one by one and
         raises the error that names the culprit (the functions are pure).
         """
+        compiled = self.compiled.get(mode, self) if not self.stops else None
+        if compiled is self:
+            compiled = self.compiled[mode] = watch_function(self.outgoing[mode], self.invariants[mode])
+        if compiled is not None:
+            try:
+                fast = evaluate_watches(compiled, self.system.output, t, x, memory, self.n_signals, len(watches))
+                self.guard_evaluations += len(watches)
+                return fast
+            except Exception:
+                return self.values_checked(watches, mode, memory, t, x)
         try:
             v = x if self.system.output is None else self.system.output(t, x)
             if len(v) != self.n_signals:
@@ -582,6 +597,7 @@ class _Options:
     max_steps: int
     dense: bool
     t_end: float
+    closed_form: bool = False
 
 
 @dataclass(slots=True)
@@ -618,15 +634,29 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     if t < opts.t_end:
         phi_old = values(t, x)
         watches = arm_watches(watches, phi_old, disarmed)
-    rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
-    refiner = (Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
-                       opts.event_tol, t) if watches and opts.sign_checks and opts.refine_depth else None)
+    refiner = None
     resolution = 0.0
     run.last_point = (t, x)
     if t < opts.t_end:
-        solver = METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
-                                      rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step)
+        affine = affine_flow(run.system.flows[mode], len(x), seg_memory) if opts.closed_form else None
+        solver = (ClosedFormSolver(affine, t, x, opts.t_end, opts.max_step, bool(watches)) if affine is not None else
+                  METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
+                                       rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step))
         want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
+        found = (closed_form_switch(solver, values, watches, phi_old, outgoing=run.outgoing[mode], memory=seg_memory,
+                                    invariant=run.invariants[mode], system=run.system, stops=bool(run.stops),
+                                    max_step=opts.max_step, event_tol=opts.event_tol)
+                 if steps_before < opts.max_steps else None)
+        if found is not None:  # one piece of the exact solution, its event found on the closed form
+            steps, roots, solver.status = 1, found.evaluations, "finished"
+            times.append(found.time)
+            states.append(found.state)
+            interpolants.append(solver.propagator)
+            event, on = found.event(watches)
+        elif watches and opts.sign_checks and opts.refine_depth:
+            rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
+            refiner = Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
+                              opts.event_tol, t)
         while solver.status == "running":
             if steps_before + steps >= opts.max_steps:
                 failure = (f"more than max_steps = {opts.max_steps} solver steps (at t = {solver.t:.17g} s in "
@@ -639,7 +669,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
                 break
             t_old, t_new, y_new = float(solver.t_old), float(solver.t), tuple(solver.y.tolist())
             interp = solver.dense_output() if want_dense else None
-            point = _point_evaluator(interp) if interp is not None and opts.sign_checks and watches else None
+            point = point_evaluator(interp) if interp is not None and opts.sign_checks and watches else None
             if watches:
                 spacing = (t_new - t_old) / (opts.sign_checks + 1 if point is not None else 1)
                 resolution = spacing if spacing > resolution else resolution
@@ -658,7 +688,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
                 continue
             if interp is None:
                 interp = solver.dense_output()
-            point = point or _point_evaluator(interp)
+            point = point or point_evaluator(interp)
             event, iterations = locate_event(values, watches, bracket, point, opts.event_tol)
             roots += iterations
             times.append(event.time)
@@ -669,6 +699,8 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
             break
         rhs = int(getattr(solver, "nfev", 0))
     dense_out = _LazySolution(times, interpolants) if interpolants and opts.dense else None
+    if dense_out is not None and isinstance(solver, ClosedFormSolver):
+        dense_out = solver.propagator  # the exact solution over the whole segment
     segment = FlowSegment(
         mode=mode, jump=jump, t_start=times[0], t_end=times[-1], times=_readonly(np.array(times)),
         states=_readonly(np.array(states).reshape(len(states), -1)), memory=tuple(sorted(seg_memory.items())),
@@ -906,6 +938,7 @@ def simulate_continuous(
     stops: Mapping[str, StopFunction] | None = None,
     invariant_tol: float = 1e-9,
     dense: bool = True,
+    closed_form: bool = False,
 ) -> HybridTrajectory:
     """Execute ``system`` from ``(x0, initial_mode)`` for ``duration`` seconds.
 
@@ -975,6 +1008,10 @@ def simulate_continuous(
         (rounding of the located event) before the reset is an error.
     dense : bool
         Keep the dense output of every step (for :meth:`HybridTrajectory.sample`).
+    closed_form : bool
+        ``True``: a mode whose symbolic flow is exactly affine, ``ẋ = A x + b``, is solved in closed form
+        (:mod:`hybrid.closed_form`: same event rules and ``event_tol``, no integration error, few steps:
+        sample the dense output, the exact solution, for a plot).  ``False`` (default): ``method`` everywhere.
 
     Returns
     -------
@@ -1003,10 +1040,12 @@ def simulate_continuous(
     _check_arguments(system, duration=duration, method=method, rtol=rtol, atol=atol, max_step=max_step,
                      event_tol=event_tol, invariant_tol=invariant_tol, zeno=zeno, sign_checks=sign_checks,
                      refine_depth=refine_depth, max_jumps=max_jumps, max_jumps_per_instant=max_jumps_per_instant, max_steps=max_steps,
-                     chatter_switches=chatter_switches, chatter_window=chatter_window)
+                     chatter_switches=chatter_switches, chatter_window=chatter_window,
+                     closed_form=closed_form)
     mode, x, memory = _initial_state(system, x0, initial_mode, initial_memory)
     opts = _Options(method=method, rtol=rtol, atol=atol, max_step=max_step, event_tol=event_tol,
-                    sign_checks=sign_checks, refine_depth=refine_depth, max_steps=max_steps, dense=dense, t_end=float(t0) + float(duration))
+                    sign_checks=sign_checks, refine_depth=refine_depth, max_steps=max_steps, dense=dense, t_end=float(t0) + float(duration),
+                    closed_form=closed_form)
     run = _Run(system, dict(stops or {}), invariant_tol)
     book = _Book(zeno_interval if zeno_interval is not None else 1e-6 * float(duration))
     t = float(t0)
@@ -1070,7 +1109,7 @@ def _check_arguments(system: Any, *, duration: float, method: str, rtol: float, 
                      event_tol: float, invariant_tol: float, zeno: str, sign_checks: int, refine_depth: int,
                      max_jumps: int,
                      max_jumps_per_instant: int, max_steps: int, chatter_switches: int,
-                     chatter_window: float | None) -> None:
+                     chatter_window: float | None, closed_form: bool = False) -> None:
     """Raise :class:`ExecutionError` naming the first bad argument of :func:`simulate_continuous`."""
     if not isinstance(system, HybridSystem):
         raise ExecutionError(f"simulate_continuous: system = {system!r}; expected a HybridSystem")
@@ -1084,6 +1123,8 @@ def _check_arguments(system: Any, *, duration: float, method: str, rtol: float, 
         ok = ok and (value > 0 if positive else value >= 0) and (name == "max_step" or math.isfinite(value))
         if not ok:
             raise ExecutionError(f"simulate_continuous: {name} = {value!r}; expected a {'positive' if positive else 'non-negative'} finite number")
+    if not isinstance(closed_form, bool):
+        raise ExecutionError(f"simulate_continuous: closed_form = {closed_form!r}; expected True or False")
     if zeno not in ("stop", "continue", "raise"):
         raise ExecutionError(f"simulate_continuous: zeno = {zeno!r}; expected 'stop', 'continue' or 'raise'")
     for name, value, least in (("sign_checks", sign_checks, 0), ("refine_depth", refine_depth, 0),
@@ -1117,47 +1158,6 @@ def _initial_state(system: HybridSystem, x0: Sequence[float], initial_mode: str 
             f"({', '.join(system.state_names)})"
         )
     return mode, x, memory
-
-
-def _point_evaluator(interp: Any) -> Callable[[float], tuple[float, ...]]:
-    """Fast scalar evaluation of a step's dense output (same formula as scipy's).
-
-    scipy's ``DenseOutput.__call__`` costs ~15 µs for one time (array
-    plumbing); event location calls it a dozen times per event, so the two
-    explicit Runge–Kutta interpolants are evaluated here in plain floats
-    (Horner's scheme).  Other solvers fall back to ``interp(t)``.
-    """
-    if isinstance(interp, _RkDenseOutput):
-        t_old, h = float(interp.t_old), float(interp.h)
-        rows = interp.Q.tolist()
-        y_old = interp.y_old.tolist()
-
-        def rk(t: float) -> tuple[float, ...]:
-            x = (t - t_old) / h
-            out = []
-            for y0, q in zip(y_old, rows):
-                acc = 0.0
-                for c in reversed(q):
-                    acc = acc * x + c
-                out.append(y0 + h * x * acc)
-            return tuple(out)
-
-        return rk
-    if isinstance(interp, _Dop853DenseOutput):
-        t_old, h = float(interp.t_old), float(interp.h)
-        layers = [f.tolist() for f in reversed(interp.F)]
-        y_old = interp.y_old.tolist()
-
-        def dop(t: float) -> tuple[float, ...]:
-            x = (t - t_old) / h
-            y = [0.0] * len(y_old)
-            for i, f in enumerate(layers):
-                factor = x if i % 2 == 0 else 1.0 - x
-                y = [(a + b) * factor for a, b in zip(y, f)]
-            return tuple(a + b for a, b in zip(y, y_old))
-
-        return dop
-    return lambda t: tuple(interp(t).tolist())
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:

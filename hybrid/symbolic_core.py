@@ -866,6 +866,7 @@ _SIGNATURES = {"condition": ("v, m", "v"), "reset": ("v, m", "v"), "jump": ("x, 
                "flow": ("t, x, m", "x"), "output": ("t, x", "x")}
 
 _CACHE: dict[tuple[int, str], tuple[Any, Callable[..., Any]]] = {}
+_BY_SOURCE: dict[str, Callable[..., Any]] = {}
 
 _ROLE = {"condition": "the guard or invariant", "reset": "the reset term", "jump": "the jump map term"}
 
@@ -901,9 +902,12 @@ def compiled_function(node: Any, kind: str) -> Callable[..., Any]:
             body = "{" + ", ".join(f"{name!r}: {_source(p, vec)}" for name, p in parts) + "}"
         else:
             body = "(" + "".join(f"{_source(p, vec)}, " for _, p in parts) + ")"
-        fn = _compile_lambda(f"lambda {params}: {body}", kind)
+        source = f"lambda {params}: {body}"
+        fn = _BY_SOURCE.get(source) or _compile_lambda(source, kind)  # a rebuilt system's same guard: compiled once
+        _BY_SOURCE[source] = fn
     if len(_CACHE) >= _CACHE_LIMIT:
         _CACHE.clear()
+        _BY_SOURCE.clear()
     _CACHE[key] = (node, fn)  # the node is kept alive with its function, so its id stays unique
     return fn
 
