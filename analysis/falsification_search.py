@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -89,37 +90,60 @@ def _data(search: Search, r: int, center: np.ndarray | None = None, radius: floa
 
 
 def surrogate_minimum(xs: np.ndarray, ys: np.ndarray, low: np.ndarray | None = None,
-                      high: np.ndarray | None = None) -> np.ndarray | None:
-    """The minimiser over the box ``[low, high]`` (default ``[-1, 1]^k``) of a weighted least-squares model
-    of the ranks of ``ys`` (shape ``(n,)``) at ``xs`` (shape ``(n, k)``): linear, with diagonal quadratic terms once
-    ``n >= 2k + 2``; points weighted by rank (the lowest robustness counts most).  ``None`` when fewer
-    than two points or a flat model.  The model is separable, so the minimum is exact, per coordinate."""
+                      high: np.ndarray | None = None, alternatives: bool = False) -> Any:
+    """The minimiser over the box ``[low, high]`` (default ``[-1, 1]^k``) of a least-squares model of
+    ``ys`` (shape ``(n,)``) at ``xs`` (shape ``(n, k)``).
+
+    Fewer than ``2k + 2`` points: a linear model, its slope the minimum-norm solution (with the mean
+    removed: two points give the line through them, so a point worse than the nominal sends the next one
+    to the opposite vertex); the minimiser is a vertex of the box (a zero slope keeps the lowest point's
+    coordinate).  From ``2k + 2`` points: diagonal quadratic terms too, centred at the lowest point and
+    weighted by rank (the lowest robustness counts most).  The model is separable, so its minimum over
+    the box is exact, coordinate by coordinate.  ``None`` with fewer than two points or a flat model.
+    With ``alternatives``, a list: the minimiser, then the points that move one coordinate to its
+    runner-up value, cheapest in the model first (where to go when the minimiser was simulated already).
+    """
     n, k = xs.shape
     if n < 2 or k == 0:
         return None
     low = -np.ones(k) if low is None else low
     high = np.ones(k) if high is None else high
-    quadratic = n >= 2 * k + 2
     center = xs[int(np.argmin(ys))]
-    d = xs - center
-    columns = [np.ones(n), *d.T] + ([*(d.T ** 2)] if quadratic else [])
-    design = np.array(columns).T
-    ranks = np.argsort(np.argsort(ys, kind="stable"), kind="stable").astype(float)
-    w = np.sqrt(1.0 / (1.0 + ranks / max(1.0, n / 4.0)))
-    target = ranks / max(1.0, n - 1.0)  # ranks: a robust model of where the robustness is lowest (outliers and
-    coef, *_ = np.linalg.lstsq(design * w[:, None], target * w, rcond=None)  # plateaus do not dominate)
-    g = coef[1:k + 1]
-    h = coef[k + 1:] if quadratic else np.zeros(k)
-    if not np.all(np.isfinite(coef)) or (np.max(np.abs(g)) < 1e-12 and np.max(h, initial=0.0) <= 0):
+    if n < 2 * k + 2:
+        g, *_ = np.linalg.lstsq(xs - xs.mean(axis=0), ys - ys.mean(), rcond=None)
+        h = np.zeros(k)
+    else:
+        d = xs - center
+        design = np.array([np.ones(n), *d.T, *(d.T ** 2)]).T
+        ranks = np.argsort(np.argsort(ys, kind="stable"), kind="stable")
+        w = np.sqrt(1.0 / (1.0 + ranks / max(1.0, n / 4.0)))
+        coef, *_ = np.linalg.lstsq(design * w[:, None], (ys - ys.min()) * w, rcond=None)
+        g, h = coef[1:k + 1], coef[k + 1:]
+    scale = float(np.max(np.abs(g), initial=0.0))
+    if not (np.all(np.isfinite(g)) and np.all(np.isfinite(h))) or (scale == 0.0 and np.max(h, initial=0.0) <= 0):
         return None
+    g = np.where(np.abs(g) <= 1e-9 * scale, 0.0, g)
     lo, hi = low - center, high - center
-    step = np.empty(k)
+    step = np.zeros(k)
+    second = []
     for i in range(k):
-        ends = [lo[i], hi[i]]
-        if h[i] > 1e-12:
+        ends = [0.0, lo[i], hi[i]]
+        if h[i] > 0:
             ends.append(float(np.clip(-g[i] / (2 * h[i]), lo[i], hi[i])))
-        step[i] = min(ends, key=lambda s: g[i] * s + h[i] * s * s)
-    return np.clip(center + step, low, high)
+        ranked = sorted(ends, key=lambda s: (g[i] * s + h[i] * s * s, abs(s)))
+        step[i] = ranked[0]
+        other = [e for e in ranked if abs(e - ranked[0]) > 1e-12 and e != 0.0]
+        if other:  # the runner-up value of this coordinate and what it costs in the model
+            second.append((g[i] * (other[0] - ranked[0]) + h[i] * (other[0] ** 2 - ranked[0] ** 2), i, other[0]))
+    best = np.clip(center + step, low, high)
+    if not alternatives:
+        return best
+    out = [best]
+    for _, i, value in sorted(second):
+        alt = step.copy()
+        alt[i] = value
+        out.append(np.clip(center + alt, low, high))
+    return out
 
 
 @dataclass
@@ -161,6 +185,10 @@ def _open(search: Search, falsified: dict) -> list[int]:
     return [r for r in range(len(search.problem.requirements)) if r not in falsified]
 
 
+def _key(unit: Sequence[float]) -> tuple[float, ...]:
+    return tuple(0.0 if u == 0 else float(u) for u in unit)
+
+
 def _try(search: Search, x: np.ndarray, phase: str, falsified: dict, how: str) -> Evaluation:
     """Simulate ``x`` clipped to the box (a point already seen comes from the cache, free); record any
     violation it shows."""
@@ -174,14 +202,16 @@ def _surrogate_step(search: Search, falsified: dict, books: dict[int, _Book], ho
     open_ = _open(search, falsified)
     if open_:
         r = focus(search, open_, books)
-        proposal = surrogate_minimum(*_data(search, r))
-        if proposal is not None:
-            _try(search, proposal, "surrogate", falsified, how)
+        for proposal in surrogate_minimum(*_data(search, r), alternatives=True) or ():
+            key = tuple(float(u) for u in proposal)
+            if _key(key) not in search.seen:
+                _try(search, proposal, "surrogate", falsified, how)
+                return
 
 
 def _start(search: Search, seed: int, falsified: dict, count: int, how: str) -> int:
-    """The space-filling start: for each of ``count`` Sobol points, the vertex of its orthant, a surrogate step
-    (for the requirement :func:`focus` picks), the point.  Returns the Sobol points used."""
+    """The space-filling start: for each of ``count`` Sobol points, the vertex of its orthant, two surrogate
+    steps (for the requirement :func:`focus` picks), the point.  Returns the Sobol points used."""
     k = search.problem.dimension
     design = space_filling(k, count, seed)
     used = 0
@@ -193,6 +223,7 @@ def _start(search: Search, seed: int, falsified: dict, count: int, how: str) -> 
         # orthants are stratified, so the vertices are too), a surrogate step, then the point itself
         _try(search, np.where(design[i] >= 0.0, 1.0, -1.0), "start", falsified, how)
         used += 1
+        _surrogate_step(search, falsified, books, how)
         _surrogate_step(search, falsified, books, how)
         if _open(search, falsified):
             _try(search, design[i], "start", falsified, how)
