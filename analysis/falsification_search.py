@@ -40,7 +40,9 @@ __all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "focus", "centra
            "whitebox_search", "simulations_to_violation"]
 
 START_SHARE = 0.25
-"""Share of the budget for the space-filling start (with its surrogate steps); at least ``2k + 2`` points."""
+"""The space-filling start of ``guided`` has ``max(2k + 2, START_SHARE * budget / 2)`` Sobol points, each with its
+vertex and two surrogate steps (up to four simulations a point); ``whitebox``'s ``max(k + 1, START_SHARE *
+budget / 4)``."""
 
 _FINITE = 1e300
 _SIGMA0 = 0.3
