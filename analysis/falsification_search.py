@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.falsification import BudgetExhausted, Evaluation, Search
+from analysis.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
 __all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "focus", "central_gradient", "guided_search",
            "whitebox_search", "simulations_to_violation"]
@@ -187,10 +187,6 @@ def _open(search: Search, falsified: dict) -> list[int]:
     return [r for r in range(len(search.problem.requirements)) if r not in falsified]
 
 
-def _key(unit: Sequence[float]) -> tuple[float, ...]:
-    return tuple(0.0 if u == 0 else float(u) for u in unit)
-
-
 def _try(search: Search, x: np.ndarray, phase: str, falsified: dict, how: str) -> Evaluation:
     """Simulate ``x`` clipped to the box (a point already seen comes from the cache, free); record any
     violation it shows."""
@@ -206,7 +202,7 @@ def _surrogate_step(search: Search, falsified: dict, books: dict[int, _Book], ho
         r = focus(search, open_, books)
         for proposal in surrogate_minimum(*_data(search, r), alternatives=True) or ():
             key = tuple(float(u) for u in proposal)
-            if _key(key) not in search.seen:
+            if unit_key(key) not in search.seen:
                 _try(search, proposal, "surrogate", falsified, how)
                 return
 

@@ -10,7 +10,7 @@ import statistics
 import numpy as np
 import pytest
 
-from analysis.falsification import falsify
+from analysis.falsification import evaluate, falsify
 from analysis.falsification_search import central_gradient, simulations_to_violation, space_filling, surrogate_minimum
 from analysis.falsification import Search
 from analysis.planted import VIOLATING_FRACTION, planted_problems
@@ -95,7 +95,7 @@ def test_the_gradient_of_the_robustness_matches_the_closed_form(unit):
     # unit coordinates map piecewise linearly: dx0/du = 1 (either side: nominal 2 in [1, 3]), dk/du = 1.5 above
     # the nominal k = 1 and 0.5 below it
     problem = _decay_problem()
-    search = Search(problem=problem, budget=10)
+    search = Search(problem=problem, budget=10, evaluator=evaluate)
     rho, grad = central_gradient(search, 0, np.array(unit))
     point = problem.point(unit)
     x0, k = point["x0"], point["k"]
