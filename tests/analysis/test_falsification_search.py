@@ -10,7 +10,7 @@ import statistics
 import numpy as np
 import pytest
 
-from analysis.falsification import evaluate, falsify
+from analysis.falsification import METHODS, evaluate, falsify
 from analysis.falsification_search import central_gradient, simulations_to_violation, space_filling, surrogate_minimum
 from analysis.falsification import Search
 from analysis.planted import VIOLATING_FRACTION, planted_problems
@@ -128,17 +128,37 @@ def test_the_local_searches_reach_an_interior_minimum_in_closed_form(method):
     assert 0.04 - 1e-12 <= result.robustness <= 0.04 + 1e-4
 
 
-@pytest.mark.parametrize("method", ["guided", "whitebox"])
-def test_the_same_seed_gives_byte_identical_json_and_a_resumed_search_simulates_nothing(method):
-    problem = planted_problems()["ramp-late"]
+class Counted:
+    """Counts the calls of a simulator."""
+
+    def __init__(self, simulate):
+        self.simulate, self.calls = simulate, 0
+
+    def __call__(self, point):
+        self.calls += 1
+        return self.simulate(point)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_the_same_seed_gives_byte_identical_json_and_a_resumed_search_replays_it(method):
+    ramp = planted_problems()["ramp-late"]
+
+    def problem(counter):
+        return VerificationProblem(name=ramp.name, simulate=counter, parameters=ramp.parameters, horizon=ramp.horizon,
+                                   signals=ramp.signals, requirements=ramp.requirements)
+
     journal = []
-    first = verify(problem, budget=30, seed=3, method=method, on_evaluation=journal.append)
-    again = verify(problem, budget=30, seed=3, method=method)
-    other = verify(problem, budget=30, seed=4, method=method)
+    first = verify(problem(Counted(ramp.simulate)), budget=30, seed=3, method=method, on_evaluation=journal.append)
+    again = verify(problem(Counted(ramp.simulate)), budget=30, seed=3, method=method)
+    other = verify(problem(Counted(ramp.simulate)), budget=30, seed=4, method=method)
     text = json.dumps(first.as_dict(evaluations=True), sort_keys=True)
     assert text == json.dumps(again.as_dict(evaluations=True), sort_keys=True)
     assert text != json.dumps(other.as_dict(evaluations=True), sort_keys=True)
-    # resumed from the first half of the journal: the same points in the same order, byte-identical
+    # resumed from the first half of the journal: the same points in the same order, byte-identical, and only
+    # the second half simulated (plus the counterexample's explanation run, when there is one)
     half = {e.unit: e.outcome for e in journal[: len(journal) // 2]}
-    resumed = verify(problem, budget=30, seed=3, method=method, cache=half)
+    counter = Counted(ramp.simulate)
+    resumed = verify(problem(counter), budget=30, seed=3, method=method, cache=half)
     assert json.dumps(resumed.as_dict(evaluations=True), sort_keys=True) == text
+    explained = 1 if resumed.requirements[0].counterexample is not None else 0
+    assert counter.calls == len(journal) - len(half) + explained
