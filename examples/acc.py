@@ -36,7 +36,8 @@ Variants (:data:`BUGS`):
     hardest lead braking at the highest speeds from the shortest gaps collides.
 
 The violating fractions of the box were measured by dense sampling (:func:`violating_fraction`,
-a scrambled Sobol sample of 4,096 points, seed 0) and are stated in :data:`MEASURED`.
+a scrambled Sobol sample of 2,048 points, seed 0; 512 for ``correct``) and are stated in
+:data:`MEASURED`.
 
 Verify with::
 
@@ -77,9 +78,9 @@ BUGS: Mapping[str, Mapping[str, float]] = {
 }
 """The variants: keyword arguments of :func:`acc_system` (decelerations [m/s²])."""
 
-MEASURED: Mapping[str, float] = {"correct": 0.0, "gross": 0.0, "subtle": 0.0}
-"""Violating fraction of the box per variant (4,096 scrambled Sobol points, seed 0; filled from
-:func:`violating_fraction`, re-measured by the test)."""
+MEASURED: Mapping[str, float] = {"correct": 0.0, "gross": 530 / 2048, "subtle": 28 / 2048}
+"""Violating fraction of the box per variant: :func:`violating_fraction` on 2,048 scrambled Sobol points, seed 0
+(512 for ``correct``); a binomial standard error of at most 0.011."""
 
 REQUIREMENT = Requirement(name="no_collision", formula=f"always[0, {HORIZON_S:g}] (d >= 2)",
                           description="the gap never falls below 2 m")
@@ -161,7 +162,7 @@ def acc_problem(bug: str = "gross") -> VerificationProblem:
     )
 
 
-def violating_fraction(problem: VerificationProblem, samples: int = 4096, seed: int = 0) -> float:
+def violating_fraction(problem: VerificationProblem, samples: int = 2048, seed: int = 0) -> float:
     """Share of a scrambled Sobol sample of the box (``samples`` points, a power of 2) where the first
     requirement is violated."""
     from scipy.stats import qmc
