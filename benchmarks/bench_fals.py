@@ -50,6 +50,9 @@ METHODS = ("guided", "whitebox", "monte-carlo", "dual-annealing", "psy-taliro")
 ARCH_FILES = ("examples/arch/autotrans.py", "examples/arch/chasing_cars.py", "examples/arch/afc.py")
 PLANTED = ("examples/acc.py:ACC-gross", "examples/acc.py:ACC-subtle", "planted:line-corner", "planted:line-well",
            "planted:ramp-late", "examples/thermostat.py:zero_band")
+PLANTED_REQUIREMENTS = {"zero_band": ("min_dwell",)}
+"""Requirements of a planted problem that carry its bug (the zero band's comfort is not violated: its runs end at
+the Zeno instant, undecided, and a search of it spends the whole budget)."""
 QUICK = ("examples/acc.py:ACC-gross", "planted:line-corner", "planted:ramp-late")
 
 PUBLISHED = {
@@ -177,6 +180,8 @@ def _tasks(sources: Sequence[str], methods: Sequence[str], seeds: int, budget: i
     for source in sources:
         for key, problem in _collection(source).items():
             for r in problem.requirements:
+                if key in PLANTED_REQUIREMENTS and r.name not in PLANTED_REQUIREMENTS[key]:
+                    continue
                 label = key if len(problem.requirements) == 1 else f"{key}/{r.name}"
                 if only and key not in only and label not in only:
                     continue
