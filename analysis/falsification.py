@@ -7,17 +7,18 @@ every requirement), and a point met again is taken from the cache.
 Methods (:data:`METHODS`)
     ``"guided"`` (the default)
         1. the nominal point;
-        2. hypothesis, one ``target()`` per requirement (its negated
-           robustness), in rounds: a round ends when a requirement not yet
-           falsified is violated, and hypothesis then *shrinks* that failure
-           (towards the nominal point: unit coordinate 0, and simple values);
-           the next round goes on for the requirements left;
-        3. a local polish of each requirement still holding, from the lowest
-           point seen: projected finite-difference descent (the stencil's
-           simulations evaluate every requirement, so they serve all of them);
-        4. a shrink of counterexamples found outside a hypothesis failure
-           (each coordinate set back to nominal where the violation persists).
-        Shares of the budget: :data:`GUIDED_SHARES`.
+        2. a space-filling start: scrambled Sobol points under the seed, each followed by a
+           surrogate step (a least-squares model of the robustness minimised over the box);
+        3. local search, the budget allocated in chunks to the requirement still holding whose
+           robustness is lowest relative to its spread (and falling): a (1+1) evolution strategy
+           with step-size adaptation and local surrogate steps, restarted from new Sobol points;
+        4. a shrink of each counterexample (each coordinate set back to nominal where the
+           violation persists).
+        :mod:`analysis.falsification_search` has the details.
+    ``"whitebox"``
+        The same start, then projected gradient descent on the robustness with gradients by
+        central finite differences (a batch of ``2k`` simulations each: no flow sensitivities yet),
+        Armijo backtracking, restarts; then the shrink.
     ``"monte-carlo"``
         Independent draws from the parameters' distributions (point ``i``
         depends only on ``(seed, i)``): the baseline, and the one method that
@@ -37,24 +38,24 @@ from __future__ import annotations
 import math
 import os
 import traceback
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from hybrid.jsonable import float_from_json, to_jsonable
 from hybrid.errors import (DivergenceError, ExecutionError, NumericalFailure, ParameterError, UserFunctionError,
                            ZenoError)
 
 from analysis.stl import FormulaValueError, SignalTrace, TraceError
 from analysis.timelimit import TimeLimitExceeded, time_limit
+from analysis.falsification_book import BudgetExhausted, Evaluation, Outcome, Search, unit_key
 from analysis.verification import InvalidPoint, VerificationProblem
 
 __all__ = [
     "METHODS",
+    "PHASES",
     "Runner",
-    "GUIDED_SHARES",
+    "BudgetExhausted",
     "STATUSES",
     "FalsificationError",
     "SimulationFailed",
@@ -69,9 +70,9 @@ __all__ = [
     "falsify",
 ]
 
-METHODS = ("guided", "monte-carlo", "dual-annealing")
-GUIDED_SHARES = (0.5, 0.4)
-"""Shares of the budget for the hypothesis search and the polish; the rest shrinks."""
+METHODS = ("guided", "monte-carlo", "dual-annealing", "whitebox")
+PHASES = ("nominal", "start", "surrogate", "local", "gradient", "descent", "shrink", "monte-carlo", "dual-annealing")
+"""Where an evaluation comes from (:attr:`Evaluation.phase`)."""
 STATUSES = ("ok", "incomplete", "invalid", "diverged", "zeno", "error", "timeout")
 """How a simulation ended.  ``ok``: it covered the horizon (or ended on a stop the problem declares
 final) and every requirement was evaluated; ``incomplete``: it ended early without a fault (Zeno,
@@ -118,93 +119,6 @@ def _failed(point: Mapping[str, float], message: str, text: str) -> SimulationFa
     RuntimeError.__init__(error, message)
     error.point, error.traceback = dict(point), text
     return error
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Outcome:
-    """What one simulation gave: a status (:data:`STATUSES`) and every requirement's robustness and truth value.
-
-    Attributes
-    ----------
-    status : str
-    robustness : tuple of float
-        Per requirement, on the trace as simulated (empty when no trace came back); on a run that
-        ended early, the robustness of the prefix (a search heuristic, not a verdict).
-    satisfied : tuple of bool or None
-        Per requirement: its truth value, ``None`` when the run ended before deciding it.
-    detail : str
-        Why the run is not ``ok`` (the cause, the time, the mode).
-    end : str
-        How the run ended (``"end_time"``, ``"final:success"``, ``"zeno"``, ...); empty when unknown.
-    end_time : float or None
-        When it ended [s] (the trace's last sample).
-    traceback : str
-        The model's own traceback, for ``error``.
-    """
-
-    status: str
-    robustness: tuple[float, ...] = ()
-    satisfied: tuple[bool | None, ...] = ()
-    detail: str = ""
-    end: str = ""
-    end_time: float | None = None
-    traceback: str = ""
-
-    @property
-    def evaluated(self) -> bool:
-        """Whether the requirements were evaluated on a trace (complete or cut short)."""
-        return bool(self.robustness)
-
-    def decided(self, r: int) -> bool:
-        """Whether requirement ``r`` was decided by this run."""
-        return self.evaluated and self.satisfied[r] is not None
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Evaluation:
-    """One simulated point of a search.
-
-    Attributes
-    ----------
-    index : int
-        Order of simulation (0 is the first); the budget is ``index < budget``.
-    phase : str
-        ``"nominal"``, ``"search"``, ``"polish"``, ``"shrink"``, ``"monte-carlo"``, ``"dual-annealing"``.
-    unit : tuple of float
-        Unit coordinates in ``[-1, 1]`` (:meth:`analysis.verification.Parameter.at`).
-    outcome : Outcome
-    """
-
-    index: int
-    phase: str
-    unit: tuple[float, ...]
-    outcome: Outcome
-
-    def violates(self, r: int) -> bool:
-        """Whether requirement ``r`` is violated here, decided (boolean semantics; every continuation of a
-        run that ended early violates it too)."""
-        return self.outcome.evaluated and self.outcome.satisfied[r] is False
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready (infinite robustness as ``"inf"``/``"-inf"``, read back by :meth:`from_dict`)."""
-        o = self.outcome
-        return to_jsonable({"index": self.index, "phase": self.phase, "unit": list(self.unit), "status": o.status,
-                            "robustness": list(o.robustness), "satisfied": list(o.satisfied), "detail": o.detail,
-                            "end": o.end, "end_time": o.end_time, "traceback": o.traceback},
-                           nonfinite="string")
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Evaluation:
-        """Inverse of :meth:`as_dict` (values as :func:`hybrid.jsonable.float_from_json` reads them)."""
-        end_time = data.get("end_time")
-        outcome = Outcome(status=str(data["status"]),
-                          robustness=tuple(float_from_json(v, where="robustness") for v in data["robustness"]),
-                          satisfied=tuple(None if v is None else bool(v) for v in data["satisfied"]),
-                          detail=str(data["detail"]), end=str(data.get("end", "")),
-                          end_time=None if end_time is None else float_from_json(end_time, where="end_time"),
-                          traceback=str(data.get("traceback", "")))
-        return cls(index=int(data["index"]), phase=str(data["phase"]),
-                   unit=tuple(float(v) for v in data["unit"]), outcome=outcome)
 
 
 def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: float | None = None) -> Outcome:
@@ -315,192 +229,8 @@ def monte_carlo_unit(problem: VerificationProblem, seed: int, index: int) -> tup
     return tuple(float(p.draw(rng)) for p in problem.parameters)
 
 
-def _key(unit: Iterable[float]) -> tuple[float, ...]:
-    return tuple(0.0 if u == 0 else float(u) for u in unit)
-
-
-class _Exhausted(Exception):
-    """The phase's budget is spent."""
-
-
-class _Violated(Exception):
-    """Raised inside the hypothesis test when a requirement still to falsify is violated."""
-
-    def __init__(self, unit: tuple[float, ...]) -> None:
-        super().__init__(unit)
-        self.unit = unit
-
-
-@dataclass
-class Search:
-    """The book of one search: budget, cache, evaluations in order (mutable, owned by one :func:`falsify`)."""
-
-    problem: VerificationProblem
-    budget: int
-    cache: dict[tuple[float, ...], Outcome] = field(default_factory=dict)
-    on_evaluation: Callable[[Evaluation], None] | None = None
-    timeout_s: float | None = None
-    evaluations: list[Evaluation] = field(default_factory=list)
-    seen: dict[tuple[float, ...], int] = field(default_factory=dict)
-
-    @property
-    def used(self) -> int:
-        return len(self.evaluations)
-
-    def run(self, unit: Sequence[float], phase: str, limit: int | None = None) -> Evaluation:
-        """Evaluate ``unit`` (from the cache when known); :class:`_Exhausted` past ``limit`` simulations."""
-        key = _key(unit)
-        if key in self.seen:
-            return self.evaluations[self.seen[key]]
-        if self.used >= min(self.budget, self.budget if limit is None else limit):
-            raise _Exhausted
-        outcome = self.cache.get(key)
-        if outcome is None:
-            outcome = evaluate(self.problem, key, self.timeout_s)
-        evaluation = Evaluation(index=self.used, phase=phase, unit=key, outcome=outcome)
-        self.seen[key] = evaluation.index
-        self.evaluations.append(evaluation)
-        if self.on_evaluation is not None:
-            self.on_evaluation(evaluation)
-        return evaluation
-
-    def violated(self, r: int) -> list[Evaluation]:
-        return [e for e in self.evaluations if e.violates(r)]
-
-    def lowest(self, r: int) -> Evaluation | None:
-        """The evaluation with the lowest robustness of requirement ``r`` (first on ties)."""
-        best = None
-        for e in self.evaluations:
-            if e.outcome.status == "ok" and (best is None or e.outcome.robustness[r] < best.outcome.robustness[r]):
-                best = e
-        return best
-
-
 def _finite(value: float) -> float:
     return max(-_FINITE, min(_FINITE, value)) if not math.isnan(value) else _FINITE
-
-
-def _hypothesis_round(search: Search, open_: Sequence[int], seed: int, limit: int) -> tuple[float, ...] | None:
-    """One hypothesis run: targets on every requirement; the shrunk unit point of a violation, if any."""
-    from hypothesis import HealthCheck, Phase, Verbosity, given, settings, target
-    from hypothesis import seed as hseed
-    from hypothesis import strategies as st
-
-    names = search.problem.requirement_names
-    k = search.problem.dimension
-
-    @hseed(seed)
-    @settings(max_examples=limit - search.used + 20, database=None, deadline=None, verbosity=Verbosity.quiet,
-              suppress_health_check=list(HealthCheck), phases=[Phase.generate, Phase.target, Phase.shrink],
-              derandomize=False, report_multiple_bugs=False)
-    @given(st.tuples(*(st.floats(-1.0, 1.0) for _ in range(k))))
-    def test(unit: tuple[float, ...]) -> None:
-        try:
-            e = search.run(unit, "search", limit)
-        except _Exhausted:
-            return
-        if not e.outcome.evaluated:
-            return
-        for r, name in enumerate(names):
-            target(-_finite(e.outcome.robustness[r]), label=name)
-        if any(e.violates(r) for r in open_):
-            raise _Violated(e.unit)
-
-    from analysis.fuzzing import project_constants_ignored
-
-    try:
-        with project_constants_ignored():  # the draws depend on the seed, not on which modules are imported
-            test()
-    except _Violated as found:
-        return found.unit
-    return None
-
-
-def _guided_search(search: Search, seed: int, falsified: dict[int, tuple[tuple[float, ...], str]],
-                   limit: int) -> None:
-    """Hypothesis rounds until ``limit`` simulations, every requirement falsified, or a round adds none."""
-    problem = search.problem
-    n_req = len(problem.requirements)
-    round_seed = seed
-    while search.used < limit and problem.dimension > 0:
-        open_ = [r for r in range(n_req) if r not in falsified]
-        if not open_:
-            break
-        before = search.used
-        found = _hypothesis_round(search, open_, round_seed, limit)
-        round_seed += 1
-        if found is not None:
-            e = search.evaluations[search.seen[_key(found)]]
-            for r in open_:
-                if e.violates(r):
-                    falsified[r] = (e.unit, "hypothesis")
-        elif search.used == before:
-            break
-
-
-def _gradient(search: Search, r: int, x: np.ndarray, limit: int, step: float) -> tuple[np.ndarray, float]:
-    """Forward differences of requirement ``r``'s robustness at ``x`` (steps towards the interior)."""
-    base = search.run(x, "polish", limit)
-    rho = _finite(base.outcome.robustness[r]) if base.outcome.evaluated else _FINITE
-    g = np.zeros(x.size)
-    for i in range(x.size):
-        h = step if x[i] + step <= 1.0 else -step
-        trial = x.copy()
-        trial[i] += h
-        e = search.run(trial, "polish", limit)
-        if e.violates(r):
-            raise _Violated(e.unit)
-        if e.outcome.evaluated:
-            g[i] = (_finite(e.outcome.robustness[r]) - rho) / h
-    return g, rho
-
-
-def _descend(search: Search, r: int, start: tuple[float, ...], limit: int) -> None:
-    """Projected finite-difference descent of requirement ``r`` from ``start`` until ``limit`` simulations."""
-    x = np.array(start, dtype=float)
-    step = 0.05
-    while search.used < limit and step > 1e-4:
-        g, rho = _gradient(search, r, x, limit, step)
-        scale = np.max(np.abs(g))
-        if not np.isfinite(scale) or scale == 0.0:
-            return
-        direction = -g / scale
-        for alpha in (2.0, 1.0, 0.5, 0.25, 0.1):
-            trial = np.clip(x + alpha * direction, -1.0, 1.0)
-            e = search.run(trial, "polish", limit)
-            if e.violates(r):
-                raise _Violated(e.unit)
-            if e.outcome.evaluated and e.outcome.robustness[r] < rho:
-                x = np.array(e.unit)
-                break
-        else:
-            step /= 4.0
-
-
-def _polish(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]]) -> None:
-    """Finite-difference descent of the requirements still holding, lowest robustness first.
-
-    One simulation evaluates every requirement, so the stencils of one descent serve the
-    others through the cache; the descent steps towards the box's faces the gradient points at.
-    """
-    problem = search.problem
-    if problem.dimension == 0:
-        return
-    limit = search.used + round(GUIDED_SHARES[1] * search.budget)
-    open_ = [r for r in range(len(problem.requirements)) if r not in falsified]
-    starts = [(search.lowest(r), r) for r in open_]
-    order = sorted(((e.outcome.robustness[r], r, e) for e, r in starts if e is not None), key=lambda s: s[:2])
-    for _, r, start in order:
-        if r in falsified or search.used >= limit:
-            continue
-        best = search.lowest(r)
-        try:
-            _descend(search, r, best.unit if best is not None else start.unit, limit)
-        except _Exhausted:
-            break
-        except _Violated:
-            pass
-        _record_violations(search, falsified, "polish")
 
 
 def _record_violations(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]], how: str) -> None:
@@ -515,7 +245,7 @@ def _record_violations(search: Search, falsified: dict[int, tuple[tuple[float, .
 def _shrink(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]]) -> None:
     """Set each coordinate of an unshrunk counterexample back to nominal where the violation persists."""
     for r, (unit, how) in sorted(falsified.items()):
-        if how == "hypothesis" or not any(unit):
+        if not any(unit):
             continue
         current = list(unit)
         try:
@@ -526,7 +256,7 @@ def _shrink(search: Search, falsified: dict[int, tuple[tuple[float, ...], str]])
                 trial[i] = 0.0
                 if search.run(trial, "shrink").violates(r):
                     current = trial
-        except _Exhausted:
+        except BudgetExhausted:
             pass
         falsified[r] = (tuple(current), f"{how}, then coordinates reset to nominal")
 
@@ -536,13 +266,13 @@ def _monte_carlo(search: Search, seed: int, runner: Runner | None, chunk: int = 
     for first in range(0, search.budget, chunk):
         units = {i: monte_carlo_unit(search.problem, seed, i) for i in range(first, min(first + chunk, search.budget))}
         if runner is not None:
-            pending = [(i, u) for i, u in units.items() if _key(u) not in search.cache]
+            pending = [(i, u) for i, u in units.items() if unit_key(u) not in search.cache]
             for i, outcome in runner(pending).items():
-                search.cache[_key(units[i])] = outcome
+                search.cache[unit_key(units[i])] = outcome
         for u in units.values():
             try:
                 search.run(u, "monte-carlo")
-            except _Exhausted:
+            except BudgetExhausted:
                 return
 
 
@@ -561,7 +291,7 @@ def _dual_annealing(search: Search, seed: int, falsified: Mapping[int, Any]) -> 
     try:
         dual_annealing(objective, [(-1.0, 1.0)] * problem.dimension, maxfun=search.budget, seed=seed,
                        no_local_search=False)
-    except _Exhausted:
+    except BudgetExhausted:
         pass
 
 
@@ -592,7 +322,8 @@ def falsify(
     budget : int
         Simulations allowed (``>= 1``); the nominal point is the first.
     seed : int
-        Seeds hypothesis, Monte-Carlo and dual annealing: the same seed, the same evaluations.
+        Seeds the space-filling start, the local search, Monte-Carlo and dual annealing: the same seed,
+        the same evaluations.
     method : str
         One of :data:`METHODS`.
     cache : Mapping or None
@@ -616,8 +347,8 @@ def falsify(
     if timeout_s is not None and (isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float))
                                   or not math.isfinite(timeout_s) or timeout_s <= 0):
         raise FalsificationError("timeout_s", timeout_s, "a time > 0 [s] or None", "give e.g. timeout_s=60")
-    search = Search(problem=problem, budget=budget, cache=dict(cache or {}), on_evaluation=on_evaluation,
-                    timeout_s=timeout_s)
+    search = Search(problem=problem, budget=budget, evaluator=evaluate, cache=dict(cache or {}),
+                    on_evaluation=on_evaluation, timeout_s=timeout_s)
     falsified: dict[int, tuple[tuple[float, ...], str]] = {}
     if method == "monte-carlo":
         _monte_carlo(search, seed, runner)
@@ -629,11 +360,9 @@ def falsify(
         _dual_annealing(search, seed, falsified)
         _record_violations(search, falsified, "dual-annealing")
         return search, falsified
-    _guided_search(search, seed, falsified, 1 + round(GUIDED_SHARES[0] * (budget - 1)))
-    _record_violations(search, falsified, "hypothesis search (unshrunk)")
-    _polish(search, falsified)
+    from analysis.falsification_search import guided_search, whitebox_search
+
+    (whitebox_search if method == "whitebox" else guided_search)(search, seed, falsified)
+    _record_violations(search, falsified, method)
     _shrink(search, falsified)
-    if search.used < budget:  # what the polish and the shrink left: more search
-        _guided_search(search, seed + 1000, falsified, budget)
-        _record_violations(search, falsified, "hypothesis search (unshrunk)")
     return search, falsified

@@ -30,7 +30,7 @@ from hybrid.errors import ParameterError
 
 from analysis.verification import VerificationProblem
 
-__all__ = ["ProblemLoadError", "split_spec", "load_problem", "source_digests"]
+__all__ = ["ProblemLoadError", "split_spec", "load_problem", "load_problems", "source_digests"]
 
 
 class ProblemLoadError(ParameterError):
@@ -172,6 +172,38 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
     if not obj.source:
         object.__setattr__(obj, "source", spec)
     return obj
+
+
+def load_problems(spec: str) -> dict[str, VerificationProblem]:
+    """The problems of a collection: ``"path/to/file.py:OBJECT"`` (``OBJECT`` defaults to ``problems``) names a
+    mapping, or a function of no argument returning one, of keys (``"AT1"``, ``"CC1"``, ...) to problems.
+
+    Raises
+    ------
+    ProblemLoadError
+        As :func:`load_problem`; also for an object that is not such a mapping.
+    """
+    where, name = split_spec(spec if ":" in spec.replace("\\", "/").rsplit("/", 1)[-1] else f"{spec}:problems")
+    module = _import(where)
+    obj = getattr(module, name, None)
+    if obj is None:
+        public = sorted(n for n in vars(module) if not n.startswith("_"))
+        raise ProblemLoadError("problems object", f"{where}:{name}", f"a name defined in {where}",
+                               f"choose one of {public[:20]}")
+    if callable(obj):
+        try:
+            obj = obj()
+        except BaseException as error:
+            if isinstance(error, KeyboardInterrupt):
+                raise
+            raise ProblemLoadError("problems object", f"{where}:{name}", "a function returning a mapping of problems",
+                                   "fix the error in your code", _user_traceback(error)) from None
+    if not isinstance(obj, Mapping) or not all(isinstance(k, str) and isinstance(v, VerificationProblem)
+                                               for k, v in obj.items()):
+        raise ProblemLoadError("problems object", f"{where}:{name}",
+                               f"a mapping of names to VerificationProblem (found {type(obj).__name__})",
+                               "return e.g. {'AT1': hybrid_problem(...)} from problems()")
+    return dict(obj)
 
 
 def _is_spaceex(spec: str) -> bool:

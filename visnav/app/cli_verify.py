@@ -36,8 +36,12 @@ __all__ = ["user_problem", "is_verification_counterexample", "cli_words", "add_p
            "JOURNAL_FORMAT", "COUNTEREXAMPLE_FORMAT", "DEFAULT_BUDGET", "PAPER"]
 
 JOURNAL_FORMAT = "visnav-verification-journal"
-JOURNAL_VERSION = 2
-"""2: every evaluation says how its run ended (``end``, ``end_time``) and decides each requirement or not
+JOURNAL_VERSION = 3
+"""3: the guided search of issue 29 (a space-filling start, surrogate and local steps: phases
+``start``, ``surrogate``, ``local``, ``gradient``, ``descent``) and the ``whitebox`` method; a journal of
+version 2 holds the points of the former hypothesis search, which a resumed search would not replay, so it
+is refused (the message names both versions: delete the folder or give another ``--out``).
+2: every evaluation says how its run ended (``end``, ``end_time``) and decides each requirement or not
 (``satisfied`` may be ``null``); a journal of version 1 judged runs that ended early as complete, so it
 is not read back."""
 JOURNAL_FILE = "evaluations.jsonl"
@@ -143,15 +147,13 @@ def _default_out(name: str, args: argparse.Namespace) -> str:
     return f"out/verify/{name}/{tail}"
 
 
-_PHASES = ("nominal", "search", "polish", "shrink", "monte-carlo", "dual-annealing")
-
-
 def _checked_evaluation(problem: Any, data: Any) -> Any:
     """A journal line's evaluation, refused (``ValueError``) unless it could have been written for ``problem``:
     a unit point of its dimension in [-1, 1], a status of the vocabulary, one robustness (not NaN) and one
     truth value (true, false or null) per requirement when evaluated, none otherwise."""
     import math
 
+    from analysis.falsification import PHASES as _PHASES
     from analysis.falsification import STATUSES, Evaluation
 
     e = Evaluation.from_dict(data)

@@ -143,3 +143,38 @@ def test_a_simulator_returning_a_wrong_object_or_nan_is_refused_with_a_message(t
     path.write_text(text)
     code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
     assert code == exit_code and needle in err.lower()
+
+
+def test_a_journal_of_the_former_search_is_refused_naming_both_versions(tmp_path, capsys):
+    # version 3 (issue 29): a version-2 journal holds the points of the former hypothesis search, which the new
+    # guided search would not replay; it is refused before any simulation, never silently mixed in
+    path = _module(tmp_path)
+    out = tmp_path / "o"
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "6", "--out", str(out))
+    assert code == 0, err
+    journal = out / "evaluations.jsonl"
+    lines = journal.read_text().splitlines()
+    header = json.loads(lines[0])
+    assert header["version"] == 3
+    journal.write_text("\n".join([json.dumps({**header, "version": 2}, sort_keys=True), *lines[1:]]) + "\n")
+    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "6", "--out", str(out))
+    assert code == 2
+    assert "format version 2, this visnav writes 3" in err
+
+
+@pytest.mark.parametrize("method", ["guided", "whitebox"])
+def test_an_interrupted_search_resumes_from_its_journal_byte_identically(tmp_path, capsys, method):
+    path = _module(tmp_path, "always[0, 2] (x > 0.3)")
+    args = ["verify", f"{path}:problem", "--budget", "12", "--method", method, "--json"]
+    code, whole, err = _run(capsys, *args, "--out", str(tmp_path / "a"))
+    assert code in (0, 1), err
+    journal = (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "evaluations.jsonl").write_text("\n".join(journal[: 1 + (len(journal) - 1) // 2]) + "\n")
+    code2, resumed, err = _run(capsys, *args, "--out", str(tmp_path / "b"))
+    assert code2 == code, err
+    strip = lambda text: {k: v for k, v in json.loads(text).items() if k != "requirements"}  # noqa: E731
+    a, b = json.loads(whole), json.loads(resumed)
+    assert strip(whole) == strip(resumed)
+    assert [{k: v for k, v in r.items() if k != "counterexample"} for r in a["requirements"]] == \
+           [{k: v for k, v in r.items() if k != "counterexample"} for r in b["requirements"]]
