@@ -33,6 +33,7 @@ import numpy as np
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, AffineTransition, affine_model
+from .nonlinear import smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
 from .series import MAX_NORM_STEP
 from .sets import UnsafeSet, clip_box, definitely_outside, polyhedra_to_float, tighten_box
@@ -140,7 +141,7 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ReachError(name, value, f"an int >= {low}", f"give {name} as a whole number >= {low}")
     _check_number("size_limit", size_limit, lambda v: v > 0, "a finite radius > 0")
-    model = affine_model(system)
+    model = affine_model(system, nonlinear=True)
     mode = model.initial_mode if initial_mode is None else initial_mode
     if mode not in model.modes:
         raise ReachError("initial_mode", initial_mode, f"one of {list(model.modes)}", "name a mode of the automaton")
@@ -285,8 +286,7 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
                                      zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
     _collect(collected, guards, work.start, lo, hi, work.t_lo, work.t_hi)
-    dyn, scale = _dynamics(run, work.mode)
-    for k, segment in enumerate(segments(dyn, _augment(work.start, scale), run.order)):
+    for k, segment in enumerate(_mode_segments(run, work)):
         t_lo = float(round_down(round_down(work.t_lo + k * run.step)))
         t_hi = float(round_up(round_up(work.t_hi + (k + 1) * run.step)))
         stop = _stop_reason(run, work, k, segment, n, t_lo)
@@ -309,11 +309,29 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     return collected
 
 
-def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope, n: int, t_lo: float) -> Termination | None:
+def _mode_segments(run: _Run, work: _Work) -> Any:
+    """The mode's segments (augmented zonotopes): affine flowpipe, or conservative linearisation of a smooth
+    flow (:mod:`analysis.reach.nonlinear`, which yields a reason string when a step cannot be enclosed)."""
+    smooth = run.model.modes[work.mode].smooth
+    if smooth is not None:
+        if run.inputs.get(work.mode) is not None:
+            raise ReachError("inputs", work.mode, "inputs only in modes with affine flows",
+                             "drop the input of this nonlinear mode (or add it to the flow as a state)")
+        return smooth_segments(smooth, work.mode, work.start, run.step, run.order)
+    dyn, scale = _dynamics(run, work.mode)
+    return segments(dyn, _augment(work.start, scale), run.order)
+
+
+def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int,
+                 t_lo: float) -> Termination | None:
     where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
     if work.t_lo + k * run.step > run.horizon:
         return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
                                                     f"{work.mode!r}", **where)
+    if isinstance(segment, str):
+        return Termination(reason="blow_up", detail=(
+            f"inconclusive: the over-approximation blew up at t = {t_lo:.6g} s in mode {work.mode!r} ({segment})"),
+            **where)
     if not segment.is_finite():
         return Termination(reason="not_finite", detail=f"inconclusive: a NaN or inf appeared at t = {t_lo:.6g} s "
                                                        f"in mode {work.mode!r}", **where)

@@ -52,13 +52,18 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
+import numpy as np
+
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .recheck_smooth import SmoothSet, SmoothStepper, StepFailed, reduced
 
 __all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncovered", "entry_uncovered"]
 
 Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
+SUB_STEPS = (2, 4, 16)
+"""Sub-steps tried per segment of a nonlinear mode (each a time piece) before the re-check fails."""
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
                    "no deadlock where a flowpipe leaves its invariant or a jump lands",
                    "jumps (guards and resets)", "requirement atoms in exact rationals")
@@ -379,7 +384,59 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
             for i, c in enumerate(z.center)]
 
 
-def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
+@dataclass(slots=True)
+class _SmoothMode:
+    """A mode with a nonlinear flow: re-checked by :class:`~analysis.reach.recheck_smooth.SmoothStepper`."""
+
+    stepper: SmoothStepper
+    invariant: Any
+
+
+def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
+                 covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono | None]]]:
+    """:func:`_step` for a nonlinear mode (:class:`~analysis.reach.recheck_smooth.SmoothStepper`): ``m`` sub-steps
+    of ``δ/m`` (``m`` from :data:`SUB_STEPS`), each a time piece; the pieces carry no zonotope (the requirement and the
+    guards are decided on their boxes)."""
+    first = SmoothSet(center=np.array([float(v) for v in z.center]),
+                      gens=np.array([[float(v) for v in g] for g in z.gens]).T.reshape(len(z.center), -1),
+                      err=np.array([float(v) for v in z.err]))
+    problem = ""
+    try:
+        for m in SUB_STEPS:
+            h = float(step / m)  # exact: a float divided by a power of two (the sub-steps sum to δ exactly)
+            if Fraction(h) * m != step:
+                raise StepFailed(f"the step {float(step)!r} s is not divisible by {m} in floating point")
+            current = reduced(first)
+            pieces: list[tuple[Box, _Zono | None]] = []
+            for _ in range(m):
+                pre = mode.stepper.prepare(current, h)
+                lo, hi = current.hull()
+                f_lo, f_hi = pre["fw"]
+                w_lo, w_hi = pre["w"]
+                box = [(max(Fraction(float(w0)), Fraction(float(a)) + min(Fraction(0), Fraction(h) * Fraction(float(fa)))),
+                        min(Fraction(float(w1)), Fraction(float(b)) + max(Fraction(0), Fraction(h) * Fraction(float(fb)))))
+                       for a, b, fa, fb, w0, w1 in zip(lo, hi, f_lo, f_hi, w_lo, w_hi)]
+                clipped = _clip_union(box, mode.invariant)
+                if clipped is not None:
+                    pieces.append((clipped, None))
+                current = reduced(mode.stepper.taylor(current, h, pre))
+            outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
+            if outside is not None:
+                problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, "
+                           f"{[float(v[1]) for v in outside]}] is not inside the saved box "
+                           f"[{[float(v[0]) for v in saved]}, {[float(v[1]) for v in saved]}]")
+                continue
+            problem = covered(pieces) or ""
+            if not problem:
+                return _Zono(center=[Fraction(float(v)) for v in current.center],
+                             gens=[[Fraction(float(v)) for v in col] for col in current.gens.T],
+                             err=[Fraction(float(v)) for v in current.err]), pieces
+    except StepFailed as fail:
+        raise _Fail(str(fail)) from None
+    raise _Fail(problem)
+
+
+def _step(mode: Any, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
           covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
     """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
     the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
@@ -387,6 +444,8 @@ def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fractio
     ``covered(pieces)`` returns ``None`` or the first uncovered guard part (a message).  Both checks
     are retried with ``m = 4, 16, 64, 256`` time pieces before failing.
     """
+    if isinstance(mode, _SmoothMode):
+        return _smooth_step(mode, z, step, saved, covered)
     w = _picard(mode, _outward(z.hull()), step)
     fw = mode.f(w)
     rem = _matvec(mode.power, fw)  # A^p f(W)
@@ -489,7 +548,7 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     RecheckResult
         ``passed`` only when every part (a)–(d) was decided and holds.
     """
-    model = affine_model(system)
+    model = affine_model(system, nonlinear=True)
     if set(initial) != set(model.state_names) or not all(
             isinstance(v, (tuple, list)) and len(v) == 2 and all(math.isfinite(float(e)) for e in v) and v[0] <= v[1]
             for v in initial.values()):
@@ -515,8 +574,11 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
     if horizon < Fraction(fragment.end):
         raise _Fail(f"the saved horizon {float(horizon)} s ends before the window's end {fragment.end} s")
-    modes = {}
+    modes: dict[str, Any] = {}
     for name, m in model.modes.items():
+        if m.smooth is not None:
+            modes[name] = _SmoothMode(stepper=SmoothStepper(m.smooth), invariant=m.invariant)
+            continue
         a = [list(r) for r in m.a]
         power = [[Fraction(int(i == j)) for j in range(len(a))] for i in range(len(a))]
         for _ in range(TAYLOR_ORDER):

@@ -38,10 +38,14 @@ from .recheck import entry_uncovered, exit_uncovered, recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
-__all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "default_time_step",
+__all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "METHOD_NONLINEAR", "default_time_step",
            "default_max_jumps", "reach_proofs", "REACH_CHOICES"]
 
 METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+METHOD_NONLINEAR = ("reachability (zonotope flowpipe by conservative linearisation with a Lagrange remainder, "
+                    "analysis.reach.nonlinear), re-checked by interval Picard and a second-order Taylor map in "
+                    "outward-rounded intervals")
+"""The method of a proof whose system has a nonlinear (smooth) mode."""
 
 
 MAX_SEGMENTS = 50_000
@@ -160,8 +164,8 @@ def _evidence(decision: ReachDecision, check: Any, recheck_seconds: float) -> st
 
 def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]], *,
                 initial_mode: str | None = None, time_step: float | None = None,
-                max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None
-                ) -> tuple[Proof, ReachDecision]:
+                max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None,
+                splits: Mapping[str, int] | None = None) -> tuple[Proof, ReachDecision]:
     """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
 
     Parameters
@@ -179,7 +183,14 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     cache : dict or None
         Flowpipes already computed, by their settings (the requirements of one problem with the same
         window share one flowpipe; each is decided and re-checked on its own).
+    splits : mapping {state: int} or None
+        Cut the initial box into this grid (:func:`analysis.reach.split.split_box`); each piece is decided
+        and re-checked on its own, and the proof holds when every piece's does (the pieces cover the box,
+        checked exactly).
     """
+    if splits and any(k != 1 for k in dict(splits).values()):
+        return _split_proof(system, fragment, initial, dict(splits), initial_mode=initial_mode,
+                            time_step=time_step, max_jumps=max_jumps, cache=cache)
     end = max(fragment.end, 1e-9)
     step = default_time_step(end) if time_step is None else time_step
     jumps = default_max_jumps(end) if max_jumps is None else max_jumps
@@ -191,7 +202,8 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
                        max_jumps=jumps, max_segments=MAX_SEGMENTS)
         if cache is not None:
             cache[key] = result
-    holds, margin, reason = decide(result, fragment, affine_model(system))
+    model = affine_model(system, nonlinear=True)
+    holds, margin, reason = decide(result, fragment, model)
     decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
                              seconds=time.perf_counter() - start)
     check = None
@@ -202,9 +214,43 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
         took = time.perf_counter() - start
     assumptions = (f"the initial box {dict(initial)}", f"the window [{fragment.start:g}, {fragment.end:g}] s",
                    "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)")
-    proof = Proof(holds=holds, method=METHOD, evidence=_evidence(decision, check, took),
+    proof = Proof(holds=holds, method=_method(model), evidence=_evidence(decision, check, took),
                   rechecked=bool(check is not None and check.passed), assumptions=assumptions)
     return proof, decision
+
+
+def _method(model: Any) -> str:
+    return METHOD_NONLINEAR if any(m.smooth is not None for m in model.modes.values()) else METHOD
+
+
+def _split_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
+                 splits: dict[str, int], **options: Any) -> tuple[Proof, ReachDecision]:
+    """:func:`reach_proof` on every piece of the split initial box; holds (and is re-checked) when every piece is."""
+    from .split import covers, split_box
+
+    pieces = split_box(initial, splits)
+    if not covers(initial, pieces):  # by construction; checked so that a wrong split can never prove
+        return Proof(holds=False, method=METHOD, evidence="the split pieces do not cover the initial box",
+                     rechecked=False), ReachDecision(holds=False, margin=math.nan, reason="split", result=None,
+                                                     seconds=0.0)
+    start = time.perf_counter()
+    proofs = [reach_proof(system, fragment, piece, **options) for piece in pieces]
+    holds = all(p.holds for p, _ in proofs)
+    rechecked = holds and all(p.rechecked for p, _ in proofs)
+    margins = [d.margin for _, d in proofs]
+    margin = min(margins) if holds else math.nan
+    first_bad = next((p for p, _ in proofs if not (p.holds and p.rechecked)), None)
+    where = "; ".join(f"{k}: {v}" for k, v in splits.items())
+    evidence = (f"initial box split into {len(pieces)} pieces ({where}), covering it exactly; "
+                + (f"every piece proven and re-checked, smallest margin {margin:.6g}; piece 1: {proofs[0][0].evidence}"
+                   if rechecked else f"a piece is not proven or not re-checked: {first_bad.evidence}"))
+    seconds = time.perf_counter() - start
+    decision = ReachDecision(holds=holds, margin=margin, reason=f"split into {len(pieces)} pieces", result=None,
+                             seconds=seconds)
+    assumptions = (f"the initial box {dict(initial)}", f"the window [{fragment.start:g}, {fragment.end:g}] s",
+                   "the mathematical semantics of the model (exact flows and guards; see docs/reachability.md)")
+    return Proof(holds=holds, method=proofs[0][0].method, evidence=evidence, rechecked=rechecked,
+                 assumptions=assumptions), decision
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -219,6 +265,7 @@ class ReachProof:
     max_jumps: int | None = None
     refused: str | None = None
     cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
+    splits: tuple[tuple[str, int], ...] | None = None
 
     def __call__(self) -> Proof:
         """The proof (never raises: a model or option reachability cannot handle gives a proof that does not hold)."""
@@ -229,7 +276,8 @@ class ReachProof:
         try:
             proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
                                    initial_mode=self.initial_mode, time_step=self.time_step,
-                                   max_jumps=self.max_jumps, cache=self.cache)
+                                   max_jumps=self.max_jumps, cache=self.cache,
+                                   splits=None if self.splits is None else dict(self.splits))
         except (ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
         return proof
@@ -245,10 +293,16 @@ def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: 
         raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
                            "write reach='auto' (the default), True (required) or False (falsification only)")
     opts = dict(options or {})
-    unknown = sorted(set(opts) - {"time_step", "max_jumps"})
+    unknown = sorted(set(opts) - {"time_step", "max_jumps", "splits"})
     if unknown:
-        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s] and max_jumps",
+        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s], max_jumps and splits",
                            f"remove {unknown}")
+    splits = opts.get("splits")
+    if splits is not None and not (isinstance(splits, Mapping) and all(
+            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) and v >= 1
+            for k, v in splits.items())):
+        raise ProblemError(f"{where}: reach_options['splits']", splits, "a mapping {state: whole number >= 1}",
+                           "give e.g. splits={'x': 4}, or leave it out")
     step = opts.get("time_step")
     if step is not None and (isinstance(step, bool) or not isinstance(step, (int, float))
                              or not math.isfinite(step) or step <= 0):
@@ -276,12 +330,13 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         The problem's initial states (a Parameter gives its ``[low, high]``).
     reach_mode : "auto", True or False
         ``False``: none.  ``"auto"``: a proof for each requirement in the fragment when the system is
-        symbolic and affine.  ``True``: the same, and a non-symbolic or non-affine system raises.
+        symbolic and affine.  ``True``: also for smooth nonlinear flows (polynomials, sin, cos:
+        :mod:`analysis.reach.nonlinear`), and a system reachability cannot read raises.
     builder : bool
         The problem's system is built by a function of the parameters (not decided by reachability:
         each requirement in the fragment gets a proof that says so and does not hold).
     options : mapping or None
-        ``time_step`` [s] and ``max_jumps`` of :func:`reach_proof`.
+        ``time_step`` [s], ``max_jumps`` and ``splits`` of :func:`reach_proof`.
 
     Raises
     ------
@@ -297,7 +352,7 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
     if reach_mode is False:
         return {}
     try:
-        model = affine_model(system)
+        model = affine_model(system, nonlinear=reach_mode is True)  # "auto": affine systems only
     except AffineError as exc:
         if reach_mode is True:
             raise ProblemError(f"{where}: reach", True, "a symbolic, affine HybridSystem (reachability needs a "
@@ -329,5 +384,6 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         box = tuple((k, float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items())
         out[p.name] = ReachProof(system=system, fragment=fragment, initial=box, initial_mode=initial_mode,
                                  time_step=opts.get("time_step"), max_jumps=opts.get("max_jumps"), refused=why,
-                                 cache=shared)
+                                 cache=shared, splits=None if opts.get("splits") is None
+                                 else tuple(sorted(opts["splits"].items())))
     return out
