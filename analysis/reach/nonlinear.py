@@ -41,7 +41,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from hybrid.symbolic import enclose
+from hybrid.symbolic import Const, enclose
 
 from .float_series import float_dynamics
 from .flowpipe import ModeDynamics, first_segment
@@ -59,10 +59,13 @@ from .zonotope import (
     with_error,
 )
 
-__all__ = ["MAX_ITERATIONS", "smooth_segments", "remainder_box"]
+__all__ = ["MAX_ITERATIONS", "QUADRATIC_GENERATORS", "smooth_segments", "remainder_box"]
 
 MAX_ITERATIONS = 12
 """Enlargements of the remainder box tried per step before the flowpipe is declared blown up."""
+
+QUADRATIC_GENERATORS = 40
+"""The tube is reduced to about this many generators before its quadratic form is bounded."""
 
 _GROW = 1.5
 """Factor by which the remainder box's radius is enlarged after a failed iteration."""
@@ -92,6 +95,25 @@ class _Evaluator:
         self.f_float = list(flow.components)  # called as e(v, m): compiled once
         # the distinct Hessian entries (j <= k), with their multiplicity 1 or 2 in the quadratic form
         self.pairs = [(j, k) for j in range(self.n) for k in range(j, self.n)]
+        # constant Jacobian and Hessian entries (most of them, for sparse flows) are read once
+        self.j_const = np.zeros((self.n, self.n))
+        self.j_vary = []
+        for i in range(self.n):
+            for j in range(self.n):
+                entry = flow.jacobian[i][j]
+                if isinstance(entry, Const):
+                    self.j_const[i, j] = float(entry.value)
+                else:
+                    self.j_vary.append((i, j))
+        self.h_const = np.zeros((self.n,) * 3)
+        self.h_vary = []
+        for i in range(self.n):
+            for j, k in self.pairs:
+                entry = flow.hessian[i][j][k]
+                if isinstance(entry, Const):
+                    self.h_const[i, j, k] = self.h_const[i, k, j] = float(entry.value)
+                else:
+                    self.h_vary.append((i, j, k))
 
     def box(self, lo: np.ndarray, hi: np.ndarray) -> dict[str, tuple[float, float]]:
         return {name: (float(a), float(b)) for name, a, b in zip(self.flow.names, lo, hi)}
@@ -100,17 +122,18 @@ class _Evaluator:
         """Enclosures of ``f(x)`` and ``Df(x)`` at a float point: (f_lo, f_hi, J_lo, J_hi)."""
         bounds = self.box(x, x)
         f = np.array([enclose(e, bounds) for e in self.flow.components])
-        jac = np.array([[enclose(e, bounds) for e in row] for row in self.flow.jacobian])
-        return f[:, 0], f[:, 1], jac[..., 0], jac[..., 1]
+        j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
+        for i, j in self.j_vary:
+            j_lo[i, j], j_hi[i, j] = enclose(self.flow.jacobian[i][j], bounds)
+        return f[:, 0], f[:, 1], j_lo, j_hi
 
     def hessian(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Enclosures of every ``∂²f_i/∂x_j∂x_k`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n, n)."""
         bounds = self.box(lo, hi)
-        h_lo, h_hi = np.zeros((self.n,) * 3), np.zeros((self.n,) * 3)
-        for j, k in self.pairs:
-            for i in range(self.n):
-                h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds)
-                h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
+        h_lo, h_hi = self.h_const.copy(), self.h_const.copy()
+        for i, j, k in self.h_vary:
+            h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds)
+            h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
         return h_lo, h_hi
 
     def quadratic(self, d_lo: np.ndarray, d_hi: np.ndarray, h_lo: np.ndarray, h_hi: np.ndarray
@@ -118,6 +141,8 @@ class _Evaluator:
         """An enclosure of ``½ dᵀ H d`` for ``d ∈ [d_lo, d_hi]``, ``H ∈ [h_lo, h_hi]`` (interval form)."""
         out_lo, out_hi = np.zeros(self.n), np.zeros(self.n)
         for j, k in self.pairs:
+            if not (np.any(h_lo[:, j, k]) or np.any(h_hi[:, j, k])):
+                continue  # a zero column of the Hessian adds nothing
             if j == k:
                 sq_hi = _up(np.maximum(d_lo[j] ** 2, d_hi[j] ** 2))
                 sq_lo = 0.0 if d_lo[j] <= 0.0 <= d_hi[j] else _down(min(d_lo[j] ** 2, d_hi[j] ** 2))
@@ -174,6 +199,7 @@ def remainder_box(ev: _Evaluator, xstar: np.ndarray, lin: tuple[np.ndarray, ...]
     q_lo, q_hi = ev.quadratic(d_lo, d_hi, h_lo, h_hi)
     if tube is not None:
         # d = (c − x*) + G ξ lies in {[G, c − x*, rounding box] ξ'}: the offset as one more generator (|ξ₀| <= 1)
+        tube = reduce_order(tube, max(1, QUADRATIC_GENERATORS // ev.n))  # its cost grows with the square
         offset = tube.center - xstar
         slack = upper(UNIT_ROUNDOFF * np.abs(offset), 1)
         gens = np.hstack([tube.generators, offset.reshape(-1, 1), np.diag(slack)])
@@ -254,6 +280,19 @@ def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: in
             f"(width {widest:.3g}); shorten time_step or the initial set")
 
 
+PADDING = 1e-10
+"""Relative padding of the stored tubes (plus 1e-14 absolute): an exact coordinate (a held sample, a constant)
+then has room for the independent re-check's own rounding bounds, which differ from the producer's."""
+
+
+def _padded(tube: Zonotope, n: int) -> Zonotope:
+    """``tube ⊕ [−ε, ε]`` on the state coordinates, ``ε = PADDING (|c| + radius) + 1e-14`` (larger: still sound)."""
+    lo, hi = interval_hull(tube.project(n))
+    eps = upper(PADDING * np.maximum(np.abs(lo), np.abs(hi)) + 1e-14, 3)
+    pad = np.vstack([np.diag(eps), np.zeros((tube.dimension - n, n))])
+    return Zonotope(center=tube.center, generators=np.hstack([tube.generators, pad]))
+
+
 def smooth_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float, order: int
                     ) -> Iterator[Zonotope | str]:
     """Tubes ``Ω_0, Ω_1, ...`` (augmented by a constant coordinate, dimension ``n + 1``), one per step of
@@ -263,10 +302,11 @@ def smooth_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float, o
     current = start
     guess = None
     while True:
-        out = _one_step(ev, mode, current, step, order, guess)
+        with np.errstate(over="ignore", invalid="ignore"):  # non-finite numbers are caught and reported
+            out = _one_step(ev, mode, current, step, order, guess)
         if isinstance(out, str):
             yield out
             return
         tube, current, found = out
         guess = found
-        yield tube
+        yield _padded(tube, ev.n)

@@ -62,7 +62,7 @@ __all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncover
 
 Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
-SUB_STEPS = (2, 4, 16)
+SUB_STEPS = (1, 2, 8)
 """Sub-steps tried per segment of a nonlinear mode (each a time piece) before the re-check fails."""
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
                    "no deadlock where a flowpipe leaves its invariant or a jump lands",
@@ -410,16 +410,21 @@ def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
             pieces: list[tuple[Box, _Zono | None]] = []
             for _ in range(m):
                 pre = mode.stepper.prepare(current, h)
+                after = mode.stepper.taylor(current, h, pre)
                 lo, hi = current.hull()
-                f_lo, f_hi = pre["fw"]
+                lo2, hi2 = after.hull()
+                q_lo, q_hi = pre["qw"]
                 w_lo, w_hi = pre["w"]
-                box = [(max(Fraction(float(w0)), Fraction(float(a)) + min(Fraction(0), Fraction(h) * Fraction(float(fa)))),
-                        min(Fraction(float(w1)), Fraction(float(b)) + max(Fraction(0), Fraction(h) * Fraction(float(fb)))))
-                       for a, b, fa, fb, w0, w1 in zip(lo, hi, f_lo, f_hi, w_lo, w_hi)]
+                bend = Fraction(h) ** 2 / 8
+                box = [(max(Fraction(float(w0)), min(Fraction(float(a)), Fraction(float(a2))) - bend * Fraction(float(
+                        max(abs(ql), abs(qh))))),
+                        min(Fraction(float(w1)), max(Fraction(float(b)), Fraction(float(b2))) + bend * Fraction(float(
+                            max(abs(ql), abs(qh))))))
+                       for a, b, a2, b2, ql, qh, w0, w1 in zip(lo, hi, lo2, hi2, q_lo, q_hi, w_lo, w_hi)]
                 clipped = _clip_union(box, mode.invariant)
                 if clipped is not None:
                     pieces.append((clipped, None))
-                current = reduced(mode.stepper.taylor(current, h, pre))
+                current = reduced(after)
             outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
             if outside is not None:
                 problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, "
@@ -501,6 +506,8 @@ class _Pipe:
     t_hi: Fraction
     segments: list[dict[str, Any]]
     termination: dict[str, Any]
+    before: Box | None = None  # the box a jump left from: the start set is its exact reset image
+    transition: str | None = None
 
 
 def _box_of(pair: Sequence[Sequence[float]]) -> Box:
@@ -523,7 +530,8 @@ def _pipes(data: Mapping[str, Any], initial: Box, initial_mode: str) -> list[_Pi
                    termination=ends[0])]
     for j, group, end in zip(jumps, groups[1:], ends[1:]):
         pipes.append(_Pipe(mode=j["target"], start=_box_of(j["after"]), t_lo=Fraction(j["t"][0]),
-                           t_hi=Fraction(j["t"][1]), segments=group, termination=end))
+                           t_hi=Fraction(j["t"][1]), segments=group, termination=end, before=_box_of(j["before"]),
+                           transition=j["transition"]))
     return pipes
 
 
@@ -632,6 +640,9 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
         raise _Fail(why)
     yield -1, [(pipe.start, None)], Fraction(entry["t"][0]), Fraction(entry["t"][1])
     x = _Zono.of_box(pipe.start)
+    if pipe.before is not None:  # the exact reset image of the box before the jump (inside ``after``: checked)
+        t = next(t for t in model.transitions if t.name == pipe.transition)
+        x = _Zono.of_box(pipe.before).mapped(t.r_matrix, t.r_offset)
     cache: dict[Fraction, Any] = {}
     for k, seg in enumerate(pipe.segments[1:]):
         t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step

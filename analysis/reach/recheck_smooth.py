@@ -17,8 +17,9 @@ states at ``kδ`` after entry (floats, read as exact reals):
   ``Dg_s = I + s Df + s²/2 Dq`` and ``D²g_s = s D²f + s²/2 D²q``.  The midpoint of ``Dg_s(c)`` maps the
   generators (each computed column within ``γ_n |M||g|`` of the exact one, Higham §3.1); its radius,
   the quadratic term, the third-order term and the roundings become a box of new generators.
-* The tube of the step is cut in ``m`` time pieces ``[s_j, s_{j+1}]``, each enclosed by
-  ``hull(Y_{s_j}) + [0, s_{j+1} − s_j]·f(W)``, ``∩ W``; the set at ``δ`` is ``Y_δ``.
+* The tube of the step is cut in ``m`` sub-steps of ``h = δ/m``, each a Taylor step from the last; the
+  states of a sub-step lie in ``hull(Y_j, Y_{j+1}) ± h²/8 · max|q(W)|`` (the error of linear
+  interpolation between the two ends of one solution, ``|x − L| <= h²/8 max|ẍ|``), ``∩ W``.
 
 Scalar interval operations round each bound outward by one ulp (``math.nextafter``-style, here on
 numpy arrays): an IEEE double operation rounded to nearest is within half an ulp.  Sums of
@@ -173,7 +174,7 @@ class SmoothStepper:
         self.f = list(f)
         self.at_point = list(f) + q + [e for row in jac for e in row] + [e for row in dq for e in row]
         self.over_hull = [e for a in hess for b in a for e in b] + [e for a in d2q for b in a for e in b]
-        self.over_w = list(f) + third
+        self.over_w = list(f) + third + q
 
     def picard(self, lo: np.ndarray, hi: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
         """A box ``W`` with ``[lo, hi] + [0, δ] f(W) ⊂ int W``."""
@@ -206,7 +207,8 @@ class SmoothStepper:
                 "hess": (h_lo[: n ** 3].reshape(n, n, n), h_hi[: n ** 3].reshape(n, n, n)),
                 "d2q": (h_lo[n ** 3:].reshape(n, n, n), h_hi[n ** 3:].reshape(n, n, n)),
                 "d": (_dn(lo - z.center), _upn(hi - z.center)), "w": w,
-                "fw": (w_lo[:n], w_hi[:n]), "third": (w_lo[n:], w_hi[n:])}
+                "fw": (w_lo[:n], w_hi[:n]), "third": (w_lo[n:2 * n], w_hi[n:2 * n]),
+                "qw": (w_lo[2 * n:], w_hi[2 * n:])}
 
     def taylor(self, z: SmoothSet, s: float, pre: dict[str, Any]) -> SmoothSet:
         """``Y_s``: a set holding every state at local time ``s`` (a float in ``[0, δ]``) after ``Z``."""
