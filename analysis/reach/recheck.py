@@ -45,6 +45,7 @@ passes by looseness.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -392,11 +393,31 @@ class _SmoothMode:
     invariant: Any
 
 
+def _hull_zono(start: SmoothSet, end: SmoothSet, bend: Sequence[Fraction]) -> _Zono:
+    """A zonotope holding every state of one sub-step: the convex hull of its two ends (same generator weights:
+    ``end = M start + box``, columns aligned) plus the interpolation error ``bend`` (exact rationals).
+
+    ``λ a + (1 − λ) b`` with ``a = c + G ξ``, ``b = c' + G' ξ + e`` lies in
+    ``(c + c')/2 + (G + G')/2 ξ + (c − c')/2 μ + (G − G')/2 ξ'`` ``⊕ [−|e|, |e|]`` (``μ = 2λ − 1``,
+    ``ξ' = μ ξ``, all in ``[−1, 1]``); the guard check (:func:`_contract`) narrows ``μ``.
+    """
+    n = start.center.size
+    m = start.gens.shape[1]
+    c0 = [Fraction(float(v)) for v in start.center]
+    c1 = [Fraction(float(v)) for v in end.center]
+    g0 = [[Fraction(float(v)) for v in start.gens[:, j]] for j in range(m)]
+    g1 = [[Fraction(float(v)) for v in end.gens[:, j]] for j in range(m)]
+    gens = [[(a + b) / 2 for a, b in zip(x, y)] for x, y in zip(g0, g1)]
+    gens += [[(a - b) / 2 for a, b in zip(c0, c1)]]
+    gens += [[(a - b) / 2 for a, b in zip(x, y)] for x, y in zip(g0, g1)]
+    err = [Fraction(float(start.err[i])) + Fraction(float(end.err[i])) + bend[i] for i in range(n)]
+    return _Zono(center=[(a + b) / 2 for a, b in zip(c0, c1)], gens=[g for g in gens if any(g)], err=err).rounded()
+
+
 def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
                  covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono | None]]]:
     """:func:`_step` for a nonlinear mode (:class:`~analysis.reach.recheck_smooth.SmoothStepper`): ``m`` sub-steps
-    of ``δ/m`` (``m`` from :data:`SUB_STEPS`), each a time piece; the pieces carry no zonotope (the requirement and the
-    guards are decided on their boxes)."""
+    of ``δ/m`` (``m`` from :data:`SUB_STEPS`), each a time piece: its box and the zonotope of :func:`_hull_zono`."""
     first = SmoothSet(center=np.array([float(v) for v in z.center]),
                       gens=np.array([[float(v) for v in g] for g in z.gens]).T.reshape(len(z.center), -1),
                       err=np.array([float(v) for v in z.err]))
@@ -415,15 +436,14 @@ def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
                 lo2, hi2 = after.hull()
                 q_lo, q_hi = pre["qw"]
                 w_lo, w_hi = pre["w"]
-                bend = Fraction(h) ** 2 / 8
-                box = [(max(Fraction(float(w0)), min(Fraction(float(a)), Fraction(float(a2))) - bend * Fraction(float(
-                        max(abs(ql), abs(qh))))),
-                        min(Fraction(float(w1)), max(Fraction(float(b)), Fraction(float(b2))) + bend * Fraction(float(
-                            max(abs(ql), abs(qh))))))
-                       for a, b, a2, b2, ql, qh, w0, w1 in zip(lo, hi, lo2, hi2, q_lo, q_hi, w_lo, w_hi)]
+                bend = [Fraction(h) ** 2 / 8 * Fraction(float(max(abs(a), abs(b)))) for a, b in zip(q_lo, q_hi)]
+                box = [(max(Fraction(float(w0)), min(Fraction(float(a)), Fraction(float(a2))) - e),
+                        min(Fraction(float(w1)), max(Fraction(float(b)), Fraction(float(b2))) + e))
+                       for a, b, a2, b2, e, w0, w1 in zip(lo, hi, lo2, hi2, bend, w_lo, w_hi)]
                 clipped = _clip_union(box, mode.invariant)
                 if clipped is not None:
-                    pieces.append((clipped, None))
+                    # built only when a guard or the requirement needs it (exact rationals are slow)
+                    pieces.append((clipped, functools.partial(_hull_zono, current, after, bend)))
                 current = reduced(after)
             outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
             if outside is not None:
@@ -605,7 +625,9 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
             if t_lo > Fraction(fragment.end) or t_hi < Fraction(fragment.start):
                 continue
             for box, zono in sets:
-                ok, slack = _value(fragment.body, box, pipe.mode, zono)
+                ok, slack = _value(fragment.body, box, pipe.mode, None if callable(zono) else zono)
+                if callable(zono) and not ok:  # a nonlinear piece: its zonotope only when the box does not decide
+                    ok, slack = _value(fragment.body, box, pipe.mode, zono())
                 if not ok:
                     raise _Fail(f"requirement: the atoms do not hold on the re-checked states of flowpipe {i} "
                                 f"segment {k} (mode {pipe.mode!r}, t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s)")
@@ -697,7 +719,7 @@ def _jumps_from(model: AffineHybridModel, mode: str, box: Box, t_lo: Fraction, t
                 rows = guard.halfspaces + (inv.halfspaces if inv is not None else ())
                 part = _clip(box, rows)
                 if part is not None and zono is not None:
-                    narrow = _contract(zono, rows)
+                    narrow = _contract(zono() if callable(zono) else zono, rows)
                     part = None if narrow is None else _meet(part, narrow)
                 if part is None:
                     continue

@@ -13,8 +13,8 @@ states at ``kδ`` after entry (floats, read as exact reals):
   ``x(s) = g_s(x₀) + s³/6 · x'''(θ)`` with ``g_s(x) = x + s f(x) + s²/2 q(x)``, ``q = Df·f`` (``ẍ``)
   and ``x''' = Dq·f`` enclosed over ``W``.
 * **Centred form** of ``g_s`` around ``c``:
-  ``g_s(x₀) ∈ g_s(c) + Dg_s(c)(x₀ − c) + ½ (x₀ − c)ᵀ D²g_s(hull Z)(x₀ − c)`` with
-  ``Dg_s = I + s Df + s²/2 Dq`` and ``D²g_s = s D²f + s²/2 D²q``.  The midpoint of ``Dg_s(c)`` maps the
+  ``g_s(x₀) ∈ g_s(c) + Dg_s(c)(x₀ − c) + ½ s (x₀ − c)ᵀ D²f(hull Z)(x₀ − c) + s²/2 (Dq(hull Z) − Dq(c))(x₀ − c)``
+  with ``Dg_s = I + s Df + s²/2 Dq`` (second order for ``f``, mean value form for the small ``s²/2 q``).  The midpoint of ``Dg_s(c)`` maps the
   generators (each computed column within ``γ_n |M||g|`` of the exact one, Higham §3.1); its radius,
   the quadratic term, the third-order term and the roundings become a box of new generators.
 * The tube of the step is cut in ``m`` sub-steps of ``h = δ/m``, each a Taylor step from the last; the
@@ -169,11 +169,10 @@ class SmoothStepper:
         f, jac, hess = flow.components, flow.jacobian, flow.hessian
         q = [_dot(list(jac[i]), f) for i in range(n)]
         dq = [[diff(q[i], x) for x in flow.names] for i in range(n)]
-        d2q = [[[diff(dq[i][j], x) for x in flow.names] for j in range(n)] for i in range(n)]
         third = [_dot(dq[i], f) for i in range(n)]
         self.f = list(f)
         self.at_point = list(f) + q + [e for row in jac for e in row] + [e for row in dq for e in row]
-        self.over_hull = [e for a in hess for b in a for e in b] + [e for a in d2q for b in a for e in b]
+        self.over_hull = [e for a in hess for b in a for e in b] + [e for row in dq for e in row]
         self.over_w = list(f) + third + q
 
     def picard(self, lo: np.ndarray, hi: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
@@ -205,7 +204,7 @@ class SmoothStepper:
         return {"f": part[0], "q": part[1], "jac": tuple(v.reshape(n, n) for v in part[2]),
                 "dq": tuple(v.reshape(n, n) for v in part[3]),
                 "hess": (h_lo[: n ** 3].reshape(n, n, n), h_hi[: n ** 3].reshape(n, n, n)),
-                "d2q": (h_lo[n ** 3:].reshape(n, n, n), h_hi[n ** 3:].reshape(n, n, n)),
+                "dq_hull": (h_lo[n ** 3:].reshape(n, n), h_hi[n ** 3:].reshape(n, n)),
                 "d": (_dn(lo - z.center), _upn(hi - z.center)), "w": w,
                 "fw": (w_lo[:n], w_hi[:n]), "third": (w_lo[n:2 * n], w_hi[n:2 * n]),
                 "qw": (w_lo[2 * n:], w_hi[2 * n:])}
@@ -218,8 +217,8 @@ class SmoothStepper:
         s3 = _imul(_imul(s2, (s, s)), (1.0 / 6.0 - 2 * _U, 1.0 / 6.0 + 2 * _U))
         # g_s(c): interval vector
         g = _iadd(_iadd((z.center, z.center), _imul((s, s), pre["f"])), _imul(half, pre["q"]))
-        # ½ dᵀ (s H + s²/2 D²q) d
-        coef = _iadd(_imul(_imul((s, s), (0.5, 0.5)), pre["hess"]), _imul(_imul(half, (0.5, 0.5)), pre["d2q"]))
+        # ½ s dᵀ H d (the s²/2 q part is in mean-value form below)
+        coef = _imul(_imul((s, s), (0.5, 0.5)), pre["hess"])
         d_lo, d_hi = pre["d"]
         prod = _imul((d_lo[:, None], d_hi[:, None]), (d_lo[None, :], d_hi[None, :]))
         sq = _isquare((d_lo, d_hi))
@@ -232,7 +231,10 @@ class SmoothStepper:
             z_lo, z_hi = _form_on_generators(cols, coef)
             quad = (np.maximum(quad[0], z_lo), np.minimum(quad[1], z_hi))
         third = _imul(s3, pre["third"])
-        total = _iadd(_iadd(g, quad), third)
+        # s²/2 (q(x) − q(c) − Dq(c) d) ∈ s²/2 (Dq(hull) − Dq(c)) d  (mean value theorem, per component)
+        slope = _iadd(pre["dq_hull"], (-pre["dq"][1], -pre["dq"][0]))
+        mv = _imul(_imul(half, slope), (d_lo[None, :], d_hi[None, :]))
+        total = _iadd(_iadd(_iadd(g, quad), third), _interval_sum(mv[0], mv[1]))
         # Dg_s(c) = I + s Df(c) + s²/2 Dq(c)
         m_lo, m_hi = _iadd(_iadd((np.eye(n), np.eye(n)), _imul((s, s), pre["jac"])), _imul(half, pre["dq"]))
         mid = 0.5 * m_lo + 0.5 * m_hi
