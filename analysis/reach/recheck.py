@@ -38,6 +38,11 @@ rounded outward.  Per flowpipe (a mode entered with a box ``X₀`` at times ``[�
     (the smaller of the rational maxima of ``c·x`` over the box and over the zonotope); label atoms
     by the segment's mode.
 
+A mode with a nonlinear (smooth) flow is re-checked in (a) by :mod:`analysis.reach.recheck_smooth` instead
+(interval Picard, a second-order Taylor map in centred form, :data:`SUB_STEPS` sub-steps as time pieces);
+(b)–(d) are the same.  A flowpipe entered by a jump starts from the exact reset image of the box before
+the jump (a zonotope), which lies in the box after it (checked).
+
 Anything failing fails the re-check, with the part and the place.  The interval Picard tube
 wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
 passes by looseness.
