@@ -93,12 +93,13 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
           max_jumps: int = 10, inputs: Mapping[str, ModeInput] | None = None, unsafe: Sequence[UnsafeSet] = (),
           order: int = 20, stored_order: int = 10, size_limit: float = 1e6, max_segments: int = 200_000,
           max_flowpipes: int = 1_000) -> ReachResult:
-    """An over-approximation of the states a symbolic affine hybrid system reaches.
+    """An over-approximation of the states a symbolic hybrid system reaches.
 
     Parameters
     ----------
     system : hybrid.system.HybridSystem
-        Symbolic and affine (flows, jump maps, guards, invariants, output).
+        Symbolic; flows affine, or smooth (polynomials, sin, cos: conservative linearisation,
+        :mod:`analysis.reach.nonlinear`); jump maps, guards, invariants and output affine.
     initial : Zonotope, mapping {state name: (lo, hi)}, array_like of shape (k, n), or symbolic condition
         The initial set: a zonotope, a box, a polytope given by its vertices, or a bounded polytope
         written as a conjunction of affine comparisons over the state names (both polytopes are
