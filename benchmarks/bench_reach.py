@@ -11,7 +11,8 @@ holds on every segment, :func:`analysis.reach.verdict.decide`, under SpaceEx's m
 segment, Hylaa's verdict and time and the ratio (ours / Hylaa's), the verdicts published for CORA and JuliaReach
 (ARCH-COMP AFF reports, different machines), and the soundness benchmark (``reach_soundness.py``): executor runs
 inside the flowpipe, planted sets never proven.  Rows of ``benchmarks/reach_nln.py`` (nonlinear instances, another
-module) are added when that file exists.  ``--json`` prints one JSON document (deterministic but for the times).
+module, decided by its ``run_instance``: ``reach_proof`` with its splits and the re-check; ``safe`` only when both
+hold) are added when that file exists.  ``--json`` prints one JSON document (deterministic but for the times).
 """
 
 from __future__ import annotations
@@ -84,21 +85,19 @@ def _nln_rows(quick: bool, repeats: int) -> tuple[list[dict[str, Any]], str | No
     spec = importlib.util.spec_from_file_location("reach_nln", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    from analysis.reach import reach
 
     rows = []
     for item in getattr(module, "INSTANCES", []):
-        system, box, kwargs, unsafe = item["build"]()
-        times, result = [], None
-        for _ in range(max(repeats, 1)):
-            start = time.perf_counter()
-            result = reach(system, box, **kwargs)
-            times.append(time.perf_counter() - start)
-        sets = unsafe if isinstance(unsafe, (list, tuple)) else [unsafe]
-        safe = result.status == "complete" and all(result.distance_to(u) > 0 for u in sets)
-        rows.append({"name": item["name"], "ours": {"verdict": "safe" if safe else "unknown",
-                                                    "seconds": statistics.median(times), "width": _width(result)},
-                     "published": item.get("published"), "kind": "nonlinear"})
+        # reach_nln's own runner: reach_proof (its splits) and the independent re-check; safe only when both hold
+        outs = [module.run_instance(item) for _ in range(max(1 if quick else repeats, 1))]
+        out = outs[-1]
+        safe = bool(out["holds"] and out["rechecked"])
+        ours = {"verdict": "safe" if safe else "unknown", "seconds": statistics.median(o["seconds"] for o in outs),
+                "width": None, "margin": out["margin"]}
+        if not safe:
+            ours["reason"] = out["evidence"]
+        rows.append({"name": item["name"], "ours": ours, "published": None, "published_nln": item.get("published"),
+                     "kind": "nonlinear"})
     return rows, None
 
 
@@ -140,6 +139,9 @@ def table(doc: dict[str, Any]) -> str:
     for row in doc["rows"]:
         o, h = row["ours"], row.get("hylaa") or {}
         pub = " / ".join(f"{p['tool']} {p['verdict']} {_fmt(p['seconds'])}s" for p in row.get("published") or [])
+        if row.get("published_nln"):  # reach_nln's figure: one tool, its report, a runtime or None
+            p = row["published_nln"]
+            pub = f"{p['tool']} {p['verdict']} {_fmt(p.get('runtime_s'))}s ({p['report']})"
         sims = row.get("simulations")
         sound = ""
         if "planted" in row:

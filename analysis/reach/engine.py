@@ -33,6 +33,7 @@ import numpy as np
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, AffineTransition, affine_model
+from .nonlinear import smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
 from .series import MAX_NORM_STEP
 from .sets import UnsafeSet, box_position, clip_box, definitely_outside, polyhedra_to_float, tighten_box
@@ -97,12 +98,13 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
           max_flowpipes: int = 1_000, mode_time_steps: Mapping[str, float] | None = None,
           jump_cluster: int | None = None, merge_segments: int = 1,
           progress: Callable[[float], None] | None = None) -> ReachResult:
-    """An over-approximation of the states a symbolic affine hybrid system reaches.
+    """An over-approximation of the states a symbolic hybrid system reaches.
 
     Parameters
     ----------
     system : hybrid.system.HybridSystem
-        Symbolic and affine (flows, jump maps, guards, invariants, output).
+        Symbolic; flows affine, or smooth (polynomials, sin, cos: conservative linearisation,
+        :mod:`analysis.reach.nonlinear`); jump maps, guards, invariants and output affine.
     initial : Zonotope, mapping {state name: (lo, hi)}, array_like of shape (k, n), or symbolic condition
         The initial set: a zonotope, a box, a polytope given by its vertices, or a bounded polytope
         written as a conjunction of affine comparisons over the state names (both polytopes are
@@ -150,13 +152,13 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     ReachError
         An invalid parameter (naming it, its value, what was expected and the fix).
     analysis.reach.affine.AffineError
-        The system is not symbolic, or not affine (naming the part).
+        The system is not symbolic, or a flow neither affine nor smooth, or another part not affine (naming it).
     """
     _check_options(horizon, time_step, size_limit, jump_cluster,
                    (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
                     ("merge_segments", merge_segments, 1), ("max_segments", max_segments, 1),
                     ("max_flowpipes", max_flowpipes, 1)))
-    model = affine_model(system)
+    model = affine_model(system, nonlinear=True)
     steps = _mode_steps(mode_time_steps, model, float(horizon))
     mode = model.initial_mode if initial_mode is None else initial_mode
     if mode not in model.modes:
@@ -346,11 +348,11 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
                                      zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
     _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
-    dyn, scale = _dynamics(run, work.mode)
+    step = _step(run, work.mode)  # the mode's step, affine or smooth (``mode_time_steps``)
     pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)
-    for k, segment in enumerate(segments(dyn, _augment(work.start, scale), run.order)):
-        t_lo = float(round_down(round_down(work.t_lo + k * dyn.step)))
-        t_hi = float(round_up(round_up(work.t_hi + (k + 1) * dyn.step)))
+    for k, segment in enumerate(_mode_segments(run, work, step)):
+        t_lo = float(round_down(round_down(work.t_lo + k * step)))
+        t_hi = float(round_up(round_up(work.t_hi + (k + 1) * step)))
         stop = _stop_reason(run, work, k, segment, n, t_lo)
         if stop is not None:
             run.terminations.append(stop)
@@ -399,11 +401,32 @@ def _flush(run: _Run, work: _Work, pending: list[Any]) -> None:
     pending.clear()
 
 
-def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope, n: int, t_lo: float) -> Termination | None:
+def _mode_segments(run: _Run, work: _Work, step: float) -> Any:
+    """The mode's segments (augmented zonotopes) of ``step`` [s] each (the mode's, :func:`_step`): affine flowpipe,
+    or conservative linearisation of a smooth flow (:mod:`analysis.reach.nonlinear`, which yields a reason string
+    when a step cannot be enclosed)."""
+    smooth = run.model.modes[work.mode].smooth
+    if smooth is not None:
+        if run.inputs.get(work.mode) is not None:
+            raise ReachError("inputs", work.mode, "inputs only in modes with affine flows",
+                             "drop the input of this nonlinear mode (or add it to the flow as a state)")
+        return smooth_segments(smooth, work.mode, work.start, step, run.order)
+    dyn, scale = _dynamics(run, work.mode)
+    if dyn.step != step:  # one step for the segments and their times (both from _step)
+        raise AssertionError(f"mode {work.mode!r}: flowpipe step {dyn.step!r} != {step!r}")
+    return segments(dyn, _augment(work.start, scale), run.order)
+
+
+def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int,
+                 t_lo: float) -> Termination | None:
     where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
     if work.t_lo + k * _step(run, work.mode) > run.horizon:
         return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
                                                     f"{work.mode!r}", **where)
+    if isinstance(segment, str):
+        return Termination(reason="blow_up", detail=(
+            f"inconclusive: the over-approximation blew up at t = {t_lo:.6g} s in mode {work.mode!r} ({segment})"),
+            **where)
     if not segment.is_finite():
         return Termination(reason="not_finite", detail=f"inconclusive: a NaN or inf appeared at t = {t_lo:.6g} s "
                                                        f"in mode {work.mode!r}", **where)

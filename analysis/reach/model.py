@@ -22,18 +22,24 @@ from typing import Any
 from hybrid.system import HybridSystem
 
 from .affine import AffineError, AffineForm, Halfspace, Polyhedron, affine_vector, condition_polyhedra
+from .smooth import SmoothFlow, smooth_flow
 
 __all__ = ["AffineMode", "AffineTransition", "AffineHybridModel", "affine_model"]
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class AffineMode:
-    """``ẋ = A x + c`` with invariant ``∪ polyhedra`` (``((),)``, one empty conjunction: everywhere)."""
+    """``ẋ = A x + c`` with invariant ``∪ polyhedra`` (``((),)``, one empty conjunction: everywhere).
+
+    A mode with a nonlinear (smooth) flow, read only by ``affine_model(..., nonlinear=True)``, has
+    ``smooth`` set and ``a``, ``c`` empty.
+    """
 
     name: str
     a: tuple[tuple[Fraction, ...], ...]
     c: tuple[Fraction, ...]
     invariant: tuple[Polyhedron, ...]
+    smooth: SmoothFlow | None = None
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -69,8 +75,12 @@ _NOT_SYMBOLIC = ("reachability needs a symbolic model: a HybridSystem whose flow
                  "invariants are hybrid.symbolic expressions")
 
 
-def affine_model(system: Any) -> AffineHybridModel:
+def affine_model(system: Any, *, nonlinear: bool = False) -> AffineHybridModel:
     """The exact affine reading of ``system`` (see the module docstring).
+
+    With ``nonlinear``, a mode whose flow is not affine but smooth (polynomials, sin, cos:
+    :func:`analysis.reach.smooth.smooth_flow`) is read as a :class:`SmoothFlow` instead of refused;
+    guards, invariants and jump maps must still be affine.
 
     Raises
     ------
@@ -95,12 +105,21 @@ def affine_model(system: Any) -> AffineHybridModel:
     modes = {}
     for mode in automaton.modes:
         role = f"system {system.name!r}: flow of mode {mode.name!r}"
-        forms = affine_vector(system.flows[mode.name], names, memory=memory, written=written, role=role)
+        try:
+            forms = affine_vector(system.flows[mode.name], names, memory=memory, written=written, role=role)
+        except AffineError:
+            if not nonlinear:
+                raise
+            forms = None
+            smooth = smooth_flow(system.flows[mode.name], names, memory=memory, written=written, role=role)
         invariant = (Polyhedron(halfspaces=()),) if mode.invariant is None else _over_state(
             condition_polyhedra(mode.invariant, automaton.variables, memory=memory, written=written,
                                 role=f"system {system.name!r}: invariant of mode {mode.name!r}"), output)
-        modes[mode.name] = AffineMode(name=mode.name, a=tuple(f.coefficients for f in forms),
-                                      c=tuple(f.constant for f in forms), invariant=invariant)
+        if forms is None:
+            modes[mode.name] = AffineMode(name=mode.name, a=(), c=(), invariant=invariant, smooth=smooth)
+        else:
+            modes[mode.name] = AffineMode(name=mode.name, a=tuple(f.coefficients for f in forms),
+                                          c=tuple(f.constant for f in forms), invariant=invariant)
     transitions = tuple(_transition(system, t, memory, written, output) for t in automaton.transitions)
     return AffineHybridModel(name=system.name, state_names=tuple(names), modes=modes, transitions=transitions,
                              initial_mode=automaton.initial_mode)

@@ -292,7 +292,8 @@ def _affine_flows(flows: Mapping[str, list[Poly]], common: Sequence[int], system
                         f"the flow of mode {mode!r}, component {system.state_names[i]!r}, has the term "
                         f"{float(value):g}·{_monomial_text(e, names)}: a parameter multiplies a state (or another "
                         "parameter) and the parameters are not a common time scale of every flow, so the dynamics "
-                        "over the parameter box are not affine (polynomial reachability is not in this version). "
+                        "over the parameter box are not affine (nonlinear reachability does not read parameters "
+                        "as states in this version). "
                         "Fix: fix that parameter (give low == high), or make it scale every flow of every mode")
                 j = next((k for k, x in enumerate(e) if x), None)
                 if j is None:
@@ -372,7 +373,8 @@ def _bounds(box: Sequence[Any]) -> dict[str, tuple[Fraction, Fraction]]:
     return {p.name: (Fraction(float(p.low)), Fraction(float(p.high))) for p in box}
 
 
-def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, builder: bool) -> ReachSetup:
+def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, builder: bool,
+                nonlinear: bool = False) -> ReachSetup:
     """The affine model and initial box a reachability proof of a problem runs on.
 
     Parameters
@@ -385,6 +387,9 @@ def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, 
         Every coordinate of the problem's box (initial-state parameters, then model parameters).
     builder : bool
         ``system`` is a function of the point.
+    nonlinear : bool
+        Read smooth nonlinear flows too (``affine_model(..., nonlinear=True)``), for a system that is not built
+        from the parameters; a builder's flows must still be affine (or a time scale of affine flows).
 
     Raises
     ------
@@ -395,7 +400,7 @@ def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, 
     """
     states = {k: (float(getattr(v, "low", v)), float(getattr(v, "high", v))) for k, v in initial.items()}
     if not builder:
-        model = affine_model(system)
+        model = affine_model(system, nonlinear=nonlinear)
         return ReachSetup(model=model, box=tuple((s, *states[s]) for s in model.state_names))
     sym = _symbolic_system(system, box)
     used = _used(sym, {p.name for p in box})
@@ -407,7 +412,15 @@ def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, 
     memory = a.initial_memory()
     n = len(sym.state_names)
     bounds = _bounds(box)
-    polys = _flows(sym, used, memory, written)
+    try:
+        polys = _flows(sym, used, memory, written)
+    except AffineError as exc:
+        if not nonlinear:
+            raise
+        # reach=True reads smooth flows, but not with parameters as constant states: decline, never guess
+        raise ParameterRoute(f"{exc}; nonlinear (smooth) flows are read only for a system not built from the "
+                             "parameters in this version. Fix: fix the parameters (low == high) and pass the "
+                             "HybridSystem itself") from None
     common, scale, text = _time_scale(polys, n, (*sym.state_names, *used), bounds)
     in_flows = {used[i] for comps in polys.values() for poly in comps for e in poly
                 for i in range(len(used)) if e[n + i] > common[i]}

@@ -38,6 +38,11 @@ rounded outward.  Per flowpipe (a mode entered with a box ``X₀`` at times ``[�
     (the smaller of the rational maxima of ``c·x`` over the box and over the zonotope); label atoms
     by the segment's mode.
 
+A mode with a nonlinear (smooth) flow is re-checked in (a) by :mod:`analysis.reach.recheck_smooth` instead
+(interval Picard, a second-order Taylor map in centred form, :data:`SUB_STEPS` sub-steps as time pieces);
+(b)–(d) are the same.  A flowpipe entered by a jump starts from the exact reset image of the box before
+the jump (a zonotope), which lies in the box after it (checked).
+
 Anything failing fails the re-check, with the part and the place.  The interval Picard tube
 wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
 passes by looseness.
@@ -45,6 +50,7 @@ passes by looseness.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -52,13 +58,18 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
+import numpy as np
+
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .recheck_smooth import SmoothSet, SmoothStepper, StepFailed, reduced
 
 __all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncovered", "entry_uncovered"]
 
 Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
+SUB_STEPS = (1, 2, 8)
+"""Sub-steps tried per segment of a nonlinear mode (each a time piece) before the re-check fails."""
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
                    "no deadlock where a flowpipe leaves its invariant or a jump lands",
                    "jumps (guards and resets)", "requirement atoms in exact rationals")
@@ -379,7 +390,83 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
             for i, c in enumerate(z.center)]
 
 
-def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
+@dataclass(slots=True)
+class _SmoothMode:
+    """A mode with a nonlinear flow: re-checked by :class:`~analysis.reach.recheck_smooth.SmoothStepper`."""
+
+    stepper: SmoothStepper
+    invariant: Any
+
+
+def _hull_zono(start: SmoothSet, end: SmoothSet, bend: Sequence[Fraction]) -> _Zono:
+    """A zonotope holding every state of one sub-step: the convex hull of its two ends (same generator weights:
+    ``end = M start + box``, columns aligned) plus the interpolation error ``bend`` (exact rationals).
+
+    ``λ a + (1 − λ) b`` with ``a = c + G ξ``, ``b = c' + G' ξ + e`` lies in
+    ``(c + c')/2 + (G + G')/2 ξ + (c − c')/2 μ + (G − G')/2 ξ'`` ``⊕ [−|e|, |e|]`` (``μ = 2λ − 1``,
+    ``ξ' = μ ξ``, all in ``[−1, 1]``); the guard check (:func:`_contract`) narrows ``μ``.
+    """
+    n = start.center.size
+    m = start.gens.shape[1]
+    c0 = [Fraction(float(v)) for v in start.center]
+    c1 = [Fraction(float(v)) for v in end.center]
+    g0 = [[Fraction(float(v)) for v in start.gens[:, j]] for j in range(m)]
+    g1 = [[Fraction(float(v)) for v in end.gens[:, j]] for j in range(m)]
+    gens = [[(a + b) / 2 for a, b in zip(x, y)] for x, y in zip(g0, g1)]
+    gens += [[(a - b) / 2 for a, b in zip(c0, c1)]]
+    gens += [[(a - b) / 2 for a, b in zip(x, y)] for x, y in zip(g0, g1)]
+    err = [Fraction(float(start.err[i])) + Fraction(float(end.err[i])) + bend[i] for i in range(n)]
+    return _Zono(center=[(a + b) / 2 for a, b in zip(c0, c1)], gens=[g for g in gens if any(g)], err=err).rounded()
+
+
+def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
+                 covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono | None]]]:
+    """:func:`_step` for a nonlinear mode (:class:`~analysis.reach.recheck_smooth.SmoothStepper`): ``m`` sub-steps
+    of ``δ/m`` (``m`` from :data:`SUB_STEPS`), each a time piece: its box and the zonotope of :func:`_hull_zono`."""
+    first = SmoothSet(center=np.array([float(v) for v in z.center]),
+                      gens=np.array([[float(v) for v in g] for g in z.gens]).T.reshape(len(z.center), -1),
+                      err=np.array([float(v) for v in z.err]))
+    problem = ""
+    try:
+        for m in SUB_STEPS:
+            h = float(step / m)  # exact: a float divided by a power of two (the sub-steps sum to δ exactly)
+            if Fraction(h) * m != step:
+                raise StepFailed(f"the step {float(step)!r} s is not divisible by {m} in floating point")
+            current = reduced(first)
+            pieces: list[tuple[Box, _Zono | None]] = []
+            for _ in range(m):
+                pre = mode.stepper.prepare(current, h)
+                after = mode.stepper.taylor(current, h, pre)
+                lo, hi = current.hull()
+                lo2, hi2 = after.hull()
+                q_lo, q_hi = pre["qw"]
+                w_lo, w_hi = pre["w"]
+                bend = [Fraction(h) ** 2 / 8 * Fraction(float(max(abs(a), abs(b)))) for a, b in zip(q_lo, q_hi)]
+                box = [(max(Fraction(float(w0)), min(Fraction(float(a)), Fraction(float(a2))) - e),
+                        min(Fraction(float(w1)), max(Fraction(float(b)), Fraction(float(b2))) + e))
+                       for a, b, a2, b2, e, w0, w1 in zip(lo, hi, lo2, hi2, bend, w_lo, w_hi)]
+                clipped = _clip_union(box, mode.invariant)
+                if clipped is not None:
+                    # built only when a guard or the requirement needs it (exact rationals are slow)
+                    pieces.append((clipped, functools.partial(_hull_zono, current, after, bend)))
+                current = reduced(after)
+            outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
+            if outside is not None:
+                problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, "
+                           f"{[float(v[1]) for v in outside]}] is not inside the saved box "
+                           f"[{[float(v[0]) for v in saved]}, {[float(v[1]) for v in saved]}]")
+                continue
+            problem = covered(pieces) or ""
+            if not problem:
+                return _Zono(center=[Fraction(float(v)) for v in current.center],
+                             gens=[[Fraction(float(v)) for v in col] for col in current.gens.T],
+                             err=[Fraction(float(v)) for v in current.err]), pieces
+    except StepFailed as fail:
+        raise _Fail(str(fail)) from None
+    raise _Fail(problem)
+
+
+def _step(mode: Any, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
           covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
     """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
     the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
@@ -387,6 +474,8 @@ def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fractio
     ``covered(pieces)`` returns ``None`` or the first uncovered guard part (a message).  Both checks
     are retried with ``m = 4, 16, 64, 256`` time pieces before failing.
     """
+    if isinstance(mode, _SmoothMode):
+        return _smooth_step(mode, z, step, saved, covered)
     w = _picard(mode, _outward(z.hull()), step)
     fw = mode.f(w)
     rem = _matvec(mode.power, fw)  # A^p f(W)
@@ -442,6 +531,8 @@ class _Pipe:
     t_hi: Fraction
     segments: list[dict[str, Any]]
     termination: dict[str, Any]
+    before: Box | None = None  # the box a jump left from: the start set is its exact reset image
+    transition: str | None = None
 
 
 def _box_of(pair: Sequence[Sequence[float]]) -> Box:
@@ -464,7 +555,8 @@ def _pipes(data: Mapping[str, Any], initial: Box, initial_mode: str) -> list[_Pi
                    termination=ends[0])]
     for j, group, end in zip(jumps, groups[1:], ends[1:]):
         pipes.append(_Pipe(mode=j["target"], start=_box_of(j["after"]), t_lo=Fraction(j["t"][0]),
-                           t_hi=Fraction(j["t"][1]), segments=group, termination=end))
+                           t_hi=Fraction(j["t"][1]), segments=group, termination=end, before=_box_of(j["before"]),
+                           transition=j["transition"]))
     return pipes
 
 
@@ -489,7 +581,7 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     RecheckResult
         ``passed`` only when every part (a)–(d) was decided and holds.
     """
-    model = affine_model(system)
+    model = affine_model(system, nonlinear=True)
     if set(initial) != set(model.state_names) or not all(
             isinstance(v, (tuple, list)) and len(v) == 2 and all(math.isfinite(float(e)) for e in v) and v[0] <= v[1]
             for v in initial.values()):
@@ -515,8 +607,11 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
     if horizon < Fraction(fragment.end):
         raise _Fail(f"the saved horizon {float(horizon)} s ends before the window's end {fragment.end} s")
-    modes = {}
+    modes: dict[str, Any] = {}
     for name, m in model.modes.items():
+        if m.smooth is not None:
+            modes[name] = _SmoothMode(stepper=SmoothStepper(m.smooth), invariant=m.invariant)
+            continue
         a = [list(r) for r in m.a]
         power = [[Fraction(int(i == j)) for j in range(len(a))] for i in range(len(a))]
         for _ in range(TAYLOR_ORDER):
@@ -535,7 +630,9 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
             if t_lo > Fraction(fragment.end) or t_hi < Fraction(fragment.start):
                 continue
             for box, zono in sets:
-                ok, slack = _value(fragment.body, box, pipe.mode, zono)
+                ok, slack = _value(fragment.body, box, pipe.mode, None if callable(zono) else zono)
+                if callable(zono) and not ok:  # a nonlinear piece: its zonotope only when the box does not decide
+                    ok, slack = _value(fragment.body, box, pipe.mode, zono())
                 if not ok:
                     raise _Fail(f"requirement: the atoms do not hold on the re-checked states of flowpipe {i} "
                                 f"segment {k} (mode {pipe.mode!r}, t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s)")
@@ -570,6 +667,9 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
         raise _Fail(why)
     yield -1, [(pipe.start, None)], Fraction(entry["t"][0]), Fraction(entry["t"][1])
     x = _Zono.of_box(pipe.start)
+    if pipe.before is not None:  # the exact reset image of the box before the jump (inside ``after``: checked)
+        t = next(t for t in model.transitions if t.name == pipe.transition)
+        x = _Zono.of_box(pipe.before).mapped(t.r_matrix, t.r_offset)
     cache: dict[Fraction, Any] = {}
     for k, seg in enumerate(pipe.segments[1:]):
         t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step
@@ -624,7 +724,7 @@ def _jumps_from(model: AffineHybridModel, mode: str, box: Box, t_lo: Fraction, t
                 rows = guard.halfspaces + (inv.halfspaces if inv is not None else ())
                 part = _clip(box, rows)
                 if part is not None and zono is not None:
-                    narrow = _contract(zono, rows)
+                    narrow = _contract(zono() if callable(zono) else zono, rows)
                     part = None if narrow is None else _meet(part, narrow)
                 if part is None:
                     continue

@@ -38,10 +38,14 @@ from .recheck import entry_uncovered, exit_uncovered, recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
-__all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "default_time_step",
+__all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "METHOD_NONLINEAR", "default_time_step",
            "default_max_jumps", "reach_proofs", "REACH_CHOICES", "scaled_fragment"]
 
 METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+METHOD_NONLINEAR = ("reachability (zonotope flowpipe by conservative linearisation with a Lagrange remainder, "
+                    "analysis.reach.nonlinear), re-checked by interval Picard and a second-order Taylor map in "
+                    "outward-rounded intervals")
+"""The method of a proof whose system has a nonlinear (smooth) mode."""
 
 
 MAX_SEGMENTS = 50_000
@@ -191,7 +195,7 @@ def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tu
                        max_jumps=jumps, max_segments=MAX_SEGMENTS)
         if cache is not None:
             cache[key] = result
-    holds, margin, reason = decide(result, fragment, affine_model(system), initial)
+    holds, margin, reason = decide(result, fragment, affine_model(system, nonlinear=True), initial)
     decision = ReachDecision(holds=holds, margin=margin, reason=reason, result=result,
                              seconds=time.perf_counter() - start)
     if not holds:
@@ -205,7 +209,7 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
                 initial_mode: str | None = None, time_step: float | None = None,
                 max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None,
                 starts: Sequence[tuple[str, Any]] | None = None, scale: Fraction = Fraction(1),
-                scale_text: str = "") -> tuple[Proof, ReachDecision]:
+                scale_text: str = "", splits: Mapping[str, int] | None = None) -> tuple[Proof, ReachDecision]:
     """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
 
     Parameters
@@ -229,7 +233,15 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     scale, scale_text : Fraction, str
         A common time scale ``m(p)`` of the flows (:mod:`analysis.reach.parameters`): the window's end is
         multiplied by ``scale = max m`` and the flows are those divided by ``m``.
+    splits : mapping {state: int} or None
+        Cut the initial box (of every start) into this grid (:func:`analysis.reach.split.split_box`); each
+        piece is decided and re-checked on its own, and the proof holds when every piece's does (the pieces
+        cover the box, checked exactly).
     """
+    if splits and any(k != 1 for k in dict(splits).values()):
+        return _split_proof(system, fragment, initial, dict(splits), initial_mode=initial_mode,
+                            time_step=time_step, max_jumps=max_jumps, cache=cache, starts=starts, scale=scale,
+                            scale_text=scale_text)
     jumps = default_max_jumps(max(fragment.end, 1e-9)) if max_jumps is None else max_jumps  # jumps: the same events
     fragment = scaled_fragment(fragment, scale)  # in both times; the window and the step scale
     end = max(fragment.end, 1e-9)
@@ -253,9 +265,53 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
                            f"window is read in the time tau = {scale_text}·t, [0, {fragment.end:g}] (the flows "
                            f"divided by {scale_text})")
     margin = None if not math.isfinite(decision.margin) else float(decision.margin)
-    proof = Proof(holds=holds, method=METHOD, evidence=" | ".join(parts), rechecked=rechecked,
+    method = _method(affine_model(system, nonlinear=True))
+    proof = Proof(holds=holds, method=method, evidence=" | ".join(parts), rechecked=rechecked,
                   assumptions=tuple(assumptions), margin=margin)
     return proof, decision
+
+
+def _method(model: Any) -> str:
+    return METHOD_NONLINEAR if any(m.smooth is not None for m in model.modes.values()) else METHOD
+
+
+def _split_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
+                 splits: dict[str, int], *, initial_mode: str | None, starts: Sequence[tuple[str, Any]] | None,
+                 **options: Any) -> tuple[Proof, ReachDecision]:
+    """:func:`reach_proof` on every piece of the split box of every start (mode, box); holds (and is re-checked)
+    when every piece is.  ``options`` (step, jumps, cache, time scale) go to each piece unchanged."""
+    from .split import covers, split_box
+
+    begin = [(m, {k: (lo, hi) for k, lo, hi in b}) for m, b in starts] if starts else [(initial_mode, dict(initial))]
+    jobs = []
+    for mode, box in begin:
+        pieces = split_box(box, splits)
+        if not covers(box, pieces):  # by construction; checked so that a wrong split can never prove
+            return Proof(holds=False, method=METHOD, evidence="the split pieces do not cover the initial box",
+                         rechecked=False), ReachDecision(holds=False, margin=math.nan, reason="split", result=None,
+                                                         seconds=0.0)
+        jobs += [(mode, piece) for piece in pieces]
+    start = time.perf_counter()
+    proofs = [reach_proof(system, fragment, piece, initial_mode=mode, **options) for mode, piece in jobs]
+    holds = all(p.holds for p, _ in proofs)
+    rechecked = holds and all(p.rechecked for p, _ in proofs)
+    margin = min(d.margin for _, d in proofs) if holds else math.nan
+    first_bad = next((p for p, _ in proofs if not (p.holds and p.rechecked)), None)
+    where = "; ".join(f"{k}: {v}" for k, v in splits.items())
+    whose = "the initial box" if len(begin) == 1 else f"the initial box of each of {len(begin)} start modes"
+    evidence = (f"{whose} split into {len(jobs)} pieces ({where}), covering it exactly; "
+                + (f"every piece proven and re-checked, smallest margin {margin:.6g}; piece 1: {proofs[0][0].evidence}"
+                   if rechecked else f"a piece is not proven or not re-checked: {first_bad.evidence}"))
+    decision = ReachDecision(holds=holds, margin=margin, reason=f"split into {len(jobs)} pieces", result=None,
+                             seconds=time.perf_counter() - start)
+    assumptions = [f"the initial box {dict(initial)}" if len(begin) == 1 else
+                   "the initial box " + "; ".join(f"in mode {m!r} {b}" for m, b in begin),
+                   *proofs[0][0].assumptions[1:]]  # the window (in the scaled time), semantics, time scale
+    if len(begin) > 1:
+        assumptions.append(f"every start mode {[m for m, _ in begin]} (the initial mode depends on the point)")
+    return Proof(holds=holds, method=proofs[0][0].method, evidence=evidence, rechecked=rechecked,
+                 assumptions=tuple(assumptions), margin=float(margin) if holds and math.isfinite(margin) else None
+                 ), decision
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -273,6 +329,7 @@ class ReachProof:
     scale: Fraction = Fraction(1)
     scale_text: str = ""
     cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
+    splits: tuple[tuple[str, int], ...] | None = None
 
     def __call__(self) -> Proof:
         """The proof (never raises: a model or option reachability cannot handle gives a proof that does not hold)."""
@@ -284,7 +341,8 @@ class ReachProof:
             proof, _ = reach_proof(self.system, self.fragment, {k: (lo, hi) for k, lo, hi in self.initial},
                                    initial_mode=self.initial_mode, time_step=self.time_step,
                                    max_jumps=self.max_jumps, cache=self.cache, starts=self.starts,
-                                   scale=self.scale, scale_text=self.scale_text)
+                                   scale=self.scale, scale_text=self.scale_text,
+                                   splits=None if self.splits is None else dict(self.splits))
         except (ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
         return proof
@@ -300,10 +358,16 @@ def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: 
         raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
                            "write reach='auto' (the default), True (required) or False (falsification only)")
     opts = dict(options or {})
-    unknown = sorted(set(opts) - {"time_step", "max_jumps"})
+    unknown = sorted(set(opts) - {"time_step", "max_jumps", "splits"})
     if unknown:
-        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s] and max_jumps",
+        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s], max_jumps and splits",
                            f"remove {unknown}")
+    splits = opts.get("splits")
+    if splits is not None and not (isinstance(splits, Mapping) and all(
+            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) and v >= 1
+            for k, v in splits.items())):
+        raise ProblemError(f"{where}: reach_options['splits']", splits, "a mapping {state: whole number >= 1}",
+                           "give e.g. splits={'x': 4}, or leave it out")
     step = opts.get("time_step")
     if step is not None and (isinstance(step, bool) or not isinstance(step, (int, float))
                              or not math.isfinite(step) or step <= 0):
@@ -331,13 +395,14 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         The problem's initial states (a Parameter gives its ``[low, high]``).
     reach_mode : "auto", True or False
         ``False``: none.  ``"auto"``: a proof for each requirement in the fragment when the system is
-        symbolic and affine.  ``True``: the same, and a non-symbolic or non-affine system raises.
+        symbolic and affine.  ``True``: also for smooth nonlinear flows (polynomials, sin, cos:
+        :mod:`analysis.reach.nonlinear`), and a system reachability cannot read raises.
     builder : bool
         The problem's system is built by a function of the parameters: they are read as constant states
         (:mod:`analysis.reach.parameters`); when they cannot be, each requirement in the fragment gets a
         proof that does not hold and says why.
     options : mapping or None
-        ``time_step`` [s] and ``max_jumps`` of :func:`reach_proof`.
+        ``time_step`` [s], ``max_jumps`` and ``splits`` of :func:`reach_proof`.
     box : sequence of Parameter
         Every coordinate of the problem's box (``problem.parameters``), for ``builder``.
 
@@ -357,7 +422,8 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         return {}
     why = None
     try:
-        setup = reach_setup(system, initial, box, builder=builder)
+        # "auto": affine systems only; True: smooth nonlinear flows too
+        setup = reach_setup(system, initial, box, builder=builder, nonlinear=reach_mode is True)
         declared = _declared(system, box) if builder else bool(getattr(system.automaton, "initial_mode_given", True))
         modes = initial_modes(setup, initial_mode, declared)
     except AffineError as exc:
@@ -384,7 +450,8 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         out[p.name] = ReachProof(system=setup.model, fragment=fragment, initial=setup.box,
                                  initial_mode=modes[0][0], starts=modes, time_step=opts.get("time_step"),
                                  max_jumps=opts.get("max_jumps"), scale=setup.scale, scale_text=setup.scale_text,
-                                 cache=shared)
+                                 cache=shared, splits=None if opts.get("splits") is None
+                                 else tuple(sorted(opts["splits"].items())))
     return out
 
 

@@ -1,0 +1,135 @@
+"""The discretised affine step of a linearisation in floating point, rigorously (midpoint-radius intervals).
+
+:mod:`analysis.reach.series` encloses ``e^{Aδ}`` in exact rationals, which costs about a millisecond
+per matrix: right for an affine mode (once per mode), too slow for the conservative linearisation
+of :mod:`analysis.reach.nonlinear`, which needs a new matrix at every step.  Here the same three
+quantities are enclosed with float midpoint-radius interval matrices (Rump, *Fast and parallel
+interval arithmetic*, BIT 39, 1999):
+
+* ``Φ ∋ e^{Mδ}`` (``M`` the augmented matrix ``[[A, c/s], [0, 0]]``): the truncated Taylor series
+  ``Σ_{k<=K} P_k``, ``P_k = P_{k−1} (Mδ) / k``, each product enclosed as
+  ``[Pc Mc ± (|Pc| Mr + Pr (|Mc| + Mr) + γ_n |Pc||Mc|)]`` and each sum with its rounding, plus the
+  tail ``‖Mδ‖∞^{K+1}/(K+1)! / (1 − ‖Mδ‖∞/(K+2))`` on every entry;
+* ``D >= e^{|M|δ} − I − |M|δ`` and ``S >= Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!``: series of non-negative
+  matrices computed in floats and bounded above with :func:`analysis.reach.zonotope.upper`, plus
+  their tails.
+
+Every radius and bound is a non-negative expression bounded above by
+:func:`~analysis.reach.zonotope.upper` (the rounding argument of ``docs/reachability.md``);
+``γ_n`` is Higham's bound of a float dot product of length ``n``.  The tests compare ``Φ`` with
+scipy's ``expm`` and ``D``, ``S`` with the exact rational ones of :mod:`analysis.reach.series`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .flowpipe import ModeDynamics
+from .series import MatrixEnclosure
+from .zonotope import UNIT_ROUNDOFF, Zonotope, box_generators, gamma, upper
+
+__all__ = ["float_exp_enclosure", "float_bloating", "float_dynamics"]
+
+_TAIL = 2.0 ** -70
+_TINY = 2.0 ** -1000
+"""Absolute slack per rounding for underflow (far above the subnormal spacing)."""
+
+
+def _terms(norm: float) -> int:
+    """A truncation order ``K`` with ``norm < K + 2`` and the tail below ``_TAIL``."""
+    k, term = 1, norm * norm / 2.0
+    while k < 60 and (norm >= k + 2 or term / (1.0 - norm / (k + 2)) > _TAIL):
+        k += 1
+        term *= norm / (k + 1)
+    return k
+
+
+def _tail(norm: float, order: int, shift: int = 0) -> float:
+    """An upper bound of ``Σ_{k>order} norm^k/(k+shift)!`` (``norm < order + 2``)."""
+    first = float(upper(norm ** (order + 1) / math.factorial(order + 1 + shift), order + 3))
+    return float(upper(first / (1.0 - norm / (order + 2 + shift)), 3)) + _TINY
+
+
+def _product(pc: np.ndarray, pr: np.ndarray, mc: np.ndarray, mr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = mc.shape[0]
+    center = pc @ mc
+    abs_mc = np.abs(mc)
+    radius = np.abs(pc) @ mr + pr @ (abs_mc + mr) + gamma(n) * (np.abs(pc) @ abs_mc)
+    return center, upper(radius, 4 * n + 6) + _TINY
+
+
+def float_exp_enclosure(matrix: np.ndarray, step: float) -> MatrixEnclosure:
+    """An interval matrix containing ``e^{matrix·step}`` exactly (``matrix``: floats, shape (m, m)).
+
+    Requires ``‖matrix‖∞ step`` below 50 (the caller keeps it below 4).
+    """
+    a = np.asarray(matrix, dtype=float)
+    m = a.shape[0]
+    mc = a * float(step)
+    mr = upper(UNIT_ROUNDOFF * np.abs(mc), 1) + _TINY
+    norm = float(upper(np.max((np.abs(mc) + mr).sum(axis=1)) if m else 0.0, m + 1))
+    order = _terms(norm)
+    pc, pr = np.eye(m), np.zeros((m, m))
+    tc, tr = np.eye(m), np.zeros((m, m))
+    for k in range(1, order + 1):
+        pc, pr = _product(pc, pr, mc, mr)
+        qc = pc / k
+        pr = upper(pr / k + UNIT_ROUNDOFF * np.abs(qc), 2) + _TINY
+        pc = qc
+        sc = tc + pc
+        tr = upper(tr + pr + UNIT_ROUNDOFF * np.abs(sc), 3) + _TINY
+        tc = sc
+    return MatrixEnclosure(tc, upper(tr + _tail(norm, order), 2))
+
+
+def float_bloating(matrix: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Upper bounds of ``D = e^{|M|δ} − I − |M|δ`` and ``S = Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!`` (both ``>= 0``)."""
+    p = np.abs(np.asarray(matrix, dtype=float))
+    m = p.shape[0]
+    q = upper(p * float(step), 1) + _TINY  # >= |M|δ entrywise
+    norm = float(upper(np.max(q.sum(axis=1)) if m else 0.0, m + 1))
+    order = _terms(norm)
+    power = q.copy()  # >= (|M|δ)^k
+    d = np.zeros((m, m))
+    s = upper(q / 2.0, 1)
+    for k in range(2, order + 1):
+        power = upper(power @ q, 2 * m + 2) + _TINY
+        d = upper(d + power / math.factorial(k), 3) + _TINY
+        s = upper(s + power / math.factorial(k + 1), 3) + _TINY
+    d = upper(d + _tail(norm, order), 2)
+    s = upper((s + _tail(norm, order, 1)) * float(step), 3)
+    return d, s
+
+
+def float_dynamics(mode: str, a: np.ndarray, c: np.ndarray, scale: float, step: float,
+                   input_radius: np.ndarray) -> ModeDynamics:
+    """The :class:`~analysis.reach.flowpipe.ModeDynamics` of ``ẋ = A x + c + u``, ``|u| <= input_radius``.
+
+    Parameters
+    ----------
+    a : ndarray, shape (n, n)
+    c : ndarray, shape (n,)
+        The constant; ``c / scale`` must be exact (``scale`` a power of two, no underflow).
+    scale : float
+        The constant coordinate of the augmented state.
+    step : float
+        ``δ`` [s].
+    input_radius : ndarray, shape (n,)
+        The input box ``[-r, r]`` (centred).
+    """
+    n = a.shape[0]
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n] = a
+    aug[:n, n] = c / scale
+    phi = float_exp_enclosure(aug, step)
+    deviation, s_matrix = float_bloating(aug, step)
+    r = np.asarray(input_radius, dtype=float)
+    scaled = r * float(step)
+    rounding = upper(UNIT_ROUNDOFF * np.abs(scaled), 1)
+    extra = upper(s_matrix[:n, :n] @ r, n + 1) + rounding
+    top = np.hstack([box_generators(scaled), box_generators(extra)])
+    gens = np.vstack([top, np.zeros((1, top.shape[1]))])
+    return ModeDynamics(mode=mode, step=float(step), phi=phi, deviation=deviation,
+                        input_step=Zonotope(center=np.zeros(n + 1), generators=gens))

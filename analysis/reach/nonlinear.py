@@ -1,0 +1,312 @@
+"""Flowpipes of smooth nonlinear flows ``ẋ = f(x)`` by conservative linearisation (Althoff 2008; CORA).
+
+Per time step ``[kδ, (k+1)δ]``, from a zonotope ``R_k`` holding the states at ``kδ`` after entry:
+
+1. **Linearise** at ``x* = c_k + f(c_k)·δ/2`` (``c_k`` the centre of ``R_k``; CORA's choice, the middle
+   of the step): ``A ≈ Df(x*)`` and ``c = f̃ − A x*`` with ``f̃ ≈ f(x*)``, all floats (any ``A`` and ``c``
+   are allowed: the remainder below is computed for the ones used).
+2. **Remainder.** ``f(x) = A x + c + L(x)`` with
+   ``L(x) = (f(x*) − f̃) + (f̃ − A x* − c) + (Df(x*) − A)(x − x*) + ½ (x − x*)ᵀ H(ξ) (x − x*)``
+   (Taylor with the Lagrange remainder; ``ξ`` on the segment from ``x*`` to ``x``).  Over a box ``Ω``
+   holding ``x*`` and the states of the step, ``L(Ω)`` is enclosed by interval arithmetic with
+   outward rounding: ``f(x*)`` and ``Df(x*)`` by :func:`hybrid.symbolic.enclose` on the point,
+   every Hessian entry ``∂²f_i/∂x_j∂x_k`` by the same over ``Ω``, products and sums rounded outward.
+3. **Fixed point.** The step is the affine flow ``ẋ = A x + c + u``, ``u(t) ∈ U`` (a box), computed
+   with the sound affine machinery (:func:`analysis.reach.float_series.float_dynamics` and
+   :func:`~analysis.reach.flowpipe.first_segment`: ``e^{Aδ}`` in midpoint-radius intervals):
+   its tube ``Ω(U)`` over ``[0, δ]``.  When ``L(box Ω(U)) ⊂ int U``, the tube holds every solution of
+   the nonlinear flow over the step; otherwise ``U`` is enlarged to the hull with ``L`` (times 1.5) and
+   the step redone, at most :data:`MAX_ITERATIONS` times.
+4. **Next set.** ``R_{k+1} = e^{Aδ} R_k ⊕ V`` (``V`` every state change a full step of input in ``U``
+   can cause), order-reduced (Girard's box method).
+
+*Why the fixed point is sound.* Let ``x(t)`` solve the nonlinear flow from ``x₀ ∈ R_k`` and
+``t* = sup{t ≤ δ : x([0, t]) ⊂ Ω}`` (``Ω = box Ω(U)``; ``x₀ ∈ Ω``).  On ``[0, t*]``, ``u(t) = L(x(t))``
+lies in ``L(Ω) ⊂ int U``; ``u`` is continuous, so it stays in ``U`` a little beyond ``t*``, and ``x`` is
+there a solution of the affine flow with an input in ``U``: it lies in ``Ω(U) ⊂ Ω``.  So ``t* = δ``
+(and the solution exists on the step, being bounded).  Hence every state of the step is in the tube,
+and the state at ``δ`` is in ``R_{k+1}``.
+
+A step whose remainder does not converge, or whose numbers are not finite, ends the flowpipe
+inconclusively: the generator yields the reason (a string) instead of a zonotope, and the engine
+records ``"blow_up"`` with ``inconclusive: the over-approximation blew up at t = … s in mode …``.
+No splitting is done (neither of the step nor of the set): a run that does not converge is
+reported, not refined.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+
+from hybrid.symbolic import Const, enclose
+
+from .float_series import float_dynamics
+from .flowpipe import ModeDynamics, first_segment
+from .series import MAX_NORM_STEP
+from .smooth import SmoothFlow
+from .zonotope import (
+    UNIT_ROUNDOFF,
+    Zonotope,
+    from_box,
+    gamma,
+    interval_hull,
+    linear_map,
+    reduce_order,
+    upper,
+    with_error,
+)
+
+__all__ = ["MAX_ITERATIONS", "QUADRATIC_GENERATORS", "smooth_segments", "remainder_box"]
+
+MAX_ITERATIONS = 12
+"""Enlargements of the remainder box tried per step before the flowpipe is declared blown up."""
+
+QUADRATIC_GENERATORS = 40
+"""The tube is reduced to about this many generators before its quadratic form is bounded."""
+
+_GROW = 1.5
+"""Factor by which the remainder box's radius is enlarged after a failed iteration."""
+
+
+def _down(x: np.ndarray) -> np.ndarray:
+    return np.nextafter(x, -np.inf)
+
+
+def _up(x: np.ndarray) -> np.ndarray:
+    return np.nextafter(x, np.inf)
+
+
+def _mul(alo: np.ndarray, ahi: np.ndarray, blo: np.ndarray, bhi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Outward-rounded interval product (elementwise)."""
+    p = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
+    p = np.where(np.isnan(p), 0.0, p)  # 0 * inf: a real factor is finite, the product is 0
+    return _down(p.min(axis=0)), _up(p.max(axis=0))
+
+
+class _Evaluator:
+    """Float and interval evaluations of one :class:`SmoothFlow` (memoised compiled functions)."""
+
+    def __init__(self, flow: SmoothFlow) -> None:
+        self.flow = flow
+        self.n = len(flow.names)
+        self.f_float = list(flow.components)  # called as e(v, m): compiled once
+        # the distinct Hessian entries (j <= k), with their multiplicity 1 or 2 in the quadratic form
+        self.pairs = [(j, k) for j in range(self.n) for k in range(j, self.n)]
+        # constant Jacobian and Hessian entries (most of them, for sparse flows) are read once
+        self.j_const = np.zeros((self.n, self.n))
+        self.j_vary = []
+        for i in range(self.n):
+            for j in range(self.n):
+                entry = flow.jacobian[i][j]
+                if isinstance(entry, Const):
+                    self.j_const[i, j] = float(entry.value)
+                else:
+                    self.j_vary.append((i, j))
+        self.h_const = np.zeros((self.n,) * 3)
+        self.h_vary = []
+        for i in range(self.n):
+            for j, k in self.pairs:
+                entry = flow.hessian[i][j][k]
+                if isinstance(entry, Const):
+                    self.h_const[i, j, k] = self.h_const[i, k, j] = float(entry.value)
+                else:
+                    self.h_vary.append((i, j, k))
+
+    def box(self, lo: np.ndarray, hi: np.ndarray) -> dict[str, tuple[float, float]]:
+        return {name: (float(a), float(b)) for name, a, b in zip(self.flow.names, lo, hi)}
+
+    def point_enclosures(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Enclosures of ``f(x)`` and ``Df(x)`` at a float point: (f_lo, f_hi, J_lo, J_hi)."""
+        bounds = self.box(x, x)
+        f = np.array([enclose(e, bounds) for e in self.flow.components])
+        j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
+        for i, j in self.j_vary:
+            j_lo[i, j], j_hi[i, j] = enclose(self.flow.jacobian[i][j], bounds)
+        return f[:, 0], f[:, 1], j_lo, j_hi
+
+    def hessian(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Enclosures of every ``∂²f_i/∂x_j∂x_k`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n, n)."""
+        bounds = self.box(lo, hi)
+        h_lo, h_hi = self.h_const.copy(), self.h_const.copy()
+        for i, j, k in self.h_vary:
+            h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds)
+            h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
+        return h_lo, h_hi
+
+    def quadratic(self, d_lo: np.ndarray, d_hi: np.ndarray, h_lo: np.ndarray, h_hi: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """An enclosure of ``½ dᵀ H d`` for ``d ∈ [d_lo, d_hi]``, ``H ∈ [h_lo, h_hi]`` (interval form)."""
+        out_lo, out_hi = np.zeros(self.n), np.zeros(self.n)
+        for j, k in self.pairs:
+            if not (np.any(h_lo[:, j, k]) or np.any(h_hi[:, j, k])):
+                continue  # a zero column of the Hessian adds nothing
+            if j == k:
+                sq_hi = _up(np.maximum(d_lo[j] ** 2, d_hi[j] ** 2))
+                sq_lo = 0.0 if d_lo[j] <= 0.0 <= d_hi[j] else _down(min(d_lo[j] ** 2, d_hi[j] ** 2))
+                p_lo, p_hi, weight = np.array([sq_lo]), np.array([sq_hi]), 0.5
+            else:
+                p_lo, p_hi = _mul(np.array([d_lo[j]]), np.array([d_hi[j]]), np.array([d_lo[k]]), np.array([d_hi[k]]))
+                weight = 1.0  # ½ (H_jk + H_kj) d_j d_k = H_jk d_j d_k
+            t_lo, t_hi = _mul(h_lo[:, j, k] * weight, h_hi[:, j, k] * weight, np.repeat(p_lo, self.n),
+                              np.repeat(p_hi, self.n))
+            out_lo, out_hi = _down(out_lo + t_lo), _up(out_hi + t_hi)
+        return out_lo, out_hi
+
+
+def _quadratic_zonotope(gens: np.ndarray, h_lo: np.ndarray, h_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An enclosure of ``½ dᵀ H_i d`` over ``d ∈ {G ξ : |ξ| <= 1}`` and ``H_i ∈ [h_lo_i, h_hi_i]``, per ``i``.
+
+    ``dᵀ H d = ξᵀ (Gᵀ H G) ξ``.  With ``M = Gᵀ H_c G`` computed in floats and ``R`` bounding its rounding
+    (Higham: ``γ_n`` per product) plus ``|G|ᵀ H_r |G|``, the form lies in
+    ``[−Σ_a max(0, −(M_aa − R_aa)) − Σ_{a≠b} (|M_ab| + R_ab), Σ_a max(0, M_aa + R_aa) + Σ_{a≠b} (|M_ab| + R_ab)]``
+    (``ξ_a² ∈ [0, 1]``, ``ξ_a ξ_b ∈ [−1, 1]``): tighter than the interval form for thin, slanted sets.
+    """
+    n, m = gens.shape
+    absg = np.abs(gens)
+    mask = ~np.eye(m, dtype=bool)
+    out_lo, out_hi = np.empty(n), np.empty(n)
+    for i in range(n):
+        hc = 0.5 * h_lo[i] + 0.5 * h_hi[i]
+        hr = upper(np.maximum(hc - h_lo[i], h_hi[i] - hc), 1)
+        p = hc @ gens
+        mat = gens.T @ p
+        rad = upper(gamma(n) * (absg.T @ np.abs(p) + absg.T @ (np.abs(hc) @ absg)) + absg.T @ (hr @ absg), 4 * n + 4)
+        diag, rdiag = np.diag(mat), np.diag(rad)
+        off = upper((np.abs(mat) + rad)[mask].sum(), m * m + 1)
+        top = upper(np.maximum(diag + rdiag, 0.0).sum(), m + 1)
+        bottom = upper(np.maximum(rdiag - diag, 0.0).sum(), m + 1)
+        out_lo[i] = float(_down(-0.5 * float(upper(bottom + off, 2))))
+        out_hi[i] = float(_up(0.5 * float(upper(top + off, 2))))
+    return out_lo, out_hi
+
+
+def remainder_box(ev: _Evaluator, xstar: np.ndarray, lin: tuple[np.ndarray, ...], lo: np.ndarray,
+                  hi: np.ndarray, tube: Zonotope | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """An enclosure of ``L(x) = f(x) − A x − c`` over the box ``[lo, hi]`` (which must hold ``x*``).
+
+    ``lin = (A, c, const_lo, const_hi, jrad)``: the float ``A``, ``c``; an enclosure of
+    ``(f(x*) − f̃) + (f̃ − A x* − c)``; a bound of ``|Df(x*) − A|``.  With ``tube`` (a zonotope holding the
+    states, inside the box), the quadratic term is also bounded on the zonotope and the tighter bound kept.
+    """
+    _, _, k_lo, k_hi, jrad = lin
+    d_lo, d_hi = _down(lo - xstar), _up(hi - xstar)
+    mag = np.maximum(np.abs(d_lo), np.abs(d_hi))
+    first = upper(jrad @ mag, ev.n + 1)
+    h_lo, h_hi = ev.hessian(lo, hi)
+    q_lo, q_hi = ev.quadratic(d_lo, d_hi, h_lo, h_hi)
+    if tube is not None:
+        # d = (c − x*) + G ξ lies in {[G, c − x*, rounding box] ξ'}: the offset as one more generator (|ξ₀| <= 1)
+        tube = reduce_order(tube, max(1, QUADRATIC_GENERATORS // ev.n))  # its cost grows with the square
+        offset = tube.center - xstar
+        slack = upper(UNIT_ROUNDOFF * np.abs(offset), 1)
+        gens = np.hstack([tube.generators, offset.reshape(-1, 1), np.diag(slack)])
+        z_lo, z_hi = _quadratic_zonotope(gens, h_lo, h_hi)
+        q_lo, q_hi = np.maximum(q_lo, z_lo), np.minimum(q_hi, z_hi)
+    return _down(_down(k_lo + q_lo) - first), _up(_up(k_hi + q_hi) + first)
+
+
+def _linearise(ev: _Evaluator, center: np.ndarray, step: float) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """``x*`` and ``(A, c, const_lo, const_hi, jrad)`` (see :func:`remainder_box`)."""
+    n = ev.n
+    fc = np.array([f(center, {}) for f in ev.f_float], dtype=float)
+    xstar = center + fc * (0.5 * step) if np.all(np.isfinite(fc)) else center.copy()
+    f_lo, f_hi, j_lo, j_hi = ev.point_enclosures(xstar)
+    ftil = 0.5 * f_lo + 0.5 * f_hi
+    a = 0.5 * j_lo + 0.5 * j_hi
+    jrad = upper(np.maximum(a - j_lo, j_hi - a), 1)
+    ax = a @ xstar
+    c = ftil - ax
+    # |f̃ − A x* − c| <= γ_{n+1}(|f̃| + |A||x*|) + u|c| (the dot product, then the subtraction)
+    cerr = upper(gamma(n + 2) * (np.abs(ftil) + np.abs(a) @ np.abs(xstar) + np.abs(c)), n + 4)
+    k_lo = _down(_down(f_lo - ftil) - cerr)
+    k_hi = _up(_up(f_hi - ftil) + cerr)
+    return xstar, (a, c, k_lo, k_hi, jrad)
+
+
+def _tube(mode: str, lin: tuple[np.ndarray, ...], u_lo: np.ndarray, u_hi: np.ndarray, start: Zonotope,
+          step: float) -> tuple[ModeDynamics, Zonotope, Zonotope]:
+    """The affine step ``ẋ = A x + c + u``, ``u ∈ [u_lo, u_hi]``: (dynamics, the augmented start, tube Ω)."""
+    a, c = lin[0], lin[1]
+    u = from_box(u_lo, u_hi)
+    # the input's centre joins the constant; that sum's rounding widens the (now centred) input
+    const = c + u.center
+    radius = upper(np.abs(u.generators).sum(axis=1) + UNIT_ROUNDOFF * np.abs(const), 2)
+    biggest = float(np.max(np.abs(np.append(const, 1.0))))
+    scale = 2.0 ** math.ceil(math.log2(biggest))
+    dyn = float_dynamics(mode, a, const, scale, step, radius)
+    aug = Zonotope(center=np.append(start.center, scale),
+                   generators=np.vstack([start.generators, np.zeros((1, start.order))]))
+    return dyn, aug, first_segment(dyn, aug)
+
+
+def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: int,
+              guess: tuple[np.ndarray, np.ndarray] | None) -> tuple[Zonotope, Zonotope, tuple[np.ndarray, np.ndarray]] | str:
+    """(tube, next set, the remainder found) of one step, or the reason it failed."""
+    n = ev.n
+    xstar, lin = _linearise(ev, start.center, step)
+    if not (np.all(np.isfinite(xstar)) and all(np.all(np.isfinite(v)) for v in lin)):
+        return "the linearisation is not finite"
+    norm = float(np.max(np.abs(lin[0]).sum(axis=1)))
+    if norm * step > MAX_NORM_STEP:
+        return (f"the Jacobian's norm {norm:.3g} times the step {step:g} s exceeds {MAX_NORM_STEP:g} "
+                f"(use time_step <= {MAX_NORM_STEP / norm:.3g})")
+    u_lo, u_hi = (lin[2], lin[3]) if guess is None else (np.minimum(guess[0], lin[2]), np.maximum(guess[1], lin[3]))
+    for _ in range(MAX_ITERATIONS):
+        mid, rad = 0.5 * u_lo + 0.5 * u_hi, 0.5 * u_hi - 0.5 * u_lo
+        rad = _up(rad * 1.05 + 1e-15 + 1e-12 * np.abs(mid))  # strictly inside needs room
+        u_lo, u_hi = _down(mid - rad), _up(mid + rad)
+        dyn, aug, tube = _tube(mode, lin, u_lo, u_hi, start, step)
+        if not tube.is_finite():
+            return "the tube is not finite"
+        lo, hi = interval_hull(tube.project(n))
+        lo, hi = np.minimum(lo, xstar), np.maximum(hi, xstar)
+        l_lo, l_hi = remainder_box(ev, xstar, lin, lo, hi, tube.project(n))
+        if not (np.all(np.isfinite(l_lo)) and np.all(np.isfinite(l_hi))):
+            return "the Lagrange remainder is not finite"
+        if np.all(u_lo < l_lo) and np.all(l_hi < u_hi):
+            image, err = linear_map(aug, dyn.phi.center, dyn.phi.radius)
+            gens = [image.generators, dyn.input_step.generators]
+            nxt = with_error(Zonotope(center=image.center, generators=np.hstack(gens)), err).project(n)
+            return tube, reduce_order(nxt, order), (l_lo, l_hi)
+        mid, rad = 0.5 * u_lo + 0.5 * u_hi, 0.5 * u_hi - 0.5 * u_lo
+        u_lo = np.minimum(u_lo, mid - _GROW * rad - (l_hi - l_lo))
+        u_lo = np.minimum(u_lo, l_lo)
+        u_hi = np.maximum(np.maximum(u_hi, mid + _GROW * rad + (l_hi - l_lo)), l_hi)
+    widest = float(np.max(l_hi - l_lo))
+    return (f"the Lagrange remainder of the linearisation did not converge in {MAX_ITERATIONS} enlargements "
+            f"(width {widest:.3g}); shorten time_step or the initial set")
+
+
+PADDING = 1e-10
+"""Relative padding of the stored tubes (plus 1e-14 absolute): an exact coordinate (a held sample, a constant)
+then has room for the independent re-check's own rounding bounds, which differ from the producer's."""
+
+
+def _padded(tube: Zonotope, n: int) -> Zonotope:
+    """``tube ⊕ [−ε, ε]`` on the state coordinates, ``ε = PADDING (|c| + radius) + 1e-14`` (larger: still sound)."""
+    lo, hi = interval_hull(tube.project(n))
+    eps = upper(PADDING * np.maximum(np.abs(lo), np.abs(hi)) + 1e-14, 3)
+    pad = np.vstack([np.diag(eps), np.zeros((tube.dimension - n, n))])
+    return Zonotope(center=tube.center, generators=np.hstack([tube.generators, pad]))
+
+
+def smooth_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float, order: int
+                    ) -> Iterator[Zonotope | str]:
+    """Tubes ``Ω_0, Ω_1, ...`` (augmented by a constant coordinate, dimension ``n + 1``), one per step of
+    local time ``[kδ, (k+1)δ]``; endless.  A string instead of a tube is the reason the step could not be
+    enclosed (the caller ends the flowpipe inconclusively)."""
+    ev = _Evaluator(flow)
+    current = start
+    guess = None
+    while True:
+        with np.errstate(over="ignore", invalid="ignore"):  # non-finite numbers are caught and reported
+            out = _one_step(ev, mode, current, step, order, guess)
+        if isinstance(out, str):
+            yield out
+            return
+        tube, current, found = out
+        guess = found
+        yield _padded(tube, ev.n)
