@@ -465,7 +465,7 @@ def _observe(label: str, value: float) -> None:
 @contextlib.contextmanager
 def project_constants_ignored() -> Iterator[None]:
     """Keep hypothesis from mixing the project's own source constants into the draws (every hypothesis search of
-    the toolkit runs inside this: fuzzing here, falsification in :mod:`analysis.falsification`).
+    the toolkit runs inside this: fuzzing here, falsification in :mod:`analysis.verify.falsification`).
 
     Since 6.131 hypothesis draws, with a small probability, numbers found in
     the source of every *local* module in ``sys.modules``; the examples of a

@@ -26,9 +26,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verification import Parameter, VerificationProblem
 
 __all__ = ["VIOLATING_FRACTION", "line_problem", "ramp_problem", "planted_problems"]
 

@@ -2,7 +2,7 @@
 
 The model is imported by :mod:`hybrid.spaceex_import`, the configuration by
 :mod:`hybrid.spaceex_config`: the initial set becomes the problem's box (a
-fixed value where the set is a point, a :class:`~analysis.verification.Parameter`
+fixed value where the set is a point, a :class:`~analysis.verify.verification.Parameter`
 named ``<state>0`` where it is a range), ``loc(...) == name`` the initial mode,
 ``time-horizon`` the horizon and the forbidden set the requirement
 ``safe: always[0, T] not (forbidden)``.  docs/spaceex.md describes the
@@ -27,9 +27,9 @@ from hybrid.spaceex_inputs import SpaceExInput, input_signal, with_inputs
 from hybrid.spaceex_syntax import SpaceExError
 from hybrid.system import HybridSystem
 
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter, VerificationProblem
 
 __all__ = ["spaceex_problem", "split_spaceex_spec", "is_spaceex_spec", "InitialLocation", "LOCATION_PARAMETER",
            "TRACE_SAMPLES", "INPUT_POINTS", "InputSignals", "input_parameters"]

@@ -26,7 +26,7 @@ from hybrid.spaceex_inputs import SpaceExInput, with_inputs
 from hybrid.symbolic import Coordinate, flow_map, substitute
 from hybrid.system import HybridSystem
 
-from analysis.verification import Proof
+from analysis.verify.verification import Proof
 
 __all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs", "MAX_FLOWPIPES"]
 

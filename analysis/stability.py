@@ -36,7 +36,7 @@
 Every conclusion is a :class:`StabilityClaim` marked ``proven`` (a re-checked certificate),
 ``measured`` (deterministic numerics: eigenvalues, multipliers of a converged orbit) or
 ``not decided`` (with why).  :class:`StabilityChecks` is the picklable ``() -> StabilityAnalysis``
-that :func:`analysis.problems.hybrid_problem` attaches to a verification problem.
+that :func:`analysis.verify.problems.hybrid_problem` attaches to a verification problem.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ Run::
         [--only NAME,...]
 
 Problems: ``examples/arch/autotrans.py``, ``examples/arch/chasing_cars.py`` and ``examples/arch/afc.py``
-(each with ``problems()`` keyed ``AT1``, ``CC1``, ...; loaded by :func:`analysis.loading.load_problems`
+(each with ``problems()`` keyed ``AT1``, ``CC1``, ...; loaded by :func:`analysis.verify.loading.load_problems`
 when the file exists, otherwise the run says they are absent), then the planted-bug problems:
 ``examples/acc.py`` (``ACC-gross``, ``ACC-subtle``), ``examples/thermostat.py``'s zero band and the
 closed-form ones of :mod:`analysis.planted`.
@@ -72,7 +72,7 @@ class FirstViolation(Exception):
 @functools.lru_cache(maxsize=None)
 def _collection(source: str) -> dict[str, Any]:
     """The problems of one source: ``FILE.py`` (its ``problems()``), ``FILE.py:OBJECT`` or ``planted:NAME``."""
-    from analysis.loading import load_problem, load_problems
+    from analysis.verify.loading import load_problem, load_problems
 
     if source.startswith("planted:"):
         from analysis.planted import planted_problems
@@ -92,7 +92,7 @@ def _problem(source: str, key: str, requirement: str) -> Any:
 
 
 def _ours(problem: Any, method: str, seed: int, budget: int) -> int | None:
-    from analysis.falsification import falsify
+    from analysis.verify.falsification import falsify
 
     count = [0]
 
@@ -112,7 +112,7 @@ def _psy_taliro(problem: Any, seed: int, budget: int) -> int | None:
     import staliro
     from staliro.optimizers import DualAnnealing
 
-    from analysis.falsification import evaluate
+    from analysis.verify.falsification import evaluate
 
     def cost(inputs: Any) -> Any:
         unit = tuple(p.unit_of(float(inputs.static[p.name])) for p in problem.parameters)

@@ -13,7 +13,7 @@ import argparse
 import statistics
 import time
 
-from analysis.verdicts import verify
+from analysis.verify.verdicts import verify
 
 from visnav.app.cli_verify import load_verification_problem
 

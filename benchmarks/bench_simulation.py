@@ -15,7 +15,7 @@ What one call of ``problem.simulate(point)`` costs (build the system, execute it
 Each point runs through two paths in the same process, interleaved round by round:
 
 * ``numerical``: today's executor, ``closed_form=False`` (RK45, rtol 1e-10, atol 1e-12, every step watched);
-* ``closed form``: the default of :func:`analysis.problems.hybrid_problem` with a sample period (affine modes
+* ``closed form``: the default of :func:`analysis.verify.problems.hybrid_problem` with a sample period (affine modes
   solved by the matrix exponential, :mod:`hybrid.closed_form`).
 
 Prints, per model, the median CPU time per simulation of each path (``time.process_time``: the machine is
@@ -41,10 +41,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # run as a script from a checkout
     sys.path.insert(0, str(ROOT))
 
-from analysis.loading import load_problem  # noqa: E402
-from analysis.problems import hybrid_problem  # noqa: E402
-from analysis.requirements import Requirement  # noqa: E402
-from analysis.verification import Parameter, VerificationProblem  # noqa: E402
+from analysis.verify.loading import load_problem  # noqa: E402
+from analysis.verify.problems import hybrid_problem  # noqa: E402
+from analysis.verify.requirements import Requirement  # noqa: E402
+from analysis.verify.verification import Parameter, VerificationProblem  # noqa: E402
 from hybrid.examples import bouncing_ball  # noqa: E402
 
 SEED = 0

@@ -39,7 +39,7 @@ INSTANCES = (
 
 def main() -> None:
     from analysis.spaceex import spaceex_problem
-    from analysis.verdicts import verify
+    from analysis.verify.verdicts import verify
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", type=int, default=120, help="simulations per instance (verify's default)")

@@ -142,7 +142,7 @@ class _InitialMode:
 def acc_problem(bug: str = "gross") -> VerificationProblem:
     """The verification problem of variant ``bug`` (:data:`BUGS`): the box of the module docstring, 40 s."""
     if bug not in BUGS:
-        from analysis.verification import ProblemError
+        from analysis.verify.verification import ProblemError
 
         raise ProblemError("bug", bug, f"one of {', '.join(BUGS)}", "use acc_problem('gross')")
     return hybrid_problem(
@@ -167,7 +167,7 @@ def violating_fraction(problem: VerificationProblem, samples: int = 2048, seed: 
     requirement is violated."""
     from scipy.stats import qmc
 
-    from analysis.falsification import evaluate
+    from analysis.verify.falsification import evaluate
 
     units = qmc.Sobol(d=problem.dimension, scramble=True, seed=seed).random(samples) * 2.0 - 1.0
     hits = sum(1 for u in units if evaluate(problem, tuple(float(c) for c in u)).satisfied[:1] == (False,))

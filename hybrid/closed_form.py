@@ -9,7 +9,7 @@ plain Python flow is not affine), has the solution
           = [I_n \\; 0] \\exp\\left(\\begin{bmatrix} A & b \\\\ 0 & 0 \\end{bmatrix} τ\\right)
             \\begin{bmatrix} x_0 \\\\ 1 \\end{bmatrix}.
 
-:func:`hybrid.continuous.simulate_continuous` (``closed_form=True``; :func:`analysis.problems.hybrid_problem`
+:func:`hybrid.continuous.simulate_continuous` (``closed_form=True``; :func:`analysis.verify.problems.hybrid_problem`
 sets it when the trace has its own sample period) then steps the mode with
 :class:`ClosedFormSolver` instead of a Runge–Kutta solver: the steps are pieces of the exact solution
 (length at most ``0.5 / ρ(A)``, ρ the spectral radius, and ``max_step``), their dense output *is* the

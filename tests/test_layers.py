@@ -201,7 +201,7 @@ def test_a_users_verification_needs_two_modules_the_worked_example_imports_from_
 CLI_VOCABULARY = ("EXIT_", "--budget", "--seed", "--method", "--out", "--json", "--workers", "--variant", "--scenario",
                   "--requirement", "exit code")
 """Words of the command line: flags and exit codes belong to ``visnav.app`` alone."""
-CLI_ALLOWED = {"analysis.testing"}
+CLI_ALLOWED = {"analysis.verify.testing"}
 """The pytest entry point's failure message says how to reproduce the search and replay its counterexample
 with the command line (``visnav verify ... --seed ...``): a user-facing instruction, not a behaviour."""
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 
 __all__ = [
     "K_PATH_RANGE",
@@ -229,7 +229,7 @@ class Scenario:
         Simulated time limit [s].
     success_tolerance_px : float
         The task succeeds when ``max_i |s_i - s*_i|·f`` falls below this.
-    requirements : tuple of analysis.requirements.Requirement
+    requirements : tuple of analysis.verify.requirements.Requirement
         STL requirements on the run's signals (``docs/requirements.md``), checked
         against :func:`visnav.requirements.signal_catalogue` when the scenario is loaded.
     """

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from analysis.requirements import ParsedRequirement, Requirement, parse_requirements
+from analysis.verify.requirements import ParsedRequirement, Requirement, parse_requirements
 from analysis.stl import SignalTrace
 
 if TYPE_CHECKING:  # annotations only: loading a scenario does not load the executors
@@ -546,8 +546,8 @@ def parsed_requirements(scenario: Scenario) -> tuple[ParsedRequirement, ...]:
 
     Raises
     ------
-    analysis.requirements.RequirementError
-        As :func:`analysis.requirements.parse_requirements` (a scenario loaded from TOML
+    analysis.verify.requirements.RequirementError
+        As :func:`analysis.verify.requirements.parse_requirements` (a scenario loaded from TOML
         has passed this check already).
     """
     signals, labels = signal_catalogue(scenario)

@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.bdf import MAX_ORDER, MIN_ORDER, BdfOrderError
-from analysis.requirements import Requirement, RequirementError, parse_requirements, requirement_from_mapping
+from analysis.verify.requirements import Requirement, RequirementError, parse_requirements, requirement_from_mapping
 
 from visnav import geometry
 from visnav.estimator import SCREW_MODELS, EstimatorSettingsError, validate_settings
@@ -747,7 +747,7 @@ def _requirement_key(i: int, error: RequirementError) -> str:
 def _check_formula(
     requirement: Requirement, signals: tuple[str, ...], labels: tuple[tuple[str, tuple[str, ...]], ...], horizon: float
 ) -> None:
-    """:func:`analysis.requirements.parse_requirements` of one requirement (cached: every perturbed copy of a
+    """:func:`analysis.verify.requirements.parse_requirements` of one requirement (cached: every perturbed copy of a
     scenario is validated again, with the same formulas, catalogue and horizon)."""
     parse_requirements((requirement,), signals=signals, labels=dict(labels), horizon=horizon)
 

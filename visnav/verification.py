@@ -9,7 +9,7 @@ TOML's ``[[requirements]]`` (``docs/requirements.md``), evaluated on the
 closed loop's trace on the hybrid time domain
 (:func:`visnav.requirements.run_trace`).  A point whose perturbed scenario
 breaks a rule of the paper's hypotheses (``docs/scenarios.md``) is outside
-the problem (:class:`analysis.verification.InvalidPoint`).  ``variant``
+the problem (:class:`analysis.verify.verification.InvalidPoint`).  ``variant``
 drives the closed loop with another supervisor: ``paper`` (the logic as
 printed) or a planted mutant (``visnav/fuzzing``).
 
@@ -30,7 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from analysis.stl import SignalTrace
-from analysis.verification import InvalidPoint, Parameter, VerificationProblem
+from analysis.verify.verification import InvalidPoint, Parameter, VerificationProblem
 
 from visnav.parameters import Scenario
 from visnav.perturbation import Perturbation, Symmetric, apply_perturbation
@@ -76,10 +76,10 @@ def loop_variant(name: str) -> tuple[str, bool]:
 
     Raises
     ------
-    analysis.verification.ProblemError
+    analysis.verify.verification.ProblemError
         Any other name (the message lists the known ones).
     """
-    from analysis.verification import ProblemError
+    from analysis.verify.verification import ProblemError
 
     from visnav.fuzzing.variants import RESOLVED, VARIANTS
 
@@ -139,7 +139,7 @@ def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved")
     ------
     visnav.scenario.ScenarioError
         The scenario does not load or its requirements do not parse.
-    analysis.verification.ProblemError
+    analysis.verify.verification.ProblemError
         An unknown variant (the message lists the known ones), or a loop that does not clip for a
         scenario whose every requirement reads the demand.
     """
@@ -153,7 +153,7 @@ def paper_problem(scenario: str | Scenario = "paper", variant: str = "resolved")
     left_out = () if saturate else demand_requirements(base)
     requirements = tuple(r for r in base.requirements if r.name not in left_out)
     if left_out and not requirements:
-        from analysis.verification import ProblemError
+        from analysis.verify.verification import ProblemError
 
         raise ProblemError("variant", variant, f"a loop that clips ({SATURATED}): every requirement of scenario "
                            f"{base.name!r} reads the demand, which a loop that does not clip applies as it is",

@@ -383,7 +383,7 @@ def reach_setup(system: Any, initial: Mapping[str, Any], box: Sequence[Any], *, 
         The problem's system, or (``builder``) ``build(point) -> HybridSystem``.
     initial : mapping {state: Parameter or float}
         The problem's initial states.
-    box : sequence of analysis.verification.Parameter
+    box : sequence of analysis.verify.verification.Parameter
         Every coordinate of the problem's box (initial-state parameters, then model parameters).
     builder : bool
         ``system`` is a function of the point.

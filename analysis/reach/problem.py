@@ -1,6 +1,6 @@
 """Reachability of a whole verification problem: its flowpipes and a verdict per requirement.
 
-:func:`problem_reach` takes a problem of :func:`analysis.problems.hybrid_problem` (a symbolic
+:func:`problem_reach` takes a problem of :func:`analysis.verify.problems.hybrid_problem` (a symbolic
 :class:`~hybrid.system.HybridSystem`, or a function building one from the parameters: the
 parameters become constant states, :mod:`analysis.reach.parameters`), computes one flowpipe per
 start mode over the problem's whole box, and decides each requirement of the STL safety fragment
@@ -122,8 +122,8 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
 
     Parameters
     ----------
-    problem : analysis.verification.VerificationProblem
-        Made by :func:`analysis.problems.hybrid_problem`.
+    problem : analysis.verify.verification.VerificationProblem
+        Made by :func:`analysis.verify.problems.hybrid_problem`.
     horizon : float or None
         [s]; default the problem's horizon.
     time_step : float or None
@@ -141,11 +141,11 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
     analysis.reach.affine.AffineError, analysis.reach.parameters.ParameterRoute
         The model cannot be read (not symbolic, not affine, parameters that are not constant states).
     """
-    from analysis.problems import HybridSimulation
+    from analysis.verify.problems import HybridSimulation
 
     sim = problem.simulate
     if not isinstance(sim, HybridSimulation):
-        raise ReachError("problem", problem.name, "a problem of analysis.problems.hybrid_problem (a continuous-time "
+        raise ReachError("problem", problem.name, "a problem of analysis.verify.problems.hybrid_problem (a continuous-time "
                          "hybrid system; reachability needs a symbolic model)",
                          "build it with hybrid_problem(system=HybridSystem(...) with hybrid.symbolic flows, guards "
                          "and jump maps, ...)")

@@ -11,10 +11,10 @@ parts; disjunction: the largest of the parts that hold), in the units of the ato
 that is not complete — inconclusive (a blow-up, a limit) or stopped by the jump bound — proves
 nothing.
 
-:func:`reach_proof` turns that into an :class:`analysis.verification.Proof`: ``holds`` when the
+:func:`reach_proof` turns that into an :class:`analysis.verify.verification.Proof`: ``holds`` when the
 producer decides the requirement, ``rechecked`` only when the independent re-check
 (:func:`analysis.reach.recheck.recheck_flowpipe`, from the saved JSON) passes too.
-:class:`ReachProof` is the picklable callable that :func:`analysis.problems.hybrid_problem`
+:class:`ReachProof` is the picklable callable that :func:`analysis.verify.problems.hybrid_problem`
 attaches to a requirement (``reach="auto"``).
 """
 
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.verification import Proof
+from analysis.verify.verification import Proof
 
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
@@ -352,7 +352,7 @@ REACH_CHOICES = ("auto", True, False)
 
 
 def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: str) -> dict[str, Any]:
-    from analysis.verification import ProblemError
+    from analysis.verify.verification import ProblemError
 
     if reach_mode not in REACH_CHOICES or isinstance(reach_mode, int) and not isinstance(reach_mode, bool):
         raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
@@ -408,10 +408,10 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
 
     Raises
     ------
-    analysis.verification.ProblemError
+    analysis.verify.verification.ProblemError
         ``reach=True`` with a system reachability cannot read, or bad options.
     """
-    from analysis.verification import ProblemError
+    from analysis.verify.verification import ProblemError
 
     from .affine import AffineError
     from .fragment import NotInFragment, safety_fragment

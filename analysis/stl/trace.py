@@ -157,7 +157,7 @@ class SignalTrace:
         problem declares final: nothing changes after it), or an early end
         (``"zeno"``, ``"invariant_violated"`` (a deadlock), ``"jump_limit"``,
         ``"stop:<name>"``, ``"diverged"``, ``"error"``, ...).  ``None``: not said
-        (the trace is then judged by where it ends, :mod:`analysis.falsification`).
+        (the trace is then judged by where it ends, :mod:`analysis.verify.falsification`).
     termination_detail : str, optional
         Why, in words (the time, the mode, the cause).
 

@@ -22,19 +22,23 @@ The verdicts
     raises :class:`VerificationFailed` unless the verdict is a pass; :func:`load_problem` loads
     ``FILE.py:OBJECT`` as ``visnav verify`` does.
 
-The modules behind it (:mod:`analysis.verification`, :mod:`analysis.problems`, :mod:`analysis.requirements`,
-:mod:`analysis.falsification`, :mod:`analysis.verdicts`, :mod:`analysis.testing`, :mod:`analysis.loading`)
-stay importable for the finer pieces.
+The modules behind it live in this package and stay importable for the finer pieces:
+:mod:`~analysis.verify.verification` (the problem, parameters, proofs), :mod:`~analysis.verify.problems`
+(problems of hybrid systems and sampled loops), :mod:`~analysis.verify.requirements`,
+:mod:`~analysis.verify.signals` (input signals as parameters), :mod:`~analysis.verify.falsification` with
+:mod:`~analysis.verify.falsification_search` and :mod:`~analysis.verify.falsification_book` (the searches),
+:mod:`~analysis.verify.verdicts`, :mod:`~analysis.verify.testing` (the pytest entry) and
+:mod:`~analysis.verify.loading` (a user's module).
 """
 
-from analysis.falsification import DEFAULT_TIMEOUT_S, METHODS
-from analysis.loading import load_problem
-from analysis.problems import hybrid_problem, sampled_problem
-from analysis.requirements import Requirement, min_dwell
+from analysis.verify.falsification import DEFAULT_TIMEOUT_S, METHODS
+from analysis.verify.loading import load_problem
+from analysis.verify.problems import hybrid_problem, sampled_problem
+from analysis.verify.requirements import Requirement, min_dwell
 from analysis.stl import SignalTrace
-from analysis.testing import VerificationFailed, assert_verified
-from analysis.verdicts import Counterexample, RequirementVerdict, VerificationResult, verify
-from analysis.verification import InvalidPoint, Parameter, Proof, VerificationProblem
+from analysis.verify.testing import VerificationFailed, assert_verified
+from analysis.verify.verdicts import Counterexample, RequirementVerdict, VerificationResult, verify
+from analysis.verify.verification import InvalidPoint, Parameter, Proof, VerificationProblem
 
 __all__ = [
     "VerificationProblem",

@@ -34,7 +34,7 @@ Requirements (ARCH-COMP 2019-2022 FALS reports, "AT"; written in visnav's STL, `
     AT6b  (always[0,30] rpm < 3000) -> always[0,8] speed < 50
     AT6c  (always[0,30] rpm < 3000) -> always[0,20] speed < 65
 
-Inputs as parameters (``analysis/signals.py``): the throttle and the brake are piecewise constant over
+Inputs as parameters (``analysis/verify/signals.py``): the throttle and the brake are piecewise constant over
 [0, 30] s with 7 and 3 control points by default (``autotrans_problems(throttle_points=, brake_points=)``);
 the last value holds to the end of the run.  Each problem simulates up to its requirement's horizon
 (AT5i: 32.6 s).
@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.signals import InputSignal, PiecewiseConstantInput, signal_problem
+from analysis.verify.signals import InputSignal, PiecewiseConstantInput, signal_problem
 from analysis.stl import FormulaError, SignalTrace, parse_formula
 from analysis.verify import Requirement, VerificationProblem
 

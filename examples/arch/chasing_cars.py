@@ -45,7 +45,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from analysis.signals import InputSignal, PiecewiseConstantInput, signal_problem
+from analysis.verify.signals import InputSignal, PiecewiseConstantInput, signal_problem
 from analysis.stl import SignalTrace
 from analysis.verify import Requirement, VerificationProblem
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from analysis.loading import ProblemLoadError, load_problem
+from analysis.verify.loading import ProblemLoadError, load_problem
 from analysis.spaceex import InitialLocation, is_spaceex_spec, spaceex_problem, split_spaceex_spec
-from analysis.testing import assert_verified
+from analysis.verify.testing import assert_verified
 from hybrid.spaceex_syntax import SpaceExError
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex"

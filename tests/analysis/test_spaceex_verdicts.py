@@ -17,8 +17,8 @@ from scipy.linalg import expm
 from analysis.reach.affine import affine_vector
 from analysis.spaceex import INPUT_POINTS, InputSignals, spaceex_problem
 from analysis.spaceex_reach import NOT_RECHECKED, input_reach_model
-from analysis.falsification import evaluate
-from analysis.verdicts import verify
+from analysis.verify.falsification import evaluate
+from analysis.verify.verdicts import verify
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex" / "arch2017"
 BUILDING = DATA / "Building" / "SpaceEx"

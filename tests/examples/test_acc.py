@@ -12,9 +12,9 @@ import pytest
 import importlib.util
 from pathlib import Path
 
-from analysis.falsification import evaluate, falsify
-from analysis.falsification_search import simulations_to_violation
-from analysis.loading import load_problems
+from analysis.verify.falsification import evaluate, falsify
+from analysis.verify.falsification_search import simulations_to_violation
+from analysis.verify.loading import load_problems
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "acc.py"
 

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.falsification import FalsificationError
-from analysis.loading import load_problem
-from analysis.verdicts import verify
+from analysis.verify.falsification import FalsificationError
+from analysis.verify.loading import load_problem
+from analysis.verify.verdicts import verify
 from analysis.verify import Requirement
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -190,7 +190,7 @@ FALCAUN_2024 = {
 
 @pytest.mark.parametrize("name", sorted(FALCAUN_2024))
 def test_inputs_falsifying_the_simulink_model_falsify_ours(name):
-    from analysis.signals import InputSignal
+    from analysis.verify.signals import InputSignal
 
     rows = np.asarray(FALCAUN_2024[name], dtype=float)
     inputs = {"throttle": InputSignal(name="throttle", starts=rows[:, 0], values=rows[:, 1]),

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from analysis.falsification import FalsificationError
-from analysis.loading import load_problem
-from analysis.verdicts import verify
+from analysis.verify.falsification import FalsificationError
+from analysis.verify.loading import load_problem
+from analysis.verify.verdicts import verify
 from analysis.verify import Requirement
 
 ROOT = Path(__file__).resolve().parents[2]

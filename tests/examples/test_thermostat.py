@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from analysis.loading import load_problem
-from analysis.testing import VerificationFailed, assert_verified
+from analysis.verify.loading import load_problem
+from analysis.verify.testing import VerificationFailed, assert_verified
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "thermostat.py"

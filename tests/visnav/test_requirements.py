@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
 from visnav.fuzzing.closed_loop import simulate_variant
 from visnav.fuzzing.properties import TOLERANCE

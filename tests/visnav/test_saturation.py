@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis.verification import ProblemError
+from analysis.verify.verification import ProblemError
 from visnav.app.cli import main
 from visnav.closed_loop import DEMAND_RECORDS, clip_command
 from visnav.fuzzing.closed_loop import BlendMonitor, simulate_variant

@@ -746,7 +746,7 @@ def _formula_error(data: dict, index: int) -> ScenarioError:
 
 
 def test_the_paper_requirements_load_and_round_trip():
-    from analysis.requirements import Requirement
+    from analysis.verify.requirements import Requirement
 
     scenario = load_scenario("paper")
     assert scenario.requirements and all(isinstance(r, Requirement) for r in scenario.requirements)

@@ -156,7 +156,7 @@ def _check_problem(args: argparse.Namespace) -> int:
     import dataclasses
     import time
 
-    from analysis.problems import StructuralChecks
+    from analysis.verify.problems import StructuralChecks
 
     from visnav.app.structural import completeness_data, verdict_line
 
@@ -174,7 +174,7 @@ def _check_problem(args: argparse.Namespace) -> int:
     else:
         if args.method is not None or args.timeout is not None:
             print(f"visnav: note: problem {problem.name!r} has its own structural checks (not "
-                  "analysis.problems.StructuralChecks): --method and --timeout do not apply to them",
+                  "analysis.verify.problems.StructuralChecks): --method and --timeout do not apply to them",
                   file=sys.stderr)
         method, timeout_s = "of the problem", None
     start = time.perf_counter()

@@ -40,7 +40,7 @@ def _cmd_mode_graph(args: argparse.Namespace) -> int:
         automaton = problem.automaton
         if automaton is None:
             print(f"visnav: error: problem {problem.name!r} declares no automaton (VerificationProblem.automaton); "
-                  "build it with analysis.problems.hybrid_problem or sampled_problem, or set automaton=",
+                  "build it with analysis.verify.problems.hybrid_problem or sampled_problem, or set automaton=",
                   file=sys.stderr)
             return EXIT_BAD_INPUT
     else:

@@ -1,7 +1,7 @@
 """``visnav reach --problem SPEC``: flowpipes of a verification problem and a verdict per requirement.
 
 ``SPEC`` is ``package.module:OBJECT``, ``path/to/file.py:OBJECT`` (a problem of
-:func:`analysis.problems.hybrid_problem` with a symbolic system, or a function of the parameters
+:func:`analysis.verify.problems.hybrid_problem` with a symbolic system, or a function of the parameters
 building one: the parameters become constant states) or a SpaceEx model ``FILE.xml[:COMPONENT]``
 with ``--config FILE.cfg`` (as ``visnav verify`` loads them).  The computation is
 :func:`analysis.reach.problem.problem_reach`; ``docs/reachability.md`` explains it.
@@ -122,7 +122,7 @@ def _load(args: argparse.Namespace) -> Any:
 
 
 def _cmd_reach(args: argparse.Namespace) -> int:
-    from analysis.loading import ProblemLoadError
+    from analysis.verify.loading import ProblemLoadError
     from analysis.reach.affine import AffineError
     from analysis.reach.parameters import ParameterRoute
     from analysis.reach.problem import problem_reach

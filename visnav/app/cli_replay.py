@@ -38,7 +38,7 @@ import traceback
 from collections.abc import Mapping
 from typing import Any
 
-from analysis.falsification import run_end
+from analysis.verify.falsification import run_end
 from hybrid.jsonable import to_jsonable
 
 from visnav.app.cli_types import (EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INCOMPLETE, EXIT_MODEL_ERROR, EXIT_OK,
@@ -63,7 +63,7 @@ class _Refused(Exception):
 
 def _file_target(spec: str) -> tuple[str, str] | None:
     """``(resolved file, object)`` of a ``path/to/file.py:OBJECT`` spec, ``None`` for a module spec."""
-    from analysis.loading import ProblemLoadError, split_spec
+    from analysis.verify.loading import ProblemLoadError, split_spec
 
     try:
         where, name = split_spec(spec)
@@ -169,7 +169,7 @@ def _check_point(data: Mapping[str, Any], problem: Any, unit: tuple[float, ...],
 def _simulate(problem: Any, point: Mapping[str, float]) -> Any:
     """The trace at ``point``; a failure of the run is refused with the exit code of its kind."""
     from analysis.stl import SignalTrace
-    from analysis.verification import InvalidPoint
+    from analysis.verify.verification import InvalidPoint
     from hybrid.errors import ExecutionError, NumericalFailure, UserFunctionError
 
     try:
@@ -205,7 +205,7 @@ def _evaluate(formula: Any, trace: Any, name: str) -> tuple[float, bool, Any]:
 
 def _run(text: str, path: str, given: str | None) -> dict[str, Any]:
     from analysis.counterexamples import CounterexampleError, CounterexampleFormat, decode_float, decode_str
-    from analysis.loading import ProblemLoadError
+    from analysis.verify.loading import ProblemLoadError
     from hybrid.errors import ParameterError
 
     fmt = CounterexampleFormat(name=COUNTEREXAMPLE_FORMAT, version=1, reader="this visnav")

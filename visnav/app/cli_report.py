@@ -93,8 +93,8 @@ def _verdict_lines(rows: list[dict[str, Any]], folder: Any, spec: str, most: int
 def _cmd_report(args: argparse.Namespace) -> int:
     import time
 
-    from analysis.falsification import FalsificationError, SimulationFailed
-    from analysis.loading import ProblemLoadError
+    from analysis.verify.falsification import FalsificationError, SimulationFailed
+    from analysis.verify.loading import ProblemLoadError
     from hybrid.errors import ParameterError
 
     from visnav.app.ownership import anchored

@@ -40,7 +40,7 @@ VERIFY_BUDGET, VERIFY_BUDGET_QUICK = 120, 16
 (the one definition of both; the paper's problem: about 40 s on one core for 120)."""
 VERDICT_EXIT_CODES = {"proven": EXIT_OK, "not_falsified": EXIT_OK, "falsified": EXIT_TASK_FAILED,
                       "diverged": EXIT_DIVERGED, "incomplete": EXIT_INCOMPLETE, "error": EXIT_MODEL_ERROR}
-"""The exit code of each overall verdict of a verification (:data:`analysis.verdicts.OVERALL`)."""
+"""The exit code of each overall verdict of a verification (:data:`analysis.verify.verdicts.OVERALL`)."""
 
 
 def _whole(text: str, minimum: int, wanted: str) -> int:

@@ -2,7 +2,7 @@
 
 ``PROBLEM`` is ``paper`` (the built-in case study, requirements in the scenario
 TOML), ``package.module:OBJECT`` or ``path/to/file.py:OBJECT`` (the user's own
-system, :mod:`analysis.loading`).  The search (:mod:`analysis.falsification`)
+system, :mod:`analysis.verify.loading`).  The search (:mod:`analysis.verify.falsification`)
 writes every simulation to ``OUT/evaluations.jsonl`` as it finishes; running
 the same command again resumes it.  At the end ``OUT/verification.json`` and,
 per falsified requirement, ``OUT/counterexamples/NAME.json`` (re-run by
@@ -26,7 +26,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from analysis.falsification import DEFAULT_TIMEOUT_S
+from analysis.verify.falsification import DEFAULT_TIMEOUT_S
 
 from visnav.app.counterexample_files import (COUNTEREXAMPLE_FORMAT, PAPER, counterexample_text,
                                              is_verification_counterexample, replay_command)
@@ -52,7 +52,7 @@ DEFAULT_BUDGET = VERIFY_BUDGET
 
 def add_parser(sub: Any) -> None:
     """Register ``verify`` on the subcommand parsers ``sub``."""
-    from analysis.falsification import METHODS
+    from analysis.verify.falsification import METHODS
 
     ver = sub.add_parser("verify", help="verify a problem's STL requirements: proven, falsified or not falsified")
     ver.add_argument("problem", help="paper, package.module:OBJECT, path/to/file.py:OBJECT, or a SpaceEx model "
@@ -96,7 +96,7 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
 def load_verification_problem(spec: str, options: Mapping[str, Any], requirements: Sequence[str] | None = None):
     """The problem ``spec`` names (``paper`` is :func:`visnav.verification.paper_problem`), restricted to
     ``requirements`` when given."""
-    from analysis.loading import ProblemLoadError, load_problem
+    from analysis.verify.loading import ProblemLoadError, load_problem
 
     from analysis.spaceex import is_spaceex_spec
 
@@ -126,8 +126,8 @@ def load_verification_problem(spec: str, options: Mapping[str, Any], requirement
 
 def _spec_hash(spec: str, options: Mapping[str, Any], problem: Any, args: argparse.Namespace) -> dict[str, Any]:
     """The journal's header: the search's options, the requirements, the box and the model's code
-    (:func:`analysis.loading.source_digests`): a journal of an edited model is another campaign."""
-    from analysis.loading import source_digests
+    (:func:`analysis.verify.loading.source_digests`): a journal of an edited model is another campaign."""
+    from analysis.verify.loading import source_digests
 
     identity = {"problem": spec, "options": dict(options), "method": args.method, "seed": args.seed,
                 "budget": args.budget, "requirements": [[r.name, r.formula] for r in problem.requirements],
@@ -153,8 +153,8 @@ def _checked_evaluation(problem: Any, data: Any) -> Any:
     truth value (true, false or null) per requirement when evaluated, none otherwise."""
     import math
 
-    from analysis.falsification import PHASES as _PHASES
-    from analysis.falsification import STATUSES, Evaluation
+    from analysis.verify.falsification import PHASES as _PHASES
+    from analysis.verify.falsification import STATUSES, Evaluation
 
     e = Evaluation.from_dict(data)
     o = e.outcome
@@ -185,9 +185,9 @@ def _journal(folder: Path, header: dict[str, Any], budget: int, problem: Any):
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
-    from analysis.falsification import FalsificationError, SimulationFailed
-    from analysis.loading import ProblemLoadError
-    from analysis.verdicts import verify
+    from analysis.verify.falsification import FalsificationError, SimulationFailed
+    from analysis.verify.loading import ProblemLoadError
+    from analysis.verify.verdicts import verify
     from hybrid.errors import ParameterError
 
     from visnav.app.campaign_store import CampaignStoreError
@@ -384,7 +384,7 @@ _WORKER_PROBLEMS: dict[str, Any] = {}
 def _evaluate_task(spec: tuple[str, tuple[tuple[str, Any], ...], tuple[str, ...] | None, Mapping[int, tuple],
                                float | None], index: int):
     """Campaign task: evaluate Monte-Carlo draw ``index`` of the problem the spec names (loaded once per process)."""
-    from analysis.falsification import evaluate
+    from analysis.verify.falsification import evaluate
 
     source, options, requirements, units, timeout_s = spec
     key = repr((source, options, requirements))
@@ -395,10 +395,10 @@ def _evaluate_task(spec: tuple[str, tuple[tuple[str, Any], ...], tuple[str, ...]
 
 def _runner(args: argparse.Namespace, problem: Any, options: Mapping[str, Any], record: Any):
     from analysis.campaigns import campaign_executor, run_tasks
-    from analysis.falsification import Evaluation
+    from analysis.verify.falsification import Evaluation
 
     def run(pending: list[tuple[int, tuple[float, ...]]]) -> dict[int, Any]:
-        units = dict(pending)  # one chunk of draws (analysis.falsification), by index
+        units = dict(pending)  # one chunk of draws (analysis.verify.falsification), by index
         spec = (args.problem, tuple(sorted(options.items())), tuple(args.requirement) if args.requirement else None,
                 units, args.sim_timeout)
         outcomes: dict[int, Any] = {}

@@ -408,7 +408,7 @@ def _campaign_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
 
 def _verification_section(scenario: Scenario, options: ReportOptions, source: str) -> Section:
     """The generic verification section of the scenario's problem (:func:`visnav.verification.paper_problem`)."""
-    from analysis.verdicts import verify
+    from analysis.verify.verdicts import verify
 
     from visnav.app.verification_report import verification_section
     from visnav.verification import paper_problem
@@ -423,7 +423,7 @@ def _saturated_section(scenario: Scenario, options: ReportOptions, source: str) 
     commands clipped to ``[limits]``), with the same budget and seed: its own verdict table, figures and
     counterexample files (``counterexamples/saturated~NAME.json``); the report's verdict stays the first section's.
     """
-    from analysis.verdicts import verify
+    from analysis.verify.verdicts import verify
 
     from visnav.app.verification_report import verification_section
     from visnav.verification import SATURATED, paper_problem

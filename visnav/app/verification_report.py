@@ -1,7 +1,7 @@
 """The report of any verification problem: the verdict table first, then its evidence, figures and structure.
 
-:func:`build_problem_report` verifies a :class:`analysis.verification.VerificationProblem`
-(:func:`analysis.verdicts.verify`) and assembles a :class:`Report` of two
+:func:`build_problem_report` verifies a :class:`analysis.verify.verification.VerificationProblem`
+(:func:`analysis.verify.verdicts.verify`) and assembles a :class:`Report` of two
 sections:
 
 ``verification`` (:func:`verification_section`)
@@ -87,7 +87,7 @@ error (a defect whose witness re-checked on the model): the model is wrong whate
 VERDICT_LABELS = {"proven": "PROVEN", "falsified": "FALSIFIED", "not_falsified": "NOT FALSIFIED",
                   "diverged": "DIVERGED", "incomplete": "INCOMPLETE", "error": "MODEL ERROR",
                   STRUCTURAL_ERROR: "STRUCTURAL ERROR"}
-"""How the documents write a verdict (:data:`analysis.verdicts.OVERALL` and :data:`STRUCTURAL_ERROR`)."""
+"""How the documents write a verdict (:data:`analysis.verify.verdicts.OVERALL` and :data:`STRUCTURAL_ERROR`)."""
 
 REPORT_EXIT_CODES = {**VERDICT_EXIT_CODES, STRUCTURAL_ERROR: 1}
 """Exit code of ``visnav report`` by the report's overall verdict (:data:`visnav.app.cli_types.VERDICT_EXIT_CODES`,
@@ -335,8 +335,8 @@ def verification_section(problem: Any, result: Any, *, spec: str, options: Mappi
 
     Parameters
     ----------
-    problem : analysis.verification.VerificationProblem
-    result : analysis.verdicts.VerificationResult
+    problem : analysis.verify.verification.VerificationProblem
+    result : analysis.verify.verdicts.VerificationResult
         ``verify(problem, ...)``.
     spec : str
         How ``visnav replay`` loads the problem again (``paper``, ``pkg.mod:OBJ``, ``file.py:OBJ``).
@@ -573,13 +573,13 @@ def build_problem_report(problem: Any, *, spec: str, options: Mapping[str, Any] 
 
     Parameters
     ----------
-    problem : analysis.verification.VerificationProblem
+    problem : analysis.verify.verification.VerificationProblem
     spec : str
         How the problem was named on the command line (counterexample files, the regeneration command).
     options : Mapping, optional
         Its loading options (``paper`` only: scenario, variant).
     seed, budget, method :
-        Of :func:`analysis.verdicts.verify`.
+        Of :func:`analysis.verify.verdicts.verify`.
     quick : bool
         Recorded (the quick report has the smaller default budget).
     progress : callable, optional
@@ -587,12 +587,12 @@ def build_problem_report(problem: Any, *, spec: str, options: Mapping[str, Any] 
 
     Raises
     ------
-    analysis.falsification.FalsificationError, analysis.falsification.SimulationFailed
-        As :func:`analysis.verdicts.verify`.
+    analysis.verify.falsification.FalsificationError, analysis.verify.falsification.SimulationFailed
+        As :func:`analysis.verify.verdicts.verify`.
     """
     import time
 
-    from analysis.verdicts import verify
+    from analysis.verify.verdicts import verify
 
     timings: dict[str, float] = {}
     sections: list[tuple[str, Section]] = []

@@ -18,10 +18,10 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from analysis.problems import hybrid_problem
+from analysis.verify.problems import hybrid_problem
 from analysis.reach import reach
-from analysis.requirements import Requirement
-from analysis.verification import Parameter
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter
 from hybrid import HybridAutomaton, Mode, Transition
 from hybrid.symbolic import coordinates, flow_map, jump_map, sin
 from hybrid.system import HybridSystem

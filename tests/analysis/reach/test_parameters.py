@@ -18,11 +18,11 @@ from fractions import Fraction
 
 import pytest
 
-from analysis.problems import hybrid_problem
+from analysis.verify.problems import hybrid_problem
 from analysis.reach.parameters import ParameterRoute, initial_modes, reach_setup
-from analysis.requirements import Requirement
-from analysis.verdicts import verify
-from analysis.verification import Parameter
+from analysis.verify.requirements import Requirement
+from analysis.verify.verdicts import verify
+from analysis.verify.verification import Parameter
 from hybrid import HybridAutomaton, Mode, Transition
 from hybrid.symbolic import coordinates, flow_map, jump_map
 from hybrid.system import HybridSystem

@@ -18,14 +18,14 @@ import time
 import numpy as np
 import pytest
 
-from analysis.problems import hybrid_problem
+from analysis.verify.problems import hybrid_problem
 from analysis.reach.fragment import Conj, LinearAtom, NotInFragment, atoms, safety_fragment
 from analysis.reach.recheck import recheck_flowpipe
 from analysis.reach.verdict import decide, reach_proof
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl.syntax import parse_tree
-from analysis.verdicts import verify
-from analysis.verification import Parameter, ProblemError
+from analysis.verify.verdicts import verify
+from analysis.verify.verification import Parameter, ProblemError
 from hybrid import HybridAutomaton, Mode, Transition
 from hybrid.examples import thermostat
 from hybrid.symbolic import coordinates, flow_map

@@ -6,9 +6,9 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verification import Parameter
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter
 
 _spec = importlib.util.spec_from_file_location(
     "check_fixtures", Path(__file__).resolve().parents[2] / "hybrid" / "check_fixtures.py")

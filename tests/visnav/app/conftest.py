@@ -55,9 +55,9 @@ def report_tools() -> SimpleNamespace:
 
 SYMBOLIC_THERMOSTAT = '''
 """A user's thermostat written with hybrid.symbolic guards, invariants and flows, checked over a box."""
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verification import Parameter
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter
 from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition
 from hybrid.symbolic import coordinates, flow_map
 

@@ -19,9 +19,9 @@ from visnav.app.cli import main
 TRUE_MAX = 2.0 * (1.0 - math.exp(-5.0))
 
 MODULE = '''
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verification import Parameter
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter
 from hybrid import HybridAutomaton, HybridSystem, Mode
 from hybrid.symbolic import coordinates, flow_map
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from analysis.counterexamples import CounterexampleFormat
-from analysis.loading import load_problem
+from analysis.verify.loading import load_problem
 
 from visnav.app.cli import main
 from visnav.app.cli_replay import same_problem
@@ -33,9 +33,9 @@ ROOT = Path(__file__).resolve().parents[3]
 
 MODULE = '''
 import numpy as np
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verification import Parameter, VerificationProblem
 
 def simulate(p):
     t = np.linspace(0.0, 2.0, 41)

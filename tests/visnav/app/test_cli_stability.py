@@ -11,9 +11,9 @@ PROBLEM = '''
 """Liberzon's two unstable spirals switched on the quadrants (8 sectors): stable, but by no common P."""
 import numpy as np
 
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verification import Parameter
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter
 from hybrid.conewise import conewise_linear_system
 
 SPIRALS = {"one": np.array([[0.1, -1.0], [2.0, 0.1]]), "two": np.array([[0.1, -2.0], [1.0, 0.1]])}
@@ -51,7 +51,7 @@ def test_the_stable_assignment_is_proven_by_a_piecewise_quadratic_function(tmp_p
     human = capsys.readouterr().out
     assert human.startswith("analyse spirals: STABLE") and "PROVEN       every execution" in human
 
-    from analysis.loading import load_problem
+    from analysis.verify.loading import load_problem
     from visnav.app.verification_report import stability_section
 
     section = stability_section(load_problem(spec))

@@ -40,9 +40,9 @@ USER_FILES = {
 MODULE = '''
 import os
 import numpy as np
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verification import Parameter, VerificationProblem
 PRELUDE
 
 def simulate(p):
@@ -331,9 +331,9 @@ def test_a_simulator_that_changes_the_folder_moves_no_output(tmp_path, capsys, m
 
 LONG = '''
 import numpy as np
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verification import Parameter, VerificationProblem
 
 N = 300_001
 

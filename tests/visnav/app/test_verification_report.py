@@ -14,7 +14,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from analysis.loading import load_problem
+from analysis.verify.loading import load_problem
 from hybrid.check import Finding
 
 from visnav.app.cli import main
@@ -33,9 +33,9 @@ BUDGET = 12
 
 USER_PROBLEM = '''
 """A user's problem outside the repository: x' = -x from x0 in [0.5, 2]."""
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verification import Parameter
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter
 from hybrid import HybridAutomaton, HybridSystem, Mode, check
 
 automaton = HybridAutomaton(name="decay", modes=(Mode(name="flow"),), transitions=(), variables=("x",),
@@ -275,7 +275,7 @@ def test_bad_problem_spec_is_a_clear_error(tmp_path, capsys, monkeypatch):
 def test_a_second_verification_section_has_its_own_figures_files_and_claims(zero_band):
     """``verification_section(..., name="saturated")`` (the case study's saturated loop): nothing it writes
     collides with the first section's, and the document shows both tables, the first before the claims."""
-    from analysis.verdicts import verify
+    from analysis.verify.verdicts import verify
 
     from visnav.app.verification_report import assemble_report, verification_section
 
@@ -315,8 +315,8 @@ spec = importlib.util.spec_from_file_location("thermostat_example", {path!r})
 example = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(example)
 
-from analysis.problems import hybrid_problem
-from analysis.verification import Parameter
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.verification import Parameter
 from hybrid import Box
 
 problem = hybrid_problem(

@@ -15,9 +15,9 @@ from visnav.app.cli import main
 
 MODULE = '''
 import numpy as np
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verification import Parameter, VerificationProblem
 
 def simulate(p):
     t = np.linspace(0.0, 2.0, 41)

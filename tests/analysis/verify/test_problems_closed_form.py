@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.loading import load_problem
-from analysis.problems import hybrid_problem, trace_from_trajectory
-from analysis.requirements import Requirement
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.loading import load_problem
+from analysis.verify.problems import hybrid_problem, trace_from_trajectory
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter, VerificationProblem
 from hybrid.continuous import simulate_continuous
 from hybrid.examples import thermostat
 
-THERMOSTAT = str(Path(__file__).resolve().parents[2] / "examples" / "thermostat.py") + ":problem"
+THERMOSTAT = str(Path(__file__).resolve().parents[3] / "examples" / "thermostat.py") + ":problem"
 
 
 @pytest.fixture(scope="module")

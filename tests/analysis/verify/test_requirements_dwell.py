@@ -1,10 +1,10 @@
-"""The built-in no-chatter requirement (analysis.requirements.min_dwell) against hand-made mode sequences."""
+"""The built-in no-chatter requirement (analysis.verify.requirements.min_dwell) against hand-made mode sequences."""
 
 from __future__ import annotations
 
 import pytest
 
-from analysis.requirements import RequirementError, min_dwell, parse_requirements
+from analysis.verify.requirements import RequirementError, min_dwell, parse_requirements
 from analysis.stl import SignalTrace
 
 

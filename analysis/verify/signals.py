@@ -4,8 +4,8 @@ Falsification benchmarks (ARCH-COMP FALS, ``docs/arch.md``) search over *input s
 initial states: the throttle and the brake of a car over 30 s, say.  The field parametrises such a
 signal by its values at a fixed number of control points: a piecewise-constant signal on ``[0, span]``
 with ``n`` equal segments takes one value per segment, each in ``[low, high]``.  Each value is a
-:class:`~analysis.verification.Parameter` of the problem's box (named ``<signal>_<k>``, ``k = 0..n-1``),
-so every search of :mod:`analysis.falsification` searches the signals unchanged.
+:class:`~analysis.verify.verification.Parameter` of the problem's box (named ``<signal>_<k>``, ``k = 0..n-1``),
+so every search of :mod:`analysis.verify.falsification` searches the signals unchanged.
 
 :class:`PiecewiseConstantInput`
     One input signal: its name, range, number of control points and span; its parameters, its values
@@ -13,17 +13,17 @@ so every search of :mod:`analysis.falsification` searches the signals unchanged.
 :func:`input_parameters`
     The parameters of several signals, in order (distinct names checked).
 :func:`signal_problem`
-    A :class:`~analysis.verification.VerificationProblem` whose box is the input signals (and any further
+    A :class:`~analysis.verify.verification.VerificationProblem` whose box is the input signals (and any further
     parameters) and whose simulator takes the signals: ``simulate(inputs, point) -> SignalTrace`` with
     ``inputs`` the signal name -> :class:`InputSignal`.  Its ``min_budget`` is the number of control
     points: a search with fewer simulations than coordinates cannot even take one step per coordinate,
     and is refused.
 
-Bad input is refused with a :class:`~analysis.verification.ProblemError` naming the parameter: a
+Bad input is refused with a :class:`~analysis.verify.verification.ProblemError` naming the parameter: a
 number of control points that is not a positive integer, bounds that are not finite or not ordered
 (``low <= high``), a nominal value outside them, a span that is not positive, two signals of one
 name, a requirement on a signal the model does not output (the problem's formulas are parsed against
-the model's outputs), a budget below the number of control points (:func:`analysis.verdicts.verify`).
+the model's outputs), a budget below the number of control points (:func:`analysis.verify.verdicts.verify`).
 
 Examples
 --------
@@ -43,9 +43,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, ProblemError, VerificationProblem
+from analysis.verify.verification import Parameter, ProblemError, VerificationProblem
 
 __all__ = ["PiecewiseConstantInput", "InputSignal", "input_parameters", "signal_problem"]
 

@@ -6,14 +6,14 @@ import textwrap
 
 import pytest
 
-from analysis.loading import ProblemLoadError, load_problem, split_spec
-from analysis.verification import VerificationProblem
+from analysis.verify.loading import ProblemLoadError, load_problem, split_spec
+from analysis.verify.verification import VerificationProblem
 
 GOOD = '''
 import numpy as np
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verification import Parameter, VerificationProblem
 
 def simulate(p):
     t = np.linspace(0.0, 2.0, 41)
@@ -56,7 +56,7 @@ def test_a_module_that_does_not_import_shows_the_users_traceback(tmp_path):
         load_problem(f"{path}:problem")
     tb = info.value.user_traceback
     assert "ZeroDivisionError" in tb and str(path) in tb and "line 4" in tb
-    assert "analysis/loading.py" not in tb  # the toolkit's own frames are left out
+    assert "analysis/verify/loading.py" not in tb  # the toolkit's own frames are left out
 
 
 def test_missing_file_module_object_and_wrong_type_are_named(tmp_path):

@@ -2,7 +2,7 @@
 
 Use it in pytest (or any runner) on the user's own problem::
 
-    from analysis.testing import assert_verified
+    from analysis.verify.testing import assert_verified
     from mypackage.thermostat import problem
 
     def test_thermostat_requirements():
@@ -18,9 +18,9 @@ writes the counterexample file for ``visnav replay``.
 
 from __future__ import annotations
 
-from analysis.falsification import DEFAULT_TIMEOUT_S
-from analysis.verdicts import VerificationResult, verify
-from analysis.verification import VerificationProblem
+from analysis.verify.falsification import DEFAULT_TIMEOUT_S
+from analysis.verify.verdicts import VerificationResult, verify
+from analysis.verify.verification import VerificationProblem
 
 __all__ = ["VerificationFailed", "assert_verified", "profile_budget"]
 
@@ -87,14 +87,14 @@ def assert_verified(
     seed : int
         The search's seed (the same seed, the same counterexample).
     method : str
-        :data:`analysis.falsification.METHODS`.
+        :data:`analysis.verify.falsification.METHODS`.
     timeout_s : float or None
         Wall-clock limit of each simulation [s]; a simulation past it makes the verdict incomplete.
 
     Returns
     -------
     VerificationResult
-        When the verdict is a pass (:data:`analysis.verdicts.PASSES`): every requirement proven or not
+        When the verdict is a pass (:data:`analysis.verify.verdicts.PASSES`): every requirement proven or not
         falsified, every simulation complete.
     """
     budget = profile_budget() if budget is None else budget

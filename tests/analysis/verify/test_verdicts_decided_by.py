@@ -14,10 +14,10 @@ import math
 
 import pytest
 
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
-from analysis.verdicts import RequirementVerdict, decided_by, verify
-from analysis.verification import Parameter, Proof
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
+from analysis.verify.verdicts import RequirementVerdict, decided_by, verify
+from analysis.verify.verification import Parameter, Proof
 from hybrid import HybridAutomaton, HybridSystem, Mode
 from hybrid.symbolic import coordinates, flow_map
 

@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from analysis.falsification import FalsificationError, SimulationFailed, evaluate, falsify, monte_carlo_unit
-from analysis.requirements import Requirement
+from analysis.verify.falsification import FalsificationError, SimulationFailed, evaluate, falsify, monte_carlo_unit
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verdicts import verify
-from analysis.verification import InvalidPoint, Parameter, Proof, VerificationProblem
+from analysis.verify.verdicts import verify
+from analysis.verify.verification import InvalidPoint, Parameter, Proof, VerificationProblem
 from hybrid.errors import DivergenceError
 
 T = np.linspace(0.0, 1.0, 21)

@@ -15,13 +15,13 @@ import textwrap
 import numpy as np
 import pytest
 
-from analysis.falsification import evaluate
-from analysis.problems import hybrid_problem
-from analysis.requirements import Requirement
+from analysis.verify.falsification import evaluate
+from analysis.verify.problems import hybrid_problem
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace, parse_formula
-from analysis.testing import VerificationFailed, assert_verified
-from analysis.verdicts import verify
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.testing import VerificationFailed, assert_verified
+from analysis.verify.verdicts import verify
+from analysis.verify.verification import Parameter, VerificationProblem
 from hybrid.examples import bouncing_ball, bouncing_ball_zeno_time, deadlock
 
 
@@ -149,9 +149,9 @@ def test_prefix_semantics_is_the_boolean_one_on_windows_inside_the_trace():
 
 
 ZENO_MODULE = textwrap.dedent('''
-    from analysis.problems import hybrid_problem
-    from analysis.requirements import Requirement
-    from analysis.verification import Parameter
+    from analysis.verify.problems import hybrid_problem
+    from analysis.verify.requirements import Requirement
+    from analysis.verify.verification import Parameter
     from hybrid.examples import bouncing_ball
 
     problem = hybrid_problem(

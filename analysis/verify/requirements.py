@@ -101,7 +101,7 @@ def parse_requirements(
     for r in requirements:
         if not isinstance(r, Requirement):
             raise RequirementError(
-                "requirements", r, "analysis.requirements.Requirement objects",
+                "requirements", r, "analysis.verify.requirements.Requirement objects",
                 "write Requirement(name=..., formula=..., description=...)",
             )
         if r.name in seen:

@@ -14,7 +14,7 @@ Methods (:data:`METHODS`)
            with step-size adaptation and local surrogate steps, restarted from new Sobol points;
         4. a shrink of each counterexample (each coordinate set back to nominal where the
            violation persists).
-        :mod:`analysis.falsification_search` has the details.
+        :mod:`analysis.verify.falsification_search` has the details.
     ``"whitebox"``
         The same start, then projected gradient descent on the robustness with gradients by
         central finite differences (a batch of ``2k`` simulations each: no flow sensitivities yet),
@@ -48,8 +48,8 @@ from hybrid.errors import (DivergenceError, ExecutionError, NumericalFailure, Pa
 
 from analysis.stl import FormulaValueError, SignalTrace, TraceError
 from analysis.timelimit import TimeLimitExceeded, time_limit
-from analysis.falsification_book import BudgetExhausted, Evaluation, Outcome, Search, unit_key
-from analysis.verification import InvalidPoint, VerificationProblem
+from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Outcome, Search, unit_key
+from analysis.verify.verification import InvalidPoint, VerificationProblem
 
 __all__ = [
     "METHODS",
@@ -360,7 +360,7 @@ def falsify(
         _dual_annealing(search, seed, falsified)
         _record_violations(search, falsified, "dual-annealing")
         return search, falsified
-    from analysis.falsification_search import guided_search, whitebox_search
+    from analysis.verify.falsification_search import guided_search, whitebox_search
 
     (whitebox_search if method == "whitebox" else guided_search)(search, seed, falsified)
     _record_violations(search, falsified, method)

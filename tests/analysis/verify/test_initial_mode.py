@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from analysis.falsification import evaluate
+from analysis.verify.falsification import evaluate
 from analysis.verify import Parameter, Requirement, hybrid_problem
 from hybrid import HybridAutomaton, HybridSystem, Mode, Transition, coordinates, flow_map
 from hybrid.errors import ModelDefinitionError

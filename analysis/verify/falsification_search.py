@@ -1,6 +1,6 @@
-"""The searches behind :func:`analysis.falsification.falsify`'s ``"guided"`` and ``"whitebox"`` methods.
+"""The searches behind :func:`analysis.verify.falsification.falsify`'s ``"guided"`` and ``"whitebox"`` methods.
 
-Both work in unit coordinates ``u ∈ [-1, 1]^k`` on a :class:`analysis.falsification.Search` (the budget,
+Both work in unit coordinates ``u ∈ [-1, 1]^k`` on a :class:`analysis.verify.falsification.Search` (the budget,
 the cache, the journal's evaluations) and share one design:
 
 1. **Space-filling start**: a scrambled Sobol sequence (:func:`space_filling`, seeded by the search's
@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
+from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
 __all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "focus", "central_gradient", "guided_search",
            "whitebox_search", "simulations_to_violation"]

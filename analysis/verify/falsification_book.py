@@ -1,8 +1,8 @@
 """The book of a falsification search: what one simulation gave (:class:`Outcome`), one simulated point
 (:class:`Evaluation`) and the budget, cache and evaluations of a search (:class:`Search`).
 
-Shared by :mod:`analysis.falsification` (which re-exports every name) and
-:mod:`analysis.falsification_search`; it imports neither.
+Shared by :mod:`analysis.verify.falsification` (which re-exports every name) and
+:mod:`analysis.verify.falsification_search`; it imports neither.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any
 
 from hybrid.jsonable import float_from_json, to_jsonable
 
-from analysis.verification import VerificationProblem
+from analysis.verify.verification import VerificationProblem
 
 __all__ = ["Outcome", "Evaluation", "BudgetExhausted", "Search", "unit_key"]
 
@@ -70,7 +70,7 @@ class Evaluation:
         ``"nominal"``, ``"start"``, ``"surrogate"``, ``"local"``, ``"gradient"``, ``"descent"``, ``"shrink"``,
         ``"monte-carlo"``, ``"dual-annealing"`` (:data:`PHASES`).
     unit : tuple of float
-        Unit coordinates in ``[-1, 1]`` (:meth:`analysis.verification.Parameter.at`).
+        Unit coordinates in ``[-1, 1]`` (:meth:`analysis.verify.verification.Parameter.at`).
     outcome : Outcome
     """
 
@@ -119,7 +119,7 @@ class BudgetExhausted(Exception):
 class Search:
     """The book of one search: budget, cache, evaluations in order (mutable, owned by one search).
 
-    ``evaluator(problem, unit, timeout_s) -> Outcome`` simulates a point (:func:`analysis.falsification.evaluate`).
+    ``evaluator(problem, unit, timeout_s) -> Outcome`` simulates a point (:func:`analysis.verify.falsification.evaluate`).
     """
 
     problem: VerificationProblem

@@ -2,7 +2,7 @@
 
 :func:`verify` tries each requirement's proof (a certificate re-checked
 outside the tool that produced it gives ``proven``), then searches the box
-(:func:`analysis.falsification.falsify`) for the others and gives
+(:func:`analysis.verify.falsification.falsify`) for the others and gives
 
 ``falsified``
     a point where the requirement is violated (boolean semantics: robustness
@@ -39,8 +39,8 @@ import numpy as np
 
 from hybrid.jsonable import to_jsonable
 
-from analysis.falsification import DEFAULT_TIMEOUT_S, Evaluation, FalsificationError, Outcome, Runner, Search, falsify
-from analysis.verification import Proof, VerificationProblem
+from analysis.verify.falsification import DEFAULT_TIMEOUT_S, Evaluation, FalsificationError, Outcome, Runner, Search, falsify
+from analysis.verify.verification import Proof, VerificationProblem
 
 __all__ = ["VERDICTS", "OVERALL", "PASSES", "Counterexample", "Coverage", "RequirementVerdict",
            "VerificationResult", "verify", "coverage_of", "decided_by"]
@@ -48,7 +48,7 @@ __all__ = ["VERDICTS", "OVERALL", "PASSES", "Counterexample", "Coverage", "Requi
 VERDICTS = ("proven", "falsified", "not_falsified", "incomplete")
 OVERALL = ("proven", "not_falsified", "falsified", "diverged", "incomplete", "error")
 PASSES = ("proven", "not_falsified")
-"""The overall verdicts that pass; every other one fails a test (:func:`analysis.testing.assert_verified`)."""
+"""The overall verdicts that pass; every other one fails a test (:func:`analysis.verify.testing.assert_verified`)."""
 COVERAGE_BINS = 10
 
 
@@ -334,7 +334,7 @@ def verify(
 ) -> VerificationResult:
     """Prove what can be proven, falsify what can be falsified, within ``budget`` simulations.
 
-    Parameters are those of :func:`analysis.falsification.falsify`.
+    Parameters are those of :func:`analysis.verify.falsification.falsify`.
     """
     if isinstance(budget, int) and not isinstance(budget, bool) and budget < problem.min_budget:
         raise FalsificationError("budget", budget, f"at least {problem.min_budget} simulations for problem "

@@ -1,16 +1,16 @@
-"""Input signals as problem parameters (analysis/signals.py): control points, values, errors, the budget."""
+"""Input signals as problem parameters (analysis/verify/signals.py): control points, values, errors, the budget."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from analysis.signals import PiecewiseConstantInput, input_parameters, signal_problem
+from analysis.verify.signals import PiecewiseConstantInput, input_parameters, signal_problem
 from analysis.stl import SignalTrace
-from analysis.verdicts import verify
-from analysis.verification import ProblemError
-from analysis.falsification import FalsificationError
-from analysis.requirements import Requirement
+from analysis.verify.verdicts import verify
+from analysis.verify.verification import ProblemError
+from analysis.verify.falsification import FalsificationError
+from analysis.verify.requirements import Requirement
 
 
 def _ramp_problem(points: int = 4, formula: str = "always[0, 4] (y < 100)"):

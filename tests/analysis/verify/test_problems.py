@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.problems import hybrid_problem, sampled_problem, trace_from_sampled, trace_from_trajectory
-from analysis.requirements import Requirement
-from analysis.verification import Parameter, ProblemError
+from analysis.verify.problems import hybrid_problem, sampled_problem, trace_from_sampled, trace_from_trajectory
+from analysis.verify.requirements import Requirement
+from analysis.verify.verification import Parameter, ProblemError
 from hybrid import HybridAutomaton, HybridSystem, Mode, Transition, simulate_continuous
 from hybrid.examples import bouncing_ball, thermostat
 from hybrid.sampled import Plant, simulate_sampled
@@ -133,7 +133,7 @@ def test_structural_checks_of_a_symbolic_system_are_proven_with_the_options_pass
     import dataclasses
     import pickle
 
-    from analysis.problems import StructuralChecks
+    from analysis.verify.problems import StructuralChecks
     from hybrid import Box
 
     problem = hybrid_problem(name="room", system=thermostat().system, initial={"T": 20.0}, horizon=10.0,

@@ -13,7 +13,7 @@
     inputs and the controller's recorded values are the ones held over the
     period that ends there, and the mode is the mode before that jump.
 :func:`hybrid_problem`, :func:`sampled_problem`
-    A :class:`~analysis.verification.VerificationProblem` from a system (or a
+    A :class:`~analysis.verify.verification.VerificationProblem` from a system (or a
     function building it from the parameters), the box of initial states and
     parameters, a horizon and requirements.  Their simulators are picklable
     module-level objects when the user's functions are.
@@ -21,7 +21,7 @@
 Examples
 --------
 >>> from hybrid.examples import thermostat
->>> from analysis.requirements import Requirement
+>>> from analysis.verify.requirements import Requirement
 >>> room = thermostat().system
 >>> problem = hybrid_problem(
 ...     name="room", system=room, initial={"T": Parameter(name="T0", low=19.5, high=20.5)},
@@ -46,9 +46,9 @@ from hybrid.closed_form import sample_segments
 from hybrid.continuous import FlowSegment, HybridTrajectory, simulate_continuous
 from hybrid.sampled import Plant, SampledTrace, simulate_sampled
 
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verification import Parameter, Proof, ProblemError, VerificationProblem
+from analysis.verify.verification import Parameter, Proof, ProblemError, VerificationProblem
 
 __all__ = [
     "trace_from_trajectory",
@@ -389,7 +389,7 @@ def hybrid_problem(
         Names of stop functions (``options={"stops": ...}``) that end a run for good: the system
         does nothing more after them, so the requirements are judged on the run up to there.
         Any other early end (a stop not named here, Zeno, a deadlock, the jump limit) leaves
-        the requirements it does not decide *incomplete* (:data:`analysis.falsification.STATUSES`).
+        the requirements it does not decide *incomplete* (:data:`analysis.verify.falsification.STATUSES`).
     reach : "auto", True or False
         Verdicts from reachability (:mod:`analysis.reach.verdict`).  ``"auto"``: each requirement of
         the STL safety fragment (``always[0, b]`` over affine state predicates and the mode) gets a

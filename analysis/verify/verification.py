@@ -1,6 +1,6 @@
 """A verification problem for any switching system: a box of inputs, a simulator, named signals, requirements.
 
-The user describes *what* is to be verified; :mod:`analysis.falsification`
+The user describes *what* is to be verified; :mod:`analysis.verify.falsification`
 searches the box and gives the verdicts, and the application renders them.
 
 :class:`Parameter`
@@ -23,7 +23,7 @@ searches the box and gives the verdicts, and the application renders them.
     sample is discarded and counted, never a counterexample).
 
 The constructors for the two kinds of system the toolkit executes are in
-:mod:`analysis.problems` (a continuous-time hybrid system, a sampled-data
+:mod:`analysis.verify.problems` (a continuous-time hybrid system, a sampled-data
 closed loop).
 
 Examples
@@ -53,7 +53,7 @@ import numpy as np
 
 from hybrid.errors import ParameterError
 
-from analysis.requirements import ParsedRequirement, Requirement, parse_requirements
+from analysis.verify.requirements import ParsedRequirement, Requirement, parse_requirements
 from analysis.stl import SignalTrace
 
 __all__ = [
@@ -242,7 +242,7 @@ class VerificationProblem:
         ``"paper"``); written into counterexample files for ``replay``.
     min_budget : int
         The fewest simulations a search of the problem may be given (0: any); a problem over input
-        signals (:func:`analysis.signals.signal_problem`) needs at least one per control point.
+        signals (:func:`analysis.verify.signals.signal_problem`) needs at least one per control point.
     """
 
     name: str
@@ -349,7 +349,7 @@ class VerificationProblem:
         executor : concurrent.futures.Executor or None
             ``None``: in this process.  An executor (a process pool, :func:`analysis.campaigns.campaign_executor`'s
             backend's ``executor``) runs the simulations there with ``map`` (the simulator must pickle: a
-            module-level object, as :func:`analysis.problems.hybrid_problem` builds with a picklable system);
+            module-level object, as :func:`analysis.verify.problems.hybrid_problem` builds with a picklable system);
             every simulation is deterministic, so the traces do not depend on the executor.
         """
         batch = [dict(p) for p in points]

@@ -1,6 +1,6 @@
 """Load a user's verification problem from their own code: ``package.module:OBJECT`` or ``path/to/file.py:OBJECT``.
 
-The object is a :class:`~analysis.verification.VerificationProblem`, or a
+The object is a :class:`~analysis.verify.verification.VerificationProblem`, or a
 function taking keyword options and returning one (``OBJECT`` then receives
 the options the caller passes, e.g. ``variant="paper"``).  A module that does
 not import is reported with the user's own traceback (it is their code); a
@@ -28,7 +28,7 @@ from typing import Any
 
 from hybrid.errors import ParameterError
 
-from analysis.verification import VerificationProblem
+from analysis.verify.verification import VerificationProblem
 
 __all__ = ["ProblemLoadError", "split_spec", "load_problem", "load_problems", "source_digests"]
 
@@ -64,7 +64,7 @@ def split_spec(spec: str) -> tuple[str, str]:
 
 def _user_traceback(error: BaseException, skip_own: bool = True) -> str:
     frames = traceback.extract_tb(error.__traceback__)
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     own = tuple(str(root / package) + os.sep for package in ("analysis", "hybrid", "visnav"))
     kept = [f for f in frames if not (skip_own and f.filename.startswith(own))
             and "importlib" not in f.filename and "<frozen" not in f.filename] or frames
@@ -167,8 +167,8 @@ def load_problem(spec: str, options: Mapping[str, Any] | None = None) -> Verific
                                "drop the options, or make OBJECT a function taking them")
     if not isinstance(obj, VerificationProblem):
         raise ProblemLoadError("problem object", f"{where}:{name}",
-                               f"an analysis.verification.VerificationProblem (found {type(obj).__name__})",
-                               "build it with analysis.problems.hybrid_problem(...) or sampled_problem(...)")
+                               f"an analysis.verify.verification.VerificationProblem (found {type(obj).__name__})",
+                               "build it with analysis.verify.problems.hybrid_problem(...) or sampled_problem(...)")
     if not obj.source:
         object.__setattr__(obj, "source", spec)
     return obj
@@ -260,7 +260,7 @@ def source_digests(spec: str, base: str | os.PathLike[str] | None = None,
     not depend on what was imported before.  A journal records these and refuses to resume when one
     changed (``visnav verify``).  Installed third-party packages are left out (the pinned set).
     """
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     out = {f"toolkit:{name}": _tree_digest(root / name) for name in TOOLKIT_PACKAGES if (root / name).is_dir()}
     for data in data_files:  # a model given as data (a SpaceEx .cfg): its bytes are the model too
         path = Path(data).expanduser()

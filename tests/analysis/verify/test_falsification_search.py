@@ -10,14 +10,14 @@ import statistics
 import numpy as np
 import pytest
 
-from analysis.falsification import METHODS, evaluate, falsify
-from analysis.falsification_search import central_gradient, simulations_to_violation, space_filling, surrogate_minimum
-from analysis.falsification import Search
+from analysis.verify.falsification import METHODS, evaluate, falsify
+from analysis.verify.falsification_search import central_gradient, simulations_to_violation, space_filling, surrogate_minimum
+from analysis.verify.falsification import Search
 from analysis.planted import VIOLATING_FRACTION, planted_problems
-from analysis.requirements import Requirement
+from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
-from analysis.verdicts import verify
-from analysis.verification import Parameter, VerificationProblem
+from analysis.verify.verdicts import verify
+from analysis.verify.verification import Parameter, VerificationProblem
 
 SEEDS = range(5)
 
