@@ -38,6 +38,10 @@ rounded outward.  Per flowpipe (a mode entered with a box ``X₀`` at times ``[�
     (the smaller of the rational maxima of ``c·x`` over the box and over the zonotope); label atoms
     by the segment's mode.
 
+Bounded inputs ``ẋ = A x + c + B u``, ``u ∈ U`` (a box) are re-checked by
+:mod:`analysis.reach.recheck_inputs`: the tube runs on the input-free set plus the carried inputs, and
+each piece gets the current step's input box; the saved JSON must carry ``B`` and ``U``.
+
 Anything failing fails the re-check, with the part and the place.  The interval Picard tube
 wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
 passes by looseness.
@@ -54,6 +58,7 @@ from typing import Any
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
 
 __all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncovered", "entry_uncovered"]
 
@@ -329,7 +334,7 @@ def _taylor_set(mode: _Mode, z: _Zono, s: Fraction, rem: Box, cache: dict[Fracti
 
 
 def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw: Box,
-            cache: dict[Fraction, Any]) -> list[tuple[Box, _Zono]]:
+            cache: dict[Fraction, Any], tube: Any = None) -> list[tuple[Box, _Zono]]:
     """The tube in ``m`` time pieces: (the piece's box ``∩ W`` clipped to the invariant, a set holding the
     piece: ``Y_j ⊕ [0, h]·f(W)``); empty pieces dropped."""
     h = step / m
@@ -342,9 +347,11 @@ def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw
         y = _taylor_set(mode, z, j * h, rem, cache)
         moved = y.mapped(one, [h * v for v in mode.c])
         piece = _meet(_add(_hull(y.hull(), moved.hull()), _scale0(afw, h * h / 2)), w)
+        inputs = None if tube is None else tube((j + 1) * h)  # the step's inputs up to the piece's end
+        piece = piece if inputs is None or piece is None else _add(piece, inputs)
         clipped = None if piece is None else _clip_union(_outward(piece), mode.invariant)
         if clipped is not None:
-            out.append((clipped, y.mapped(eye, [Fraction(0)] * n, drift)))
+            out.append((clipped, y.mapped(eye, [Fraction(0)] * n, drift if inputs is None else _add(drift, inputs))))
     return out
 
 
@@ -379,21 +386,31 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
             for i, c in enumerate(z.center)]
 
 
+def _widen(z: _Zono, carry: InputFlow | None) -> _Zono:
+    """``z ⊕ S_k`` (the carried inputs' box as generators), or ``z`` without inputs."""
+    if carry is None:
+        return z
+    n = len(z.center)
+    return _Zono(center=z.center, err=z.err, gens=z.gens + [[r if i == j else Fraction(0) for i in range(n)]
+                                                           for j, r in enumerate(carry.carried) if r])
+
+
 def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
-          covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
+          covered: Any, carry: InputFlow | None = None) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
     """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
     the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
 
     ``covered(pieces)`` returns ``None`` or the first uncovered guard part (a message).  Both checks
     are retried with ``m = 4, 16, 64, 256`` time pieces before failing.
     """
-    w = _picard(mode, _outward(z.hull()), step)
+    start = _widen(z, carry)
+    w = _picard(mode, _outward(start.hull()), step)
     fw = mode.f(w)
     rem = _matvec(mode.power, fw)  # A^p f(W)
     afw = _matvec(mode.a, fw)  # A f(W)
     problem = ""
     for m in (4, 16, 64, 256):
-        pieces = _pieces(mode, z, step, m, w, rem, afw, cache)
+        pieces = _pieces(mode, start, step, m, w, rem, afw, cache, None if carry is None else carry.tube)
         outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
         if outside is not None:
             problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, {[float(v[1]) for v in outside]}]"
@@ -469,7 +486,8 @@ def _pipes(data: Mapping[str, Any], initial: Box, initial_mode: str) -> list[_Pi
 
 
 def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mapping[str, tuple[float, float]],
-                     fragment: SafetyFragment, *, initial_mode: str | None = None) -> RecheckResult:
+                     fragment: SafetyFragment, *, initial_mode: str | None = None,
+                     inputs: Mapping[str, Any] | None = None) -> RecheckResult:
     """Re-check a reachability proof of ``fragment`` from the saved flowpipe (see the module docstring).
 
     Parameters
@@ -483,6 +501,8 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     fragment : SafetyFragment
     initial_mode : str or None
         Default: the automaton's initial mode.
+    inputs : mapping {mode: ModeInput or (B, (lo, hi))} or None
+        The model's bounded inputs (:mod:`analysis.reach.recheck_inputs`); the saved JSON must carry them.
 
     Returns
     -------
@@ -498,9 +518,16 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
         raise ParameterError("initial", dict(initial), f"{{state: (lo, hi)}} for exactly {list(model.state_names)}",
                              "give the box the flowpipe was computed from")
     try:
+        given = model_inputs(inputs, len(model.state_names))
+    except (InputMismatch, TypeError, ValueError) as exc:
+        from hybrid.errors import ParameterError
+
+        raise ParameterError("inputs", inputs, f"{{mode: ModeInput(matrix=B, bounds=(lo, hi))}}, B with "
+                             f"{len(model.state_names)} rows", f"give the model's inputs ({exc})") from None
+    try:
         data = json.loads(saved) if isinstance(saved, str) else saved
-        return _run(data, model, initial, fragment, initial_mode or model.initial_mode)
-    except _Fail as fail:
+        return _run(data, model, initial, fragment, initial_mode or model.initial_mode, given)
+    except (_Fail, InputMismatch) as fail:
         return RecheckResult(passed=False, failure=str(fail), segments=0, jumps=0, margin=None)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         return RecheckResult(passed=False, failure=f"the saved flowpipe is malformed: {exc!r}", segments=0, jumps=0,
@@ -508,8 +535,9 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
 
 
 def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str, tuple[float, float]],
-         fragment: SafetyFragment, initial_mode: str) -> RecheckResult:
+         fragment: SafetyFragment, initial_mode: str, given: Mapping[str, Any]) -> RecheckResult:
     names = model.state_names
+    given = checked_inputs(data, given, len(names))
     if tuple(data["state_names"]) != names or tuple(fragment.state_names) != names:
         raise _Fail(f"the saved states {data['state_names']} are not the system's {list(names)}")
     step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
@@ -521,7 +549,9 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
         power = [[Fraction(int(i == j)) for j in range(len(a))] for i in range(len(a))]
         for _ in range(TAYLOR_ORDER):
             power = _matmul(power, a)
-        modes[name] = _Mode(a=a, c=list(m.c), invariant=m.invariant, power=power)
+        c = [x + y for x, y in zip(m.c, given[name].shift())] if name in given else list(m.c)  # B u_c
+        modes[name] = _Mode(a=a, c=c, invariant=m.invariant, power=power)
+    flows = {name: InputDynamics(a=modes[name].a, spec=spec, step=step) for name, spec in given.items()}
     start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
     pipes = _pipes(data, start, initial_mode)
     jumps = data["jumps"]
@@ -530,7 +560,8 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     margin: Fraction | None = None
     count = 0
     for i, pipe in enumerate(pipes):
-        for k, sets, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i):
+        for k, sets, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i,
+                                             flows.get(pipe.mode)):
             count += 1
             if t_lo > Fraction(fragment.end) or t_hi < Fraction(fragment.start):
                 continue
@@ -556,7 +587,7 @@ def _check_reset(model: AffineHybridModel, jump: Mapping[str, Any], j: int) -> N
 
 
 def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model: AffineHybridModel,
-              jumps: Sequence[Mapping[str, Any]], index: int) -> Any:
+              jumps: Sequence[Mapping[str, Any]], index: int, flow: InputDynamics | None = None) -> Any:
     """Yield (k, the re-checked sets [(box, zonotope or None)], saved t_lo, t_hi) of each segment after checking it
     (parts a–c); the saved times cover the step's exact times."""
     entry = pipe.segments[0]
@@ -570,6 +601,7 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
         raise _Fail(why)
     yield -1, [(pipe.start, None)], Fraction(entry["t"][0]), Fraction(entry["t"][1])
     x = _Zono.of_box(pipe.start)
+    carry = None if flow is None else flow.start()
     cache: dict[Fraction, Any] = {}
     for k, seg in enumerate(pipe.segments[1:]):
         t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step
@@ -586,11 +618,13 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
             return None
 
         try:
-            x, pieces = _step(mode, x, step, saved, cache, covered)
+            x, pieces = _step(mode, x, step, saved, cache, covered, carry)
         except _Fail as fail:
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
+        if carry is not None:
+            carry.advance()
         yield k, pieces, Fraction(seg["t"][0]), Fraction(seg["t"][1])
-    _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
+    _check_end(pipe, len(pipe.segments) - 1, _widen(x, carry), step, horizon, index, mode.invariant)
     flowed = [_box_of(seg["box"]) for seg in pipe.segments[1:]]
     why = exit_uncovered(model, pipe.mode, None if pipe.termination["reason"] == "left_invariant" else flowed)
     if why:
