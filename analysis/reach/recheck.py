@@ -64,6 +64,7 @@ __all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncover
 
 Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
+PICARD_TRIES = 40  # a chain of couplings from a point start widens one coordinate of the chain per try
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
                    "no deadlock where a flowpipe leaves its invariant or a jump lands",
                    "jumps (guards and resets)", "requirement atoms in exact rationals")
@@ -312,16 +313,17 @@ def entry_uncovered(model: AffineHybridModel, mode: str, box: Box) -> str | None
 
 
 def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
-    """A box ``W`` with ``X + [0, δ] f(W) ⊂ int W`` (raises when none is found in 12 tries)."""
+    """A box ``W`` with ``X + [0, δ] f(W) ⊂ int W`` (raises when none is found in :data:`PICARD_TRIES` tries)."""
     w = _hull(x, _add(x, _scale0(mode.f(x), step)))
-    for _ in range(12):
+    for _ in range(PICARD_TRIES):
         grow = [max(hi - lo, Fraction(1, 10 ** 9) * (1 + abs(lo) + abs(hi))) for lo, hi in w]
         w = _outward([(lo - g / 8, hi + g / 8) for (lo, hi), g in zip(w, grow)])
         image = _add(x, _scale0(mode.f(w), step))
         if _inside(image, w, strict=True):
             return w
         w = _hull(w, image)
-    raise _Fail("no a-priori box found by the Picard operator (the step is too large for the re-check)")
+    raise _Fail(f"no a-priori box found by the Picard operator in {PICARD_TRIES} tries (the step is too large for "
+                "the re-check)")
 
 
 def _taylor_set(mode: _Mode, z: _Zono, s: Fraction, rem: Box, cache: dict[Fraction, Any]) -> _Zono:

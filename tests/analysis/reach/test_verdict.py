@@ -168,7 +168,7 @@ def test_the_recheck_imports_no_set_code_of_the_engine():
                 todo.append(node.module)
             if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("analysis.reach."):
                 todo.append(node.module.split(".")[-1])
-    assert seen == {"recheck", "fragment", "model", "affine"}, seen
+    assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
