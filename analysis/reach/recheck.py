@@ -389,12 +389,8 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
 
 
 def _widen(z: _Zono, carry: InputFlow | None) -> _Zono:
-    """``z ⊕ S_k`` (the carried inputs' box as generators), or ``z`` without inputs."""
-    if carry is None:
-        return z
-    n = len(z.center)
-    return _Zono(center=z.center, err=z.err, gens=z.gens + [[r if i == j else Fraction(0) for i in range(n)]
-                                                           for j, r in enumerate(carry.carried) if r])
+    """``z ⊕ S_k`` (the carried inputs, a zero-centred zonotope, as generators), or ``z`` without inputs."""
+    return z if carry is None else _Zono(center=z.center, err=z.err, gens=z.gens + carry.generators())
 
 
 def _step(mode: _Mode, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],

@@ -16,8 +16,8 @@ rationals and without the producer's set code:
   (componentwise) bounds ``|v(s)| <= w`` for ``s ∈ [0, δ]``: ``y = max_{τ<=δ} |v(τ)|`` satisfies
   ``y <= δ(|A| y + b)``, so ``(I − δ|A|) y <= δ b``; ``(I − δ|A|)⁻¹ >= 0`` (Neumann series) gives
   ``y <= (I − δ|A|)⁻¹ δ b <= w``.  ``w₀ = δ‖b‖∞/(1 − q)`` satisfies it and ``w ← δ(|A| w + b)`` decreases
-  it monotonically; Picard iterations of ``|v(s)| <= ∫₀^s (|A||v| + b)`` then sharpen it to the
-  series ``Σ_k |A|^k b s^{k+1}/(k+1)!`` plus a remainder in ``w`` (:func:`input_tube`).
+  it monotonically; Picard iterations of ``v(s) = ∫₀^s (B u₀ + A v)`` then sharpen it to the series
+  ``Σ_k |A^k B| r s^{k+1}/(k+1)!`` plus a remainder ``|A^K| w s^K/K!`` (:func:`input_tube`).
 * **End of one step.**  ``v(δ) = ∫₀^δ B u₀ + ∫₀^δ A v ∈ δ B U₀ ⊕ [−e, e]`` with ``e >= |∫₀^δ A v|`` from
   the same series (the mean of ``u₀`` lies in the convex ``U₀``): a zonotope ``P₀`` with ``p + n``
   generators.
@@ -46,6 +46,8 @@ __all__ = ["InputSet", "InputMismatch", "model_inputs", "checked_inputs", "input
 
 Box = list[tuple[Fraction, Fraction]]
 TAIL = Fraction(1, 2 ** 70)
+KEPT = 4
+"""Generators of the carried inputs per state before the smallest are boxed."""
 
 
 class InputMismatch(ValueError):
@@ -128,17 +130,20 @@ def _powers(absa: list[list[Fraction]], v: list[Fraction], count: int) -> list[l
     return out
 
 
-def input_tube(a: Sequence[Sequence[Fraction]], b: Sequence[Fraction], step: Fraction,
-               order: int = 4) -> tuple[list[Fraction], list[list[Fraction]], list[Fraction]]:
-    """``(w, series, second)``: ``|v(s)| <= w`` on ``[0, δ]``, the vectors ``[|A|^k b for k < K] + [|A|^K w]``
+def input_tube(a: Sequence[Sequence[Fraction]], matrix: Sequence[Sequence[Fraction]], radius: Sequence[Fraction],
+               step: Fraction, order: int = 6) -> tuple[list[Fraction], list[list[Fraction]], list[Fraction]]:
+    """``(w, series, second)``: ``|v(s)| <= w`` on ``[0, δ]``, the vectors ``[|A^k B| r for k < K] + [|A^K| w]``
     of the sharper bound below (:func:`tube_at`), and ``|∫₀^δ A v| <= second`` (shape ``(n,)`` each).
 
-    A first bound ``w >= δ(|A| w + b)`` (see the module docstring) is sharpened by ``order`` Picard
-    iterations of ``|v(s)| <= ∫₀^s (|A| |v| + b)``:
-    ``|v(s)| <= Σ_{k<K} |A|^k b s^{k+1}/(k+1)! + |A|^K w s^K/K!`` (increasing in ``s``), and
-    ``|∫₀^δ A v| <= Σ_{1<=k<=K} |A|^k b δ^{k+1}/(k+1)! + |A|^{K+1} w δ^{K+1}/(K+1)!``.
+    A first bound ``w >= δ(|A| w + |B| r)`` (see the module docstring) is sharpened by ``K = order`` Picard
+    iterations of ``v(s) = ∫₀^s (B u₀ + A v)``: ``v(s) = Σ_{k<K} A^k B ∫₀^s u₀(τ)(s−τ)^k/k! dτ + A^K R(s)``
+    with ``|R(s)| <= w s^K/K!``, and ``|∫₀^s u₀(τ)(s−τ)^k/k! dτ| <= r s^{k+1}/(k+1)!``; so
+    ``|v(s)| <= Σ_{k<K} |A^k B| r s^{k+1}/(k+1)! + |A^K| w s^K/K!`` (increasing in ``s``), and likewise
+    ``|∫₀^δ A v| <= Σ_{1<=k<=K} |A^k B| r δ^{k+1}/(k+1)! + |A^{K+1}| w δ^{K+1}/(K+1)!``.  The signed powers
+    keep the cancellations of ``A`` that ``|A|^k`` would lose.
     """
     absa = [[abs(v) for v in row] for row in a]
+    b = [sum((abs(x) * y for x, y in zip(row, radius)), Fraction(0)) for row in matrix]
     q = step * max((sum(row, Fraction(0)) for row in absa), default=Fraction(0))
     if q >= 1:
         raise InputMismatch(f"inputs: δ‖A‖∞ = {float(q):.3g} >= 1 (the step is too large for the input bound)")
@@ -147,20 +152,26 @@ def input_tube(a: Sequence[Sequence[Fraction]], b: Sequence[Fraction], step: Fra
         return [step * (sum((x * y for x, y in zip(row, w)), Fraction(0)) + bi) for row, bi in zip(absa, b)]
 
     w = [_up(step * max(b, default=Fraction(0)) / (1 - q))] * len(b)
-    for _ in range(4):
+    for _ in range(24):  # each iteration contracts the excess by q; a uniform w₀ would blur the chain's ends
         nxt = [_up(v) for v in image(w)]
         if not all(x >= y for x, y in zip(nxt, image(nxt))):
             break
         w = nxt
-    pb, pw = _powers(absa, list(b), order + 2), _powers(absa, w, order + 2)
-    f = math.factorial
+    n, f = len(b), math.factorial
+    powers = [[[Fraction(int(i == j)) for j in range(n)] for i in range(n)]]  # A^k, signed
+    for _ in range(order + 1):
+        powers.append([[sum((x * a[m][j] for m, x in enumerate(row) if x), Fraction(0)) for j in range(n)]
+                       for row in powers[-1]])
+    pb = [[sum((abs(sum((p[i][m] * matrix[m][j] for m in range(n)), Fraction(0))) * r
+                for j, r in enumerate(radius)), Fraction(0)) for i in range(n)] for p in powers]
+    pw = [[sum((abs(x) * y for x, y in zip(row, w)), Fraction(0)) for row in p] for p in powers]
     second = [sum((pb[k][i] * step ** (k + 1) / f(k + 1) for k in range(1, order + 1)), Fraction(0))
               + pw[order + 1][i] * step ** (order + 1) / f(order + 1) for i in range(len(b))]
     return w, pb[:order] + [pw[order]], [_up(v) for v in second]
 
 
 def tube_at(w: Sequence[Fraction], series: Sequence[Sequence[Fraction]], s: Fraction) -> list[Fraction]:
-    """``|v(τ)| <= Σ_{k<K} |A|^k b s^{k+1}/(k+1)! + |A|^K w s^K/K!`` for ``τ <= s <= δ`` (and ``<= w``)."""
+    """``|v(τ)| <= Σ_{k<K} |A^k B| r s^{k+1}/(k+1)! + |A^K| w s^K/K!`` for ``τ <= s <= δ`` (and ``<= w``)."""
     order = len(series) - 1
     f = math.factorial
     return [_up(min(w[i], sum((series[k][i] * s ** (k + 1) / f(k + 1) for k in range(order)), Fraction(0))
@@ -192,12 +203,25 @@ def _expm_enclosure(a: Sequence[Sequence[Fraction]], step: Fraction) -> tuple[li
 
 @dataclass(slots=True)
 class InputFlow:
-    """The input terms of one flowpipe: ``S_k`` (a zero-centred box, radius ``carried``) and ``P_k``."""
+    """The input terms of one flowpipe: ``P_k`` (``gens`` ⊕ the box ``err``) and ``S_k`` (``carried_gens`` ⊕ the
+    box ``carried``, zero-centred).
+
+    ``S_{k+1} = S_k ⊕ P_k`` keeps ``P_k``'s generators (their correlations matter: a box of them, mapped by
+    the next step's flow, would add corners no input reaches); beyond :data:`KEPT` generators per state, the
+    ones with the smallest ``‖g‖₁ − ‖g‖∞`` go to the box (Girard's reduction; a box holds their sum).
+    """
 
     dynamics: "InputDynamics"
     gens: list[list[Fraction]]
     err: list[Fraction]
     carried: list[Fraction]
+    carried_gens: list[list[Fraction]] = field(default_factory=list)
+
+    def generators(self) -> list[list[Fraction]]:
+        """``S_k`` as generator columns (the box as diagonal ones)."""
+        n = len(self.carried)
+        return self.carried_gens + [[r if i == j else Fraction(0) for i in range(n)]
+                                    for j, r in enumerate(self.carried) if r]
 
     def tube(self, s: Fraction) -> Box:
         """``[−t, t]`` holding ``v(τ)`` for ``τ <= s``: the current step's inputs up to ``s`` after its start."""
@@ -209,9 +233,17 @@ class InputFlow:
     def advance(self) -> None:
         """``S_{k+1} = S_k + hull(P_k)``, ``P_{k+1} = e^{Aδ} P_k`` (enclosed)."""
         hull = [sum((abs(g[i]) for g in self.gens), Fraction(0)) + e for i, e in enumerate(self.err)]
-        self.carried = [_up(s + h) for s, h in zip(self.carried, hull)]
         centre, radius = self.dynamics.phi
         n = len(centre)
+        kept = self.carried_gens + self.gens
+        box = list(self.carried)
+        if len(kept) > KEPT * n:
+            kept.sort(key=lambda g: sum((abs(v) for v in g), Fraction(0)) - max(abs(v) for v in g))
+            for g in kept[:len(kept) - (KEPT - 1) * n]:
+                box = [b + abs(v) for b, v in zip(box, g)]
+            kept = kept[len(kept) - (KEPT - 1) * n:]
+        self.carried = [_up(b + e) for b, e in zip(box, self.err)]
+        self.carried_gens = kept
         err = [sum((abs(centre[i][k]) * self.err[k] + radius[i][k] * hull[k] for k in range(n)), Fraction(0))
                for i in range(n)]
         gens = []
@@ -241,8 +273,7 @@ class InputDynamics:
 
     def __post_init__(self) -> None:
         r = self.spec.radius()
-        b = [sum((abs(x) * y for x, y in zip(row, r)), Fraction(0)) for row in self.spec.matrix]
-        self.bound, self.series, second = input_tube(self.a, b, self.step)
+        self.bound, self.series, second = input_tube(self.a, self.spec.matrix, r, self.step)
         self.tubes = {}
         n = len(self.a)
         gens = [[self.step * r[j] * self.spec.matrix[i][j] for i in range(n)] for j in range(len(r))]
