@@ -18,9 +18,8 @@ rationals and without the producer's set code:
   ``y <= (I − δ|A|)⁻¹ δ b <= w``.  ``w₀ = δ‖b‖∞/(1 − q)`` satisfies it and ``w ← δ(|A| w + b)`` decreases
   it monotonically; Picard iterations of ``v(s) = ∫₀^s (B u₀ + A v)`` then sharpen it to the series
   ``Σ_k |A^k B| r s^{k+1}/(k+1)!`` plus a remainder ``|A^K| w s^K/K!`` (:func:`input_tube`).
-* **End of one step.**  ``v(δ) = ∫₀^δ B u₀ + ∫₀^δ A v ∈ δ B U₀ ⊕ [−e, e]`` with ``e >= |∫₀^δ A v|`` from
-  the same series (the mean of ``u₀`` lies in the convex ``U₀``): a zonotope ``P₀`` with ``p + n``
-  generators.
+* **End of one step.**  ``v(δ) ∈ P₀ = ⊕_{k<K} δ^{k+1}/(k+1)! A^k B U₀ ⊕ [−ρ, ρ]``, ``ρ = |A^K| w δ^K/K!``
+  (the same series with signed generators): a zonotope with ``K p + n`` generators.
 * **Carried inputs, wrapping-free.**  ``S_k ⊇ Σ_{j<k} e^{Ajδ} P₀`` is kept as a box, the sum of the
   interval hulls of ``P_j = e^{Ajδ} P₀``; ``P_{j+1} = e^{Aδ} P_j`` is mapped by an enclosure of
   ``e^{Aδ}`` (the Taylor polynomial of order ``K`` in exact rationals, its float rounding and the tail
@@ -131,16 +130,19 @@ def _powers(absa: list[list[Fraction]], v: list[Fraction], count: int) -> list[l
 
 
 def input_tube(a: Sequence[Sequence[Fraction]], matrix: Sequence[Sequence[Fraction]], radius: Sequence[Fraction],
-               step: Fraction, order: int = 6) -> tuple[list[Fraction], list[list[Fraction]], list[Fraction]]:
-    """``(w, series, second)``: ``|v(s)| <= w`` on ``[0, δ]``, the vectors ``[|A^k B| r for k < K] + [|A^K| w]``
-    of the sharper bound below (:func:`tube_at`), and ``|∫₀^δ A v| <= second`` (shape ``(n,)`` each).
+               step: Fraction, order: int = 6
+               ) -> tuple[list[Fraction], list[list[Fraction]], list[list[Fraction]], list[Fraction]]:
+    """``(w, series, first, rest)``: ``|v(s)| <= w`` on ``[0, δ]``; the vectors ``[|A^k B| r for k < K] + [|A^K| w]``
+    of the sharper bound below (:func:`tube_at`); and ``v(δ) ∈ P₀ = ⊕ first ⊕ [−rest, rest]``: the generators
+    ``δ^{k+1}/(k+1)! r_j (A^k B)_{:,j}`` (``k < K``) and ``rest = |A^K| w δ^K/K!`` (shape ``(n,)``).
 
     A first bound ``w >= δ(|A| w + |B| r)`` (see the module docstring) is sharpened by ``K = order`` Picard
     iterations of ``v(s) = ∫₀^s (B u₀ + A v)``: ``v(s) = Σ_{k<K} A^k B ∫₀^s u₀(τ)(s−τ)^k/k! dτ + A^K R(s)``
     with ``|R(s)| <= w s^K/K!``, and ``|∫₀^s u₀(τ)(s−τ)^k/k! dτ| <= r s^{k+1}/(k+1)!``; so
-    ``|v(s)| <= Σ_{k<K} |A^k B| r s^{k+1}/(k+1)! + |A^K| w s^K/K!`` (increasing in ``s``), and likewise
-    ``|∫₀^δ A v| <= Σ_{1<=k<=K} |A^k B| r δ^{k+1}/(k+1)! + |A^{K+1}| w δ^{K+1}/(K+1)!``.  The signed powers
-    keep the cancellations of ``A`` that ``|A|^k`` would lose.
+    ``|v(s)| <= Σ_{k<K} |A^k B| r s^{k+1}/(k+1)! + |A^K| w s^K/K!`` (increasing in ``s``); at ``s = δ`` the
+    same sum kept as signed generators is ``P₀`` (each ``∫ u₀,j (δ−τ)^k/k!`` is one weight in
+    ``[−r_j, r_j] δ^{k+1}/(k+1)!``).  The signed powers keep the cancellations of ``A`` that ``|A|^k``
+    would lose.
     """
     absa = [[abs(v) for v in row] for row in a]
     b = [sum((abs(x) * y for x, y in zip(row, radius)), Fraction(0)) for row in matrix]
@@ -165,9 +167,10 @@ def input_tube(a: Sequence[Sequence[Fraction]], matrix: Sequence[Sequence[Fracti
     pb = [[sum((abs(sum((p[i][m] * matrix[m][j] for m in range(n)), Fraction(0))) * r
                 for j, r in enumerate(radius)), Fraction(0)) for i in range(n)] for p in powers]
     pw = [[sum((abs(x) * y for x, y in zip(row, w)), Fraction(0)) for row in p] for p in powers]
-    second = [sum((pb[k][i] * step ** (k + 1) / f(k + 1) for k in range(1, order + 1)), Fraction(0))
-              + pw[order + 1][i] * step ** (order + 1) / f(order + 1) for i in range(len(b))]
-    return w, pb[:order] + [pw[order]], [_up(v) for v in second]
+    first = [[step ** (k + 1) / f(k + 1) * r * sum((powers[k][i][m] * matrix[m][j] for m in range(n)), Fraction(0))
+              for i in range(n)] for k in range(order) for j, r in enumerate(radius)]
+    rest = [_up(v * step ** order / f(order)) for v in pw[order]]
+    return w, pb[:order] + [pw[order]], [g for g in first if any(g)], rest
 
 
 def tube_at(w: Sequence[Fraction], series: Sequence[Sequence[Fraction]], s: Fraction) -> list[Fraction]:
@@ -273,11 +276,10 @@ class InputDynamics:
 
     def __post_init__(self) -> None:
         r = self.spec.radius()
-        self.bound, self.series, second = input_tube(self.a, self.spec.matrix, r, self.step)
+        self.bound, self.series, first, rest = input_tube(self.a, self.spec.matrix, r, self.step)
         self.tubes = {}
         n = len(self.a)
-        gens = [[self.step * r[j] * self.spec.matrix[i][j] for i in range(n)] for j in range(len(r))]
-        gens += [[second[i] if i == j else Fraction(0) for i in range(n)] for j in range(n)]
+        gens = first + [[rest[i] if i == j else Fraction(0) for i in range(n)] for j in range(n)]
         self.first = [g for g in gens if any(g)]
         self.phi = _expm_enclosure(self.a, self.step)
 
