@@ -34,7 +34,7 @@ MAX_FLOWPIPES = 16
 """Flowpipes of one input proof (one per jump set): arbitrary switching (PLAA01's guards always hold) would
 otherwise start one per segment up to the jump bound; beyond, the flowpipe is inconclusive and proves nothing."""
 
-NOT_RECHECKED = "not re-checked (the producer did not decide it), so this is the producer's decision only"
+NOT_RECHECKED = "not re-checked (the producer did not decide it: nothing to re-check)"
 """The evidence's tail when the producer's decision does not hold (nothing to re-check)."""
 
 
