@@ -121,3 +121,16 @@ def test_bad_model_inputs_are_named():
         recheck_flowpipe("{}", SYSTEM, START, _band(1.05), inputs={"m": ModeInput(matrix=[[1.0, 2.0]],
                                                                                   bounds=([0.0], [1.0]))})
     assert "inputs" in str(err.value)
+
+
+def test_a_zonotope_input_is_saved_and_rechecked_as_its_hull():
+    import numpy as np
+
+    from analysis.reach import Zonotope
+
+    u = Zonotope(center=np.array([0.0]), generators=np.array([[0.5, 0.5]]))  # [-1, 1]
+    inputs = {"m": ModeInput(matrix=[[1.0]], bounds=u)}
+    data = reach(SYSTEM, START, horizon=0.5, time_step=STEP, inputs=inputs).to_json()
+    saved_u = json.loads(data)["inputs"]["m"]
+    assert saved_u["low"][0] <= -1.0 and saved_u["high"][0] >= 1.0 and saved_u["high"][0] - 1.0 < 1e-12
+    assert recheck_flowpipe(data, SYSTEM, START, _band(1.05, 0.5), inputs=inputs).passed
