@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from fractions import Fraction
 
 import pytest
 
@@ -18,7 +19,6 @@ from analysis.reach.fragment import safety_fragment
 from analysis.reach.recheck import recheck_flowpipe
 from analysis.reach.recheck_inputs import input_tube, tube_at
 from analysis.stl.syntax import parse_tree
-from fractions import Fraction
 from hybrid import HybridAutomaton, Mode
 from hybrid.errors import ParameterError
 from hybrid.symbolic import coordinates, flow_map
