@@ -238,4 +238,4 @@ def _with_input_proofs(problem: VerificationProblem, model: SpaceExModel, initia
     if not model.inputs:
         return problem
     found = input_proofs(model.system, model.input_flows, model.inputs, problem.parsed, initial, mode)
-    return replace(problem, proofs={**found, **problem.proofs}) if found else problem
+    return replace(problem, proofs={**problem.proofs, **found}) if found else problem

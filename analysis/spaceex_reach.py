@@ -7,10 +7,10 @@ the input-free system (``u = 0``) and runs :func:`analysis.reach.reach` with
 ``inputs={mode: ModeInput(matrix=B, bounds=(low, high))}``.  :class:`InputReachProof` decides a
 requirement of the STL safety fragment on that flowpipe (:func:`analysis.reach.verdict.decide`).
 
-The independent re-check (:mod:`analysis.reach.recheck`) does not take inputs yet: its interval
-Picard tube would have to carry the input's set through every step.  The proof therefore says
-``rechecked=False`` and why, and ``verify`` never reports such a requirement *proven*; the
-producer's decision and margin are in the evidence.
+A decision that holds is re-checked from the saved flowpipe (whose JSON carries ``B`` and ``U``) by
+:func:`analysis.reach.recheck.recheck_flowpipe` with the model's inputs
+(:mod:`analysis.reach.recheck_inputs`: interval Picard with the input box, exact rationals); only a
+passed re-check gives ``rechecked=True`` and so ``proven``.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ MAX_FLOWPIPES = 16
 """Flowpipes of one input proof (one per jump set): arbitrary switching (PLAA01's guards always hold) would
 otherwise start one per segment up to the jump bound; beyond, the flowpipe is inconclusive and proves nothing."""
 
-NOT_RECHECKED = ("not re-checked: the independent re-checker (analysis.reach.recheck) does not take "
-                 "non-deterministic inputs yet, so this is the producer's decision only")
+NOT_RECHECKED = "not re-checked (the producer did not decide it: nothing to re-check)"
+"""The evidence's tail when the producer's decision does not hold (nothing to re-check)."""
 
 
 def input_reach_model(system: HybridSystem, input_flows: Mapping[str, Any],
@@ -70,7 +70,7 @@ def input_reach_model(system: HybridSystem, input_flows: Mapping[str, Any],
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class InputReachProof:
-    """``() -> Proof`` of one requirement by a flowpipe with the model's inputs (never re-checked: see module)."""
+    """``() -> Proof`` of one requirement by a flowpipe with the model's inputs, re-checked with them (see module)."""
 
     system: HybridSystem
     input_flows: Mapping[str, Any]
@@ -88,9 +88,10 @@ class InputReachProof:
         from analysis.reach import reach
         from analysis.reach.affine import AffineError
         from analysis.reach.model import affine_model
+        from analysis.reach.recheck import recheck_flowpipe
         from analysis.reach.verdict import MAX_SEGMENTS, METHOD, decide, default_max_jumps, default_time_step
 
-        method = METHOD.split(", re-checked")[0] + " with bounded non-deterministic inputs"
+        method = METHOD.replace(", re-checked", " with bounded non-deterministic inputs, re-checked")
         end = max(self.fragment.end, 1e-9)
         step = min(default_time_step(end) if self.time_step is None else self.time_step, end)
         jumps = default_max_jumps(end) if self.max_jumps is None else self.max_jumps
@@ -100,19 +101,30 @@ class InputReachProof:
             result = reach(zero, {k: (lo, hi) for k, lo, hi in self.initial}, horizon=end, time_step=step,
                            initial_mode=self.initial_mode, max_jumps=jumps, inputs=matrices,
                            max_segments=MAX_SEGMENTS, max_flowpipes=MAX_FLOWPIPES)
-            holds, margin, reason = decide(result, self.fragment, affine_model(zero))
+            initial = {k: (lo, hi) for k, lo, hi in self.initial}
+            holds, margin, reason = decide(result, self.fragment, affine_model(zero), initial)
+            check = recheck_flowpipe(result.to_json(), zero, initial, self.fragment, initial_mode=self.initial_mode,
+                                     inputs=matrices) if holds else None
         except (AffineError, ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=method, evidence=f"not decided by reachability: {exc}", rechecked=False)
         seconds = time.perf_counter() - start
         bounds = ", ".join(f"{i.name} in [{i.low:g}, {i.high:g}]" for i in self.inputs)
+        if check is None:
+            again = NOT_RECHECKED
+        elif check.passed:
+            again = (f"re-checked from the saved flowpipe with the inputs ({check.segments} segments, {check.jumps} "
+                     f"jumps), exact margin {check.margin}")
+        else:
+            again = f"re-check FAILED ({check.failure})"
         evidence = (f"reachability with inputs {bounds}: {reason}"
                     + (f", margin {margin:.6g}" if math.isfinite(margin) else "")
                     + f"; {len(result.segments)} segments, {len(result.jumps)} jumps, step {step:g} s; "
-                    f"{seconds:.2f} s; " + NOT_RECHECKED)
+                    f"{seconds:.2f} s; " + again)
         assumptions = (f"the initial box {dict((k, (lo, hi)) for k, lo, hi in self.initial)}",
                        f"the inputs {bounds} (any measurable signal)",
                        f"the window [{self.fragment.start:g}, {self.fragment.end:g}] s")
-        return Proof(holds=holds, method=method, evidence=evidence, rechecked=False, assumptions=assumptions)
+        return Proof(holds=holds, method=method, evidence=evidence, rechecked=check is not None and check.passed,
+                     assumptions=assumptions, margin=margin if math.isfinite(margin) else None)
 
 
 def input_proofs(system: HybridSystem, input_flows: Mapping[str, Any], inputs: Sequence[SpaceExInput],

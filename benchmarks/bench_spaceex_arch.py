@@ -28,12 +28,12 @@ INSTANCES = (
     ("BLDC01-BDU02", B / "BLDC01.xml", S / "BLDC01-BDU02.cfg", "unsafe", "falsified", ""),
     ("BLDF01-BDU02", B / "BLDF01.xml", S / "BLDF01-BDU02.cfg", "unsafe", "falsified", ""),
     ("PLAD01-BND42", P / "PLAD01-BND.xml", S / "PLAD01-BND42.cfg", "safe", "not_falsified",
-     "flowpipe with inputs not re-checked"),
+     "re-check with inputs fails (segment 35: looser than the stored boxes)"),
     ("PLAD01-BND30", P / "PLAD01-BND.xml", S / "PLAD01-BND30.cfg", "safe", "not_falsified", "flowpipe too wide"),
     ("PLAA01-BND42", P / "PLAA01-BND.xml", S / "PLAA01-BND42.cfg", "safe", "incomplete", "Zeno at t = 0"),
     ("PLAN01-UNB50", P / "PLAN01-UNB.xml", S / "PLAN01-UNB50.cfg", "safe", "not_falsified", "finite horizon"),
     ("GRBX01-MES01", ROOT / "Gear" / "SpaceEx" / "GRBX01-MES01.xml", ROOT / "Gear" / "SpaceEx" / "GRBX01-MES01.cfg",
-     "safe", "not_falsified", "every location initial"),
+     "safe", "not_falsified", "the start in move_free is not decided"),
 )
 
 

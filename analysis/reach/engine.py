@@ -175,7 +175,23 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     distances = tuple((u.name, result.distance_to(u)) for u in _unsafe(unsafe))
     return ReachResult(system=result.system, state_names=result.state_names, horizon=result.horizon,
                        max_jumps=max_jumps, time_step=result.time_step, segments=result.segments,
-                       jumps=result.jumps, terminations=result.terminations, distances=distances)
+                       jumps=result.jumps, terminations=result.terminations, distances=distances,
+                       inputs=_input_records(inputs, run.inputs))
+
+
+def _input_records(inputs: Mapping[str, ModeInput] | None, checked: Mapping[str, tuple[list[list[Fraction]], Zonotope]]
+                   ) -> tuple[tuple[str, list[list[float]], list[float], list[float]], ...]:
+    """``(mode, B, lo, hi)`` per mode with inputs (sorted): a box ``U`` as given, a zonotope as its hull."""
+    out = []
+    for mode in sorted(checked):
+        b, u = checked[mode]
+        given = dict(inputs or {})[mode].bounds
+        if isinstance(given, Zonotope):
+            lo, hi = interval_hull(u)
+        else:
+            lo, hi = (np.asarray(v, dtype=float).reshape(-1) for v in given)
+        out.append((mode, [[float(v) for v in row] for row in b], [float(v) for v in lo], [float(v) for v in hi]))
+    return tuple(out)
 
 
 def _check_options(horizon: Any, time_step: Any, size_limit: Any, jump_cluster: Any,

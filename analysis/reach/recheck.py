@@ -43,6 +43,11 @@ A mode with a nonlinear (smooth) flow is re-checked in (a) by :mod:`analysis.rea
 (b)–(d) are the same.  A flowpipe entered by a jump starts from the exact reset image of the box before
 the jump (a zonotope), which lies in the box after it (checked).
 
+Bounded inputs ``ẋ = A x + c + B u``, ``u ∈ U`` (a box) are re-checked by
+:mod:`analysis.reach.recheck_inputs`: the tube runs on the input-free set plus the carried inputs, and
+each piece gets the current step's input box; the saved JSON must carry ``B`` and ``U``.  Inputs are
+re-checked in affine modes only: an input in a nonlinear mode fails the re-check (with that reason).
+
 Anything failing fails the re-check, with the part and the place.  The interval Picard tube
 wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
 passes by looseness.
@@ -62,12 +67,14 @@ import numpy as np
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
 from .recheck_smooth import SmoothSet, SmoothStepper, StepFailed, reduced
 
 __all__ = ["RecheckResult", "recheck_flowpipe", "RECHECKED_PARTS", "exit_uncovered", "entry_uncovered"]
 
 Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
+PICARD_TRIES = 40  # a chain of couplings from a point start widens one coordinate of the chain per try
 SUB_STEPS = (1, 2, 8)
 """Sub-steps tried per segment of a nonlinear mode (each a time piece) before the re-check fails."""
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
@@ -318,16 +325,17 @@ def entry_uncovered(model: AffineHybridModel, mode: str, box: Box) -> str | None
 
 
 def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
-    """A box ``W`` with ``X + [0, δ] f(W) ⊂ int W`` (raises when none is found in 12 tries)."""
+    """A box ``W`` with ``X + [0, δ] f(W) ⊂ int W`` (raises when none is found in :data:`PICARD_TRIES` tries)."""
     w = _hull(x, _add(x, _scale0(mode.f(x), step)))
-    for _ in range(12):
+    for _ in range(PICARD_TRIES):
         grow = [max(hi - lo, Fraction(1, 10 ** 9) * (1 + abs(lo) + abs(hi))) for lo, hi in w]
         w = _outward([(lo - g / 8, hi + g / 8) for (lo, hi), g in zip(w, grow)])
         image = _add(x, _scale0(mode.f(w), step))
         if _inside(image, w, strict=True):
             return w
         w = _hull(w, image)
-    raise _Fail("no a-priori box found by the Picard operator (the step is too large for the re-check)")
+    raise _Fail(f"no a-priori box found by the Picard operator in {PICARD_TRIES} tries (the step is too large for "
+                "the re-check)")
 
 
 def _taylor_set(mode: _Mode, z: _Zono, s: Fraction, rem: Box, cache: dict[Fraction, Any]) -> _Zono:
@@ -340,7 +348,7 @@ def _taylor_set(mode: _Mode, z: _Zono, s: Fraction, rem: Box, cache: dict[Fracti
 
 
 def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw: Box,
-            cache: dict[Fraction, Any]) -> list[tuple[Box, _Zono]]:
+            cache: dict[Fraction, Any], tube: Any = None) -> list[tuple[Box, _Zono]]:
     """The tube in ``m`` time pieces: (the piece's box ``∩ W`` clipped to the invariant, a set holding the
     piece: ``Y_j ⊕ [0, h]·f(W)``); empty pieces dropped."""
     h = step / m
@@ -353,9 +361,11 @@ def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw
         y = _taylor_set(mode, z, j * h, rem, cache)
         moved = y.mapped(one, [h * v for v in mode.c])
         piece = _meet(_add(_hull(y.hull(), moved.hull()), _scale0(afw, h * h / 2)), w)
+        inputs = None if tube is None else tube((j + 1) * h)  # the step's inputs up to the piece's end
+        piece = piece if inputs is None or piece is None else _add(piece, inputs)
         clipped = None if piece is None else _clip_union(_outward(piece), mode.invariant)
         if clipped is not None:
-            out.append((clipped, y.mapped(eye, [Fraction(0)] * n, drift)))
+            out.append((clipped, y.mapped(eye, [Fraction(0)] * n, drift if inputs is None else _add(drift, inputs))))
     return out
 
 
@@ -466,8 +476,13 @@ def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
     raise _Fail(problem)
 
 
+def _widen(z: _Zono, carry: InputFlow | None) -> _Zono:
+    """``z ⊕ S_k`` (the carried inputs, a zero-centred zonotope, as generators), or ``z`` without inputs."""
+    return z if carry is None else _Zono(center=z.center, err=z.err, gens=z.gens + carry.generators())
+
+
 def _step(mode: Any, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
-          covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
+          covered: Any, carry: InputFlow | None = None) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
     """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
     the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
 
@@ -475,14 +490,17 @@ def _step(mode: Any, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction,
     are retried with ``m = 4, 16, 64, 256`` time pieces before failing.
     """
     if isinstance(mode, _SmoothMode):
+        if carry is not None:  # refused in _run already; never re-check a nonlinear mode without its inputs
+            raise _Fail("inputs in a nonlinear mode are not re-checked")
         return _smooth_step(mode, z, step, saved, covered)
-    w = _picard(mode, _outward(z.hull()), step)
+    start = _widen(z, carry)
+    w = _picard(mode, _outward(start.hull()), step)
     fw = mode.f(w)
     rem = _matvec(mode.power, fw)  # A^p f(W)
     afw = _matvec(mode.a, fw)  # A f(W)
     problem = ""
     for m in (4, 16, 64, 256):
-        pieces = _pieces(mode, z, step, m, w, rem, afw, cache)
+        pieces = _pieces(mode, start, step, m, w, rem, afw, cache, None if carry is None else carry.tube)
         outside = next((p for p, _ in pieces if not _inside(p, saved)), None)
         if outside is not None:
             problem = (f"the re-checked tube piece [{[float(v[0]) for v in outside]}, {[float(v[1]) for v in outside]}]"
@@ -561,7 +579,8 @@ def _pipes(data: Mapping[str, Any], initial: Box, initial_mode: str) -> list[_Pi
 
 
 def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mapping[str, tuple[float, float]],
-                     fragment: SafetyFragment, *, initial_mode: str | None = None) -> RecheckResult:
+                     fragment: SafetyFragment, *, initial_mode: str | None = None,
+                     inputs: Mapping[str, Any] | None = None) -> RecheckResult:
     """Re-check a reachability proof of ``fragment`` from the saved flowpipe (see the module docstring).
 
     Parameters
@@ -575,6 +594,8 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     fragment : SafetyFragment
     initial_mode : str or None
         Default: the automaton's initial mode.
+    inputs : mapping {mode: ModeInput or (B, (lo, hi))} or None
+        The model's bounded inputs (:mod:`analysis.reach.recheck_inputs`); the saved JSON must carry them.
 
     Returns
     -------
@@ -590,9 +611,16 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
         raise ParameterError("initial", dict(initial), f"{{state: (lo, hi)}} for exactly {list(model.state_names)}",
                              "give the box the flowpipe was computed from")
     try:
+        given = model_inputs(inputs, len(model.state_names))
+    except (InputMismatch, TypeError, ValueError) as exc:
+        from hybrid.errors import ParameterError
+
+        raise ParameterError("inputs", inputs, f"{{mode: ModeInput(matrix=B, bounds=(lo, hi))}}, B with "
+                             f"{len(model.state_names)} rows", f"give the model's inputs ({exc})") from None
+    try:
         data = json.loads(saved) if isinstance(saved, str) else saved
-        return _run(data, model, initial, fragment, initial_mode or model.initial_mode)
-    except _Fail as fail:
+        return _run(data, model, initial, fragment, initial_mode or model.initial_mode, given)
+    except (_Fail, InputMismatch) as fail:
         return RecheckResult(passed=False, failure=str(fail), segments=0, jumps=0, margin=None)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         return RecheckResult(passed=False, failure=f"the saved flowpipe is malformed: {exc!r}", segments=0, jumps=0,
@@ -600,8 +628,9 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
 
 
 def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str, tuple[float, float]],
-         fragment: SafetyFragment, initial_mode: str) -> RecheckResult:
+         fragment: SafetyFragment, initial_mode: str, given: Mapping[str, Any]) -> RecheckResult:
     names = model.state_names
+    given = checked_inputs(data, given, len(names))
     if tuple(data["state_names"]) != names or tuple(fragment.state_names) != names:
         raise _Fail(f"the saved states {data['state_names']} are not the system's {list(names)}")
     step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
@@ -610,13 +639,19 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     modes: dict[str, Any] = {}
     for name, m in model.modes.items():
         if m.smooth is not None:
+            if name in given:
+                raise _Fail(f"inputs: mode {name!r} has a nonlinear flow and a bounded input; the re-check takes "
+                            "inputs only in modes with affine flows (analysis.reach.recheck_inputs), so it cannot "
+                            "re-check this flowpipe")
             modes[name] = _SmoothMode(stepper=SmoothStepper(m.smooth), invariant=m.invariant)
             continue
         a = [list(r) for r in m.a]
         power = [[Fraction(int(i == j)) for j in range(len(a))] for i in range(len(a))]
         for _ in range(TAYLOR_ORDER):
             power = _matmul(power, a)
-        modes[name] = _Mode(a=a, c=list(m.c), invariant=m.invariant, power=power)
+        c = [x + y for x, y in zip(m.c, given[name].shift())] if name in given else list(m.c)  # B u_c
+        modes[name] = _Mode(a=a, c=c, invariant=m.invariant, power=power)
+    flows = {name: InputDynamics(a=modes[name].a, spec=spec, step=step) for name, spec in given.items()}
     start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
     pipes = _pipes(data, start, initial_mode)
     jumps = data["jumps"]
@@ -625,7 +660,8 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     margin: Fraction | None = None
     count = 0
     for i, pipe in enumerate(pipes):
-        for k, sets, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i):
+        for k, sets, t_lo, t_hi in _segments(pipe, modes[pipe.mode], step, horizon, model, jumps, i,
+                                             flows.get(pipe.mode)):
             count += 1
             if t_lo > Fraction(fragment.end) or t_hi < Fraction(fragment.start):
                 continue
@@ -653,7 +689,7 @@ def _check_reset(model: AffineHybridModel, jump: Mapping[str, Any], j: int) -> N
 
 
 def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model: AffineHybridModel,
-              jumps: Sequence[Mapping[str, Any]], index: int) -> Any:
+              jumps: Sequence[Mapping[str, Any]], index: int, flow: InputDynamics | None = None) -> Any:
     """Yield (k, the re-checked sets [(box, zonotope or None)], saved t_lo, t_hi) of each segment after checking it
     (parts a–c); the saved times cover the step's exact times."""
     entry = pipe.segments[0]
@@ -670,6 +706,7 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
     if pipe.before is not None:  # the exact reset image of the box before the jump (inside ``after``: checked)
         t = next(t for t in model.transitions if t.name == pipe.transition)
         x = _Zono.of_box(pipe.before).mapped(t.r_matrix, t.r_offset)
+    carry = None if flow is None else flow.start()
     cache: dict[Fraction, Any] = {}
     for k, seg in enumerate(pipe.segments[1:]):
         t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step
@@ -686,11 +723,13 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
             return None
 
         try:
-            x, pieces = _step(mode, x, step, saved, cache, covered)
+            x, pieces = _step(mode, x, step, saved, cache, covered, carry)
         except _Fail as fail:
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
+        if carry is not None:
+            carry.advance()
         yield k, pieces, Fraction(seg["t"][0]), Fraction(seg["t"][1])
-    _check_end(pipe, len(pipe.segments) - 1, x, step, horizon, index, mode.invariant)
+    _check_end(pipe, len(pipe.segments) - 1, _widen(x, carry), step, horizon, index, mode.invariant)
     flowed = [_box_of(seg["box"]) for seg in pipe.segments[1:]]
     why = exit_uncovered(model, pipe.mode, None if pipe.termination["reason"] == "left_invariant" else flowed)
     if why:

@@ -114,6 +114,10 @@ class ReachResult:
         One per flowpipe (a mode entered with a set), in the order computed.
     distances : tuple of (str, float)
         For each unsafe set given to the run, :meth:`distance_to` of it.
+    inputs : tuple of (str, list, list, list)
+        The run's bounded inputs ``(mode, B (n×p rows), lo (p,), hi (p,))``: ``ẋ = A x + c + B u``,
+        ``u(t) ∈ [lo, hi]`` (a zonotope ``U`` as its interval hull, rounded outward); saved in the JSON
+        (key ``"inputs"``, only when there are inputs) for the re-check.
     """
 
     system: str
@@ -125,6 +129,7 @@ class ReachResult:
     jumps: tuple[ReachJump, ...]
     terminations: tuple[Termination, ...]
     distances: tuple[tuple[str, float], ...] = ()
+    inputs: tuple[tuple[str, list[list[float]], list[float], list[float]], ...] = ()
     _index: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -181,7 +186,7 @@ class ReachResult:
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready view (deterministic: the same run gives the same dict)."""
-        return {
+        out = {
             "system": self.system, "state_names": list(self.state_names), "status": self.status,
             "horizon": self.horizon, "max_jumps": self.max_jumps, "time_step": self.time_step,
             "terminations": [t.as_dict() for t in self.terminations],
@@ -189,6 +194,10 @@ class ReachResult:
             "jumps": [j.as_dict() for j in self.jumps],
             "segments": [s.as_dict() for s in self.segments],
         }
+        if self.inputs:  # absent without inputs: the JSON of an input-free run is unchanged
+            out["inputs"] = {mode: {"matrix": [list(r) for r in b], "low": list(lo), "high": list(hi)}
+                             for mode, b, lo, hi in self.inputs}
+        return out
 
     def to_json(self) -> str:
         """:meth:`as_dict` as JSON text (keys sorted; infinite distances as strings)."""

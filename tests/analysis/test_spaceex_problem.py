@@ -38,6 +38,14 @@ def test_the_gearbox_problem_and_its_published_verdict():
     result = assert_verified(problem, budget=8)
     assert result.verdict == "not_falsified"
     assert 0.0 < result.requirement("safe").robustness < 0.2
+    # reachability starts from every location whose invariant meets the box: from meshed it holds and is
+    # re-checked (the impulse I stays 0 < 20: margin 20), from move_free the over-approximation meets the clock's
+    # invariant face t <= 1 with no guard shown enabled (a possible deadlock): one start undecided, never proven
+    proof = result.requirement("safe").proof
+    assert not proof.holds and not proof.proven
+    free, meshed = proof.evidence.split(" | ")
+    assert free.startswith("from mode 'Clock_1.loc01|Stateflow_2.move_free'") and "not decided" in free
+    assert meshed.startswith("from mode 'Clock_1.loc01|Stateflow_2.meshed'") and "exact margin 20.0" in meshed
 
 
 def test_the_building_problem_and_its_published_verdict():

@@ -168,8 +168,9 @@ def test_the_recheck_imports_no_set_code_of_the_engine():
                 todo.append(node.module)
             if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("analysis.reach."):
                 todo.append(node.module.split(".")[-1])
-    # smooth: the reading of nonlinear flows (no set code); recheck_smooth: the re-check's own nonlinear step
-    assert seen == {"recheck", "fragment", "model", "affine", "smooth", "recheck_smooth"}, seen
+    # smooth: the reading of nonlinear flows (no set code); recheck_smooth: the re-check's own nonlinear step;
+    # recheck_inputs: the re-check's own bound of bounded inputs
+    assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
