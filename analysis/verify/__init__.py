@@ -31,14 +31,37 @@ The modules behind it live in this package and stay importable for the finer pie
 :mod:`~analysis.verify.loading` (a user's module).
 """
 
-from analysis.verify.falsification import DEFAULT_TIMEOUT_S, METHODS
-from analysis.verify.loading import load_problem
-from analysis.verify.problems import hybrid_problem, sampled_problem
-from analysis.verify.requirements import Requirement, min_dwell
-from analysis.stl import SignalTrace
-from analysis.verify.testing import VerificationFailed, assert_verified
-from analysis.verify.verdicts import Counterexample, RequirementVerdict, VerificationResult, verify
-from analysis.verify.verification import InvalidPoint, Parameter, Proof, VerificationProblem
+import importlib as _importlib
+from typing import Any as _Any
+
+# Loaded on first use: importing one module of this package (``analysis.verify.requirements`` from the
+# case's scenario, say) must not load the executors behind the rest (tests/visnav/fuzzing/test_package.py).
+_LAZY = {
+    "SignalTrace": "",
+    **dict.fromkeys(("DEFAULT_TIMEOUT_S", "METHODS"), "falsification"),
+    "load_problem": "loading",
+    **dict.fromkeys(("hybrid_problem", "sampled_problem"), "problems"),
+    **dict.fromkeys(("Requirement", "min_dwell"), "requirements"),
+    **dict.fromkeys(("VerificationFailed", "assert_verified"), "testing"),
+    **dict.fromkeys(("Counterexample", "RequirementVerdict", "VerificationResult", "verify"), "verdicts"),
+    **dict.fromkeys(("InvalidPoint", "Parameter", "Proof", "VerificationProblem"), "verification"),
+}
+
+
+def __getattr__(name: str) -> _Any:
+    if name == "SignalTrace":
+        from analysis.stl import SignalTrace as value
+    elif name in _LAZY:
+        value = getattr(_importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    else:
+        raise AttributeError(f"module 'analysis.verify' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "VerificationProblem",
