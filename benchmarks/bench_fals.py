@@ -8,7 +8,7 @@ over the falsifying runs; beside them the published numbers of FalCAuN and zlsch
 
 Run::
 
-    PYTHONPATH=$PWD:/work/peers .venv/bin/python benchmarks/bench_fals.py [--workers 2] [--quick]
+    PYTHONPATH=$PWD:$PWD/.peers .venv/bin/python benchmarks/bench_fals.py [--workers 2] [--quick]
         [--json] [--results FILE] [--budget 1500] [--seeds 10] [--methods guided,whitebox,...]
         [--only NAME,...]
 
@@ -18,7 +18,7 @@ when the file exists, otherwise the run says they are absent), then the planted-
 ``examples/acc.py`` (``ACC-gross``, ``ACC-subtle``), ``examples/thermostat.py``'s zero band and the
 closed-form ones of :mod:`analysis.planted`.
 
-psy-taliro (package ``staliro``, 3.2.0) is imported from the path when present (``/work/peers``): our
+psy-taliro (package ``staliro``, 3.2.0) is imported from the path when present (``.peers``, README "Benchmarks"): our
 problem is wrapped as its cost function (the same simulator, the same box in physical units, the same
 budget and seed; its optimizer is its own ``DualAnnealing``, generalised simulated annealing without
 local search, stopped at the first negative cost).  Absent, its column says so.
@@ -259,7 +259,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     notes: list[str] = []
     if "psy-taliro" in methods and not _psy_taliro_available():
         methods.remove("psy-taliro")
-        notes.append("psy-taliro: absent (run with PYTHONPATH=$PWD:/work/peers for its column)")
+        notes.append("psy-taliro: absent (install the bench extra into .peers and run with PYTHONPATH=$PWD:$PWD/.peers for its column)")
     sources = _sources(args.quick, notes)
     tasks = _tasks(sources, methods, seeds, budget, {k for k in args.only.split(",") if k})
     path = Path(args.results)

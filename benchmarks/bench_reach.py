@@ -2,7 +2,7 @@
 
 Run: ``PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_reach.py [--quick] [--json] [--repeats N]
 [--soundness N] [--no-peers]``; with the peers (Hylaa 2.0.2 and a compatible swiglpk, see README
-"Benchmarks"): ``PYTHONPATH=$PWD:/work/peers-swig:/work/peers:/work/peers-extra``.
+"Benchmarks"): ``PYTHONPATH=$PWD:$PWD/.peers-swig:$PWD/.peers``.
 
 Per instance (``reach_instances.py``): our verdict (``safe`` when the flowpipe is complete and the requirement
 holds on every segment, :func:`analysis.reach.verdict.decide`, under SpaceEx's may-semantics, as in ARCH-COMP;
