@@ -88,7 +88,7 @@ from .events import (
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
 from .model import Transition, not_a_number
 from .system import HybridSystem, call_user, real_value
-from .watch_values import evaluate_watches, watch_function
+from .watch_values import direct_function, evaluate_watches, watch_function
 from .system import format_state as _fmt
 
 __all__ = [
@@ -411,6 +411,8 @@ class _Run:
         self.last_point: tuple[float, tuple[float, ...]] | None = None  # last accepted (t, x), for DivergenceError
         self.compiled: dict[str, Callable[..., tuple[float, ...]] | None] = {}  # per mode, see values()
         self.watch_sets: dict[str, tuple[Watch, ...]] = {}  # per mode, see watches()
+        self.direct: dict[int, Callable[..., Any]] = {}  # id of a guard or invariant -> direct_function of it
+        self.guard_sets: dict[int, Any] = {}  # id of a watch tuple -> (it, guard_watches of it)
 
     def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
         """:class:`DivergenceError` for a :class:`NumericalFailure` raised at ``(t, x)`` in ``mode``.
@@ -449,18 +451,28 @@ class _Run:
 
     def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
         self.guard_evaluations += 1
-        try:  # fast path; on any doubt the checked path raises the precise error (guards are pure)
-            g = tr.guard(v, memory)
+        g = self.fast(tr.guard, v, memory)  # on any doubt the checked path raises the precise error
+        return g if g is not None else self.checked(self.system.guard, tr.source, t, x, tr, t, x, v, memory)
+
+    def invariant(self, mode: str, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
+        inv = self.invariants[mode]
+        if inv is None:
+            return math.inf
+        value = self.fast(inv, v, memory)
+        return value if value is not None else self.checked(self.system.invariant, mode, t, x, mode, t, x, v, memory)
+
+    def fast(self, fn: Callable[..., Any], v: Sequence[float], memory: Mapping[str, float]) -> float | None:
+        """``fn(v, memory)`` when it is a float and not NaN (a pure guard or invariant), else ``None``."""
+        try:
+            call = self.direct.get(id(fn))
+            if call is None:
+                call = self.direct[id(fn)] = direct_function(fn)
+            g = call(v, memory)
             if type(g) is float and g == g:
                 return g
         except Exception:
             pass
-        return self.checked(self.system.guard, tr.source, t, x, tr, t, x, v, memory)
-
-    def invariant(self, mode: str, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
-        if self.invariants[mode] is None:
-            return math.inf
-        return self.checked(self.system.invariant, mode, t, x, mode, t, x, v, memory)
+        return None
 
     def flow_function(self, mode: str, memory: Mapping[str, float]) -> Callable[[float, np.ndarray], np.ndarray]:
         """``fun(t, y)`` for the scipy solver in ``mode``: a fast path, and the checked one on any doubt."""
@@ -494,6 +506,36 @@ class _Run:
         out += [Watch(role="stop", name=name, kind="level") for name in self.stops]
         self.watch_sets[mode] = tuple(out)
         return self.watch_sets[mode]
+
+    def guard_watches(self, watches: tuple[Watch, ...]) -> tuple[list[tuple[int, int, float]], bool]:
+        """``(k, id of the transition, sign of phi)`` of the guard watches, and whether one is a crossing."""
+        known = self.guard_sets.get(id(watches))
+        if known is None or known[0] is not watches:
+            guards = [(k, w.transition) for k, w in enumerate(watches) if w.role == "guard"]
+            known = self.guard_sets[id(watches)] = (watches, [
+                (k, id(tr), -1.0 if tr.direction < 0 else 1.0) for k, tr in guards],  # type: ignore[union-attr]
+                any(tr.direction != 0 for _, tr in guards))  # type: ignore[union-attr]
+        return known[1], known[2]
+
+    def evaluator(self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float]
+                  ) -> Callable[[float, Sequence[float]], list[float]]:
+        """``values(t, x)``: :meth:`values` of ``watches`` in ``mode`` with ``memory``, the fast pass bound once."""
+        compiled = self.compiled.get(mode, self) if not self.stops else None
+        if compiled is self:
+            compiled = self.compiled[mode] = watch_function(self.outgoing[mode], self.invariants[mode])
+        if compiled is None:
+            return lambda t, x: self.values(watches, mode, memory, t, x)
+        output, n_signals, count = self.system.output, self.n_signals, len(watches)
+
+        def values(t: float, x: Sequence[float]) -> list[float]:
+            try:
+                fast = evaluate_watches(compiled, output, t, x, memory, n_signals, count)
+            except Exception:
+                return self.values_checked(watches, mode, memory, t, x)
+            self.guard_evaluations += count
+            return fast
+
+        return values
 
     def values(
         self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
@@ -575,6 +617,8 @@ class _Run:
 
         def fire(tr: Transition, x: tuple[float, ...], v: Sequence[float], memory: Mapping[str, float]
                  ) -> tuple[tuple[float, ...], dict[str, float]]:
+            if tr.reset is None and tr.name not in self.system.jumps:  # what HybridSystem.jump and .reset return
+                return tuple([float(c) for c in x]), dict(memory)
             mode = tr.source
             new_x = self.checked(self.system.jump, mode, t, x, tr.name, t, x, memory)
             new_memory = self.checked(self.system.reset, mode, t, x, tr, t, x, v, memory)
@@ -612,6 +656,7 @@ class _SegmentResult:
     failure: str | None
     resolution: float = 0.0  # largest spacing of the uniform samples of the watches in a step [s]
     disarmed: frozenset[str] = frozenset()  # crossing guards disarmed at the segment's start
+    end: tuple[float, ...] = ()  # the last state, as floats
 
 
 def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: tuple[float, ...],
@@ -628,9 +673,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     on: tuple[int, ...] = ()
     failure: str | None = None
 
-    def values(tt: float, xx: tuple[float, ...]) -> list[float]:
-        return run.values(watches, mode, seg_memory, tt, xx)
-
+    values = run.evaluator(watches, mode, seg_memory)  # watches: armed below, the same roles and order
     if t < opts.t_end:
         phi_old = values(t, x)
         watches = arm_watches(watches, phi_old, disarmed)
@@ -703,13 +746,13 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
         dense_out = solver.propagator  # the exact solution over the whole segment
     segment = FlowSegment(
         mode=mode, jump=jump, t_start=times[0], t_end=times[-1], times=_readonly(np.array(times)),
-        states=_readonly(np.array(states).reshape(len(states), -1)), memory=tuple(sorted(seg_memory.items())),
+        states=_readonly(_rows(states)), memory=tuple(sorted(seg_memory.items())) if seg_memory else (),
         dense=dense_out,
     )
     if refiner is not None:
         run.refinement_evaluations += refiner.evaluations
     return _SegmentResult(segment=segment, event=event, on=on, watches=watches, steps=steps, rhs=rhs, roots=roots,
-                          failure=failure, resolution=resolution, disarmed=disarmed)
+                          failure=failure, resolution=resolution, disarmed=disarmed, end=tuple([float(c) for c in states[-1]]))
 
 
 def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
@@ -732,13 +775,13 @@ def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mappi
         event = located.event
         disarmed = still_disarmed(located.watches, event.left_values, located.disarmed)
         v_now = run.signals(mode, t, x)
-        guards = [(k, w.transition) for k, w in enumerate(located.watches) if w.role == "guard"]
-        if any(tr.direction != 0 for _, tr in guards):  # type: ignore[union-attr]
+        guards, crossing = run.guard_watches(located.watches)
+        if crossing:
             v_left = previous = run.signals(mode, event.left_time, event.left_state)
-        for k, tr in guards:
-            sign = -1.0 if tr.direction < 0 else 1.0  # type: ignore[union-attr]
-            known[id(tr)] = sign * event.values[k]
-            known[-id(tr) - 1] = sign * event.left_values[k]
+        values, left_values = event.values, event.left_values
+        for k, key, sign in guards:
+            known[key] = sign * values[k]
+            known[-key - 1] = sign * left_values[k]
 
     first_round = [True]
     jump = run.fire(t)
@@ -821,7 +864,8 @@ class _Book:
             self.events.append(HybridEvent(
                 time=t, jump=self.j, transition=step.transition.name, source=step.source, target=step.target,
                 state_before=step.state_before, state_after=step.state_after,
-                memory=tuple(sorted(step.memory_after.items())), outranked=step.outranked, instantaneous=n > 0,
+                memory=tuple(sorted(step.memory_after.items())) if step.memory_after else (),
+                outranked=step.outranked, instantaneous=n > 0,
             ))
             self.jump_times.append(t)
 
@@ -1070,7 +1114,7 @@ def simulate_continuous(
             break
         result = _flow_segment(run, opts, mode, book.j, t, x, memory, book.steps, disarmed)
         book.add_segment(result)
-        t, x = result.segment.t_end, tuple(result.segment.states[-1].tolist())
+        t, x = result.segment.t_end, result.end
         if result.failure is not None:
             book.end("solver_failure", result.failure)
             break
@@ -1158,6 +1202,12 @@ def _initial_state(system: HybridSystem, x0: Sequence[float], initial_mode: str 
             f"({', '.join(system.state_names)})"
         )
     return mode, x, memory
+
+
+def _rows(states: list[tuple[float, ...]]) -> np.ndarray:
+    """The states as an array of shape ``(k, n)``."""
+    out = np.array(states, dtype=float)
+    return out if out.ndim == 2 else out.reshape(len(states), -1)
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:

@@ -167,3 +167,17 @@ def evaluate_watches(compiled: Callable[..., tuple[float, ...]], output: Callabl
         if value != value:
             raise ValueError
     return out
+
+
+def direct_function(fn: Any) -> Callable[..., Any]:
+    """The function a guard or an invariant ``fn(v, m)`` calls: a symbolic one's compiled function, else ``fn``.
+
+    ``Expr.__call__`` and ``Condition.__call__`` look their compiled function up at every call; an executor
+    that calls the same guard thousands of times looks it up once (same function, same floats).
+    """
+    call = type(fn).__call__
+    if call is Condition.__call__:
+        return compiled_function(fn, "level")
+    if call is Expr.__call__:
+        return compiled_function(fn, "condition")
+    return fn

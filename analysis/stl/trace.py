@@ -106,6 +106,8 @@ def _label(name: str, values: object, times: np.ndarray) -> tuple[str, ...]:
     if len(out) != times.size:
         raise TraceError(f"len(labels[{name!r}])", len(out), f"{times.size} (one value per sample time)",
                          "give every label the length of times")
+    if all(v.__class__ is str for v in out):  # the common case, checked at once
+        return out
     for k, v in enumerate(out):
         if not isinstance(v, str):
             raise TraceError(f"labels[{name!r}] at {_where(k, times)}", v, "a string",

@@ -78,6 +78,7 @@ def trace_from_trajectory(
     *,
     system: HybridSystem | None = None,
     sample_period: float | None = None,
+    final_stops: Sequence[str] | None = None,
 ) -> SignalTrace:
     """The STL trace of a continuous-time execution.
 
@@ -90,6 +91,9 @@ def trace_from_trajectory(
     sample_period : float or None
         A uniform grid inside every flow segment [s] instead of the solver's step points
         (each segment's two ends are always samples: the two sides of its jumps).
+    final_stops : sequence of str or None
+        Given (the stop functions a problem declares final): the trace says how the run ended, as a
+        problem's simulator reports it (``termination``, ``termination_detail``); ``None``: not said.
 
     Returns
     -------
@@ -143,7 +147,10 @@ def trace_from_trajectory(
             if name not in signals:
                 signals[name] = values[:, i]
     counter = np.repeat(np.array(jumps, dtype=int), [t.size for t in times])
-    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=counter)
+    said, why = (None, "") if final_stops is None else _end_words(
+        float(t_all[-1]), trajectory.termination, getattr(trajectory, "detail", ""), final_stops)
+    return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=counter, termination=said,
+                       termination_detail=why)
 
 
 def _memory_signals(chunks: Sequence[Mapping[str, float] | None], sizes: Sequence[int],
@@ -214,15 +221,20 @@ def trace_from_sampled(trace: SampledTrace) -> SignalTrace:
 
 def _ended(trace: SignalTrace, termination: str, detail: str, final_stops: Sequence[str]) -> SignalTrace:
     """``trace`` saying how its run ended: ``end_time``, ``final:<stop>`` for a declared final stop, or the cause."""
+    said, why = _end_words(float(trace.times[-1]), termination, detail, final_stops)
+    return replace(trace, termination=said, termination_detail=why)
+
+
+def _end_words(end: float, termination: str, detail: str, final_stops: Sequence[str]) -> tuple[str, str]:
+    """``(termination, termination_detail)`` of a trace ending at ``end`` [s] (see :func:`_ended`)."""
     stop = termination[len("stop:"):] if termination.startswith("stop:") else termination
     said = f"final:{stop}" if stop in final_stops else termination
-    end = float(trace.times[-1])
     why = detail or f"the run ended on {termination!r} at t = {end:.6g} s"
     if termination == "zeno":
         why = f"Zeno: the jumps accumulate at t = {end:.9g} s ({detail or 'the jump limit at one instant'})"
     elif termination == "invariant_violated":
         why = f"deadlock at t = {end:.6g} s: the flow leaves the invariant with no transition enabled ({detail})"
-    return replace(trace, termination=said, termination_detail=why)
+    return said, why
 
 
 def _point_values(point: Mapping[str, float], spec: Mapping[str, Parameter | float]) -> dict[str, float]:
@@ -260,8 +272,8 @@ class HybridSimulation:
         trajectory = simulate_continuous(
             system, tuple(x0[s] for s in self.state_names), duration=self.horizon, initial_mode=mode, **options,
         )
-        trace = trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period)
-        return _ended(trace, trajectory.termination, getattr(trajectory, "detail", ""), self.final_stops)
+        return trace_from_trajectory(trajectory, system=system, sample_period=self.sample_period,
+                                     final_stops=self.final_stops)  # the trace built once, saying how it ended
 
 
 @dataclass(frozen=True, slots=True)
