@@ -531,10 +531,9 @@ class ScalarSwitch:
         on there (as the executor's search reports them)."""
         if not self.candidates:
             return None, ()
-        located = LocatedEvent(time=self.time, state=self.state, values=self.values, left_time=self.left_time,
-                               left_state=self.left_state, left_values=self.left_values)
-        return located, tuple(k for k in self.candidates if watches[k].role != "guard"
-                              and is_on(watches[k].kind, self.values[k]))
+        located = LocatedEvent(self.time, self.state, self.values, self.left_time, self.left_state, self.left_values)
+        return located, tuple([k for k in self.candidates if watches[k].role != "guard"
+                               and is_on(watches[k].kind, self.values[k])])
 
 
 def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], watches: Sequence[Any],

@@ -68,13 +68,12 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
 
-from .closed_form import ClosedFormSolver, affine_flow, closed_form_switch, point_evaluator
+from .closed_form import ClosedFormSolver, closed_form_switch, point_evaluator
 from .diagnostics import ChatterEpisode, ZenoReport, estimate_zeno, find_chatter
-from .errors import DivergenceError, ExecutionError, GuardResolutionWarning, NumericalFailure, ZenoError
+from .errors import ExecutionError, GuardResolutionWarning, ZenoError
 from .events import (
     LocatedEvent,
     Refiner,
-    UnresolvedLog,
     UnresolvedWindow,
     Watch,
     arm_watches,
@@ -86,9 +85,9 @@ from .events import (
     unresolved_message,
 )
 from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import Transition, not_a_number
-from .system import HybridSystem, call_user, real_value
-from .watch_values import direct_function, evaluate_watches, watch_function
+from .model import Transition
+from .model_calls import ModelCalls
+from .system import HybridSystem
 from .system import format_state as _fmt
 
 __all__ = [
@@ -391,242 +390,6 @@ class _LazySolution:
         return self.solution(t)
 
 
-# ---------------------------------------------------------------------- access to the user's functions
-class _Run:
-    """Calls into the user's model for one execution: counted, checked, errors named (private)."""
-
-    def __init__(self, system: HybridSystem, stops: Mapping[str, StopFunction], invariant_tol: float) -> None:
-        self.system = system
-        self.automaton = system.automaton
-        self.stops = dict(stops)
-        self.invariant_tol = invariant_tol
-        self.outgoing = {name: self.automaton.outgoing(name) for name in self.automaton.mode_names}
-        self.invariants = {m.name: m.invariant for m in self.automaton.modes}
-        self.crossing_names = frozenset(t.name for t in self.automaton.transitions if t.direction != 0)
-        self.n_signals = len(self.automaton.variables)
-        self.shape = (system.dimension,)
-        self.guard_evaluations = 0
-        self.refinement_evaluations = 0
-        self.unresolved = UnresolvedLog()
-        self.last_point: tuple[float, tuple[float, ...]] | None = None  # last accepted (t, x), for DivergenceError
-        self.compiled: dict[str, Callable[..., tuple[float, ...]] | None] = {}  # per mode, see values()
-        self.watch_sets: dict[str, tuple[Watch, ...]] = {}  # per mode, see watches()
-        self.direct: dict[int, Callable[..., Any]] = {}  # id of a guard or invariant -> direct_function of it
-        self.guard_sets: dict[int, Any] = {}  # id of a watch tuple -> (it, guard_watches of it)
-
-    def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
-        """:class:`DivergenceError` for a :class:`NumericalFailure` raised at ``(t, x)`` in ``mode``.
-
-        It carries the state at the last finite point: ``x`` itself, or the last
-        accepted step point when ``x`` is not finite (a solver stage that blew up).
-        """
-        at: float = t
-        try:
-            state: tuple[float, ...] | None = tuple(float(c) for c in x)
-        except (TypeError, ValueError):
-            state = None
-        if (state is None or not all(math.isfinite(c) for c in state)) and self.last_point is not None:
-            at, state = self.last_point
-        return DivergenceError(t, mode, err.cause, state=state, state_names=self.system.state_names, state_time=at)
-
-    def call(self, fn: Callable[..., Any], what: str, mode: str, t: float, x: Sequence[float], *args: Any) -> Any:
-        """A user function not reached through a :class:`HybridSystem` method (the stop functions)."""
-        try:
-            return call_user(fn, args, function=what, mode=mode, time=t, state=x,
-                             state_names=self.system.state_names, system=self.system.name)
-        except NumericalFailure as err:
-            raise self.diverged(err, mode, t, x) from err
-
-    def checked(self, method: Callable[..., Any], mode: str, t: float, x: Sequence[float], *args: Any) -> Any:
-        """A :class:`HybridSystem` method (it names the failing function); a :class:`NumericalFailure` diverges."""
-        try:
-            return method(*args)
-        except NumericalFailure as err:
-            raise self.diverged(err, mode, t, x) from err
-
-    def signals(self, mode: str, t: float, x: Sequence[float]) -> tuple[float, ...]:
-        if self.system.output is None:  # HybridSystem.signals without the call: the state itself
-            return tuple([float(c) for c in x])
-        return self.checked(self.system.signals, mode, t, x, t, x, mode)
-
-    def guard(self, tr: Transition, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
-        self.guard_evaluations += 1
-        g = self.fast(tr.guard, v, memory)  # on any doubt the checked path raises the precise error
-        return g if g is not None else self.checked(self.system.guard, tr.source, t, x, tr, t, x, v, memory)
-
-    def invariant(self, mode: str, v: Sequence[float], memory: Mapping[str, float], t: float, x: Sequence[float]) -> float:
-        inv = self.invariants[mode]
-        if inv is None:
-            return math.inf
-        value = self.fast(inv, v, memory)
-        return value if value is not None else self.checked(self.system.invariant, mode, t, x, mode, t, x, v, memory)
-
-    def fast(self, fn: Callable[..., Any], v: Sequence[float], memory: Mapping[str, float]) -> float | None:
-        """``fn(v, memory)`` when it is a float and not NaN (a pure guard or invariant), else ``None``."""
-        try:
-            call = self.direct.get(id(fn))
-            if call is None:
-                call = self.direct[id(fn)] = direct_function(fn)
-            g = call(v, memory)
-            if type(g) is float and g == g:
-                return g
-        except Exception:
-            pass
-        return None
-
-    def flow_function(self, mode: str, memory: Mapping[str, float]) -> Callable[[float, np.ndarray], np.ndarray]:
-        """``fun(t, y)`` for the scipy solver in ``mode``: a fast path, and the checked one on any doubt."""
-        user_flow = self.system.flows[mode]
-        shape = self.shape
-
-        def fun(tt: float, y: np.ndarray) -> np.ndarray:
-            state = tuple(y.tolist())
-            try:
-                result = user_flow(tt, state, memory)
-                total = sum(result)  # NaN (or inf - inf) makes it NaN
-                if total == total:
-                    out = np.array(result, dtype=float)
-                    if out.shape == shape:
-                        return out
-            except Exception:
-                pass
-            return np.array(self.checked(self.system.flow, mode, tt, state, mode, tt, state, memory))
-
-        return fun
-
-    def watches(self, mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]) -> tuple[Watch, ...]:
-        """The watches of a segment starting at ``(t, x)`` (immutable: built once per mode)."""
-        known = self.watch_sets.get(mode)
-        if known is not None:
-            return known
-        out = [Watch(role="guard", name=tr.name, kind="level" if tr.direction == 0 else "crossing", transition=tr)
-               for tr in self.outgoing[mode]]
-        if self.invariants[mode] is not None:
-            out.append(Watch(role="invariant", name=mode, kind="strict"))
-        out += [Watch(role="stop", name=name, kind="level") for name in self.stops]
-        self.watch_sets[mode] = tuple(out)
-        return self.watch_sets[mode]
-
-    def guard_watches(self, watches: tuple[Watch, ...]) -> tuple[list[tuple[int, int, float]], bool]:
-        """``(k, id of the transition, sign of phi)`` of the guard watches, and whether one is a crossing."""
-        known = self.guard_sets.get(id(watches))
-        if known is None or known[0] is not watches:
-            guards = [(k, w.transition) for k, w in enumerate(watches) if w.role == "guard"]
-            known = self.guard_sets[id(watches)] = (watches, [
-                (k, id(tr), -1.0 if tr.direction < 0 else 1.0) for k, tr in guards],  # type: ignore[union-attr]
-                any(tr.direction != 0 for _, tr in guards))  # type: ignore[union-attr]
-        return known[1], known[2]
-
-    def evaluator(self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float]
-                  ) -> Callable[[float, Sequence[float]], list[float]]:
-        """``values(t, x)``: :meth:`values` of ``watches`` in ``mode`` with ``memory``, the fast pass bound once."""
-        compiled = self.compiled.get(mode, self) if not self.stops else None
-        if compiled is self:
-            compiled = self.compiled[mode] = watch_function(self.outgoing[mode], self.invariants[mode])
-        if compiled is None:
-            return lambda t, x: self.values(watches, mode, memory, t, x)
-        output, n_signals, count = self.system.output, self.n_signals, len(watches)
-
-        def values(t: float, x: Sequence[float]) -> list[float]:
-            try:
-                fast = evaluate_watches(compiled, output, t, x, memory, n_signals, count)
-            except Exception:
-                return self.values_checked(watches, mode, memory, t, x)
-            self.guard_evaluations += count
-            return fast
-
-        return values
-
-    def values(
-        self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
-    ) -> list[float]:
-        """``phi`` of every watch (see :class:`Watch`).
-
-        A fast pass calls the user functions directly (all the symbolic guards and the invariant of the
-        mode as one compiled function, :func:`hybrid.watch_values.watch_function`); if anything raises or
-        is not a real number, a careful pass re-evaluates them one by one and
-        raises the error that names the culprit (the functions are pure).
-        """
-        compiled = self.compiled.get(mode, self) if not self.stops else None
-        if compiled is self:
-            compiled = self.compiled[mode] = watch_function(self.outgoing[mode], self.invariants[mode])
-        if compiled is not None:
-            try:
-                fast = evaluate_watches(compiled, self.system.output, t, x, memory, self.n_signals, len(watches))
-                self.guard_evaluations += len(watches)
-                return fast
-            except Exception:
-                return self.values_checked(watches, mode, memory, t, x)
-        try:
-            v = x if self.system.output is None else self.system.output(t, x)
-            if len(v) != self.n_signals:
-                raise ValueError
-            out = []
-            for w in watches:
-                if w.role == "guard":
-                    tr = w.transition
-                    raw = tr.guard(v, memory)  # type: ignore[union-attr]
-                    if raw.__class__ is not float and raw.__class__ is not np.float64 and not_a_number(raw) is not None:
-                        raise ValueError  # the careful pass names it
-                    g = float(raw)
-                    out.append(-g if tr.direction < 0 else g)  # type: ignore[union-attr]
-                elif w.role == "invariant":
-                    raw = self.invariants[mode](v, memory)  # type: ignore[misc]
-                    if raw.__class__ is not float and raw.__class__ is not np.float64 and not_a_number(raw) is not None:
-                        raise ValueError
-                    out.append(-float(raw))
-                else:
-                    raw = self.stops[w.name](t, x, mode, memory)
-                    if raw.__class__ is not float and raw.__class__ is not np.float64 and not_a_number(raw) is not None:
-                        raise ValueError
-                    out.append(float(raw))
-            self.guard_evaluations += len(watches)
-            for value in out:
-                if value != value:
-                    raise ValueError
-            for value in v:
-                if value != value:
-                    raise ValueError
-            return out
-        except Exception:
-            return self.values_checked(watches, mode, memory, t, x)
-
-    def values_checked(
-        self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float], t: float, x: Sequence[float]
-    ) -> list[float]:
-        """:meth:`values` with every call wrapped: raises the precise error."""
-        v = self.signals(mode, t, x)
-        out = []
-        for w in watches:
-            if w.role == "guard":
-                tr = w.transition
-                assert tr is not None
-                g = self.guard(tr, v, memory, t, x)
-                out.append(-g if tr.direction < 0 else g)
-            elif w.role == "invariant":
-                out.append(-self.invariant(mode, v, memory, t, x))
-            else:
-                what = f"stop function {w.name!r}"
-                s = self.call(self.stops[w.name], what, mode, t, x, t, x, mode, memory)
-                out.append(real_value(s, what, mode, t, x))
-        return out
-
-    def fire(self, t: float) -> Callable[[Transition, tuple[float, ...], Sequence[float], Mapping[str, float]],
-                                         tuple[tuple[float, ...], dict[str, float]]]:
-        """The kernel's ``fire`` at time ``t``: jump map and memory reset, both reading pre-jump values."""
-
-        def fire(tr: Transition, x: tuple[float, ...], v: Sequence[float], memory: Mapping[str, float]
-                 ) -> tuple[tuple[float, ...], dict[str, float]]:
-            if tr.reset is None and tr.name not in self.system.jumps:  # what HybridSystem.jump and .reset return
-                return tuple([float(c) for c in x]), dict(memory)
-            mode = tr.source
-            new_x = self.checked(self.system.jump, mode, t, x, tr.name, t, x, memory)
-            new_memory = self.checked(self.system.reset, mode, t, x, tr, t, x, v, memory)
-            return new_x, new_memory
-
-        return fire
-
-
 @dataclass(frozen=True, slots=True)
 class _Options:
     """The solver and event settings of one execution (validated by :func:`_validated`)."""
@@ -659,7 +422,7 @@ class _SegmentResult:
     end: tuple[float, ...] = ()  # the last state, as floats
 
 
-def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: tuple[float, ...],
+def _flow_segment(run: ModelCalls, opts: _Options, mode: str, jump: int, t: float, x: tuple[float, ...],
                   memory: Mapping[str, float], steps_before: int, disarmed: frozenset[str]) -> _SegmentResult:
     """Integrate ``mode`` from ``(t, x)`` until a watch switches on, the horizon, or a solver failure.
 
@@ -681,22 +444,24 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
     resolution = 0.0
     run.last_point = (t, x)
     if t < opts.t_end:
-        affine = affine_flow(run.system.flows[mode], len(x), seg_memory) if opts.closed_form else None
+        affine = run.affine(mode, seg_memory) if opts.closed_form else None
         solver = (ClosedFormSolver(affine, t, x, opts.t_end, opts.max_step, bool(watches)) if affine is not None else
                   METHODS[opts.method](run.flow_function(mode, seg_memory), t, np.array(x), opts.t_end,
                                        rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step))
-        want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
         found = (closed_form_switch(solver, values, watches, phi_old, outgoing=run.outgoing[mode], memory=seg_memory,
                                     invariant=run.invariants[mode], system=run.system, stops=bool(run.stops),
                                     max_step=opts.max_step, event_tol=opts.event_tol)
-                 if steps_before < opts.max_steps else None)
+                 if affine is not None and steps_before < opts.max_steps else None)
         if found is not None:  # one piece of the exact solution, its event found on the closed form
-            steps, roots, solver.status = 1, found.evaluations, "finished"
-            times.append(found.time)
-            states.append(found.state)
-            interpolants.append(solver.propagator)
             event, on = found.event(watches)
-        elif watches and opts.sign_checks and opts.refine_depth:
+            segment = FlowSegment(
+                mode=mode, jump=jump, t_start=t, t_end=found.time, times=_readonly(np.array([t, found.time])),
+                states=_readonly(_rows([x, found.state])), memory=tuple(sorted(seg_memory.items())) if seg_memory else (),
+                dense=solver.propagator if opts.dense else None)  # the exact solution over the whole segment
+            return _SegmentResult(segment=segment, event=event, on=on, watches=watches, steps=1, rhs=0,
+                                  roots=found.evaluations, failure=None, disarmed=disarmed, end=found.state)
+        want_dense = opts.dense or (opts.sign_checks > 0 and bool(watches))
+        if watches and opts.sign_checks and opts.refine_depth:
             rates = [0.0] * len(watches)  # learned afresh in each segment (a mode's time scale is its own)
             refiner = Refiner(values, watches, lambda tt: x, opts.refine_depth, mode, run.unresolved, rates,
                               opts.event_tol, t)
@@ -755,7 +520,7 @@ def _flow_segment(run: _Run, opts: _Options, mode: str, jump: int, t: float, x: 
                           failure=failure, resolution=resolution, disarmed=disarmed, end=tuple([float(c) for c in states[-1]]))
 
 
-def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
+def _resolve(run: ModelCalls, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
              max_jumps: int, located: _SegmentResult | None = None) -> Instant:
     """The instant at ``t``: :func:`hybrid.instant.settle_instant` on the system's output, guards and jump maps.
 
@@ -807,7 +572,7 @@ def _resolve(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mappi
                           where=lambda state: f"x = {_fmt(state)}")
 
 
-def _disarmed_after(run: _Run, instant: Instant, located: _SegmentResult) -> frozenset[str]:
+def _disarmed_after(run: ModelCalls, instant: Instant, located: _SegmentResult) -> frozenset[str]:
     """Crossing guards disarmed for the next flow: those crossed at ``instant`` and those still disarmed before it.
 
     A crossing guard enabled at the instant's first jump (the winner and the
@@ -822,7 +587,7 @@ def _disarmed_after(run: _Run, instant: Instant, located: _SegmentResult) -> fro
     return still_disarmed(located.watches, located.event.left_values, located.disarmed).union(crossed_now)
 
 
-def _landing_error(run: _Run, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
+def _landing_error(run: ModelCalls, mode: str, t: float, x: tuple[float, ...], memory: Mapping[str, float],
                    last: str | None) -> ExecutionError | None:
     """An error when the instant ends outside the invariant of its mode (beyond ``invariant_tol``)."""
     inv = run.invariant(mode, run.signals(mode, t, x), memory, t, x)
@@ -937,7 +702,7 @@ def _after_jumps(book: _Book, t: float, max_jumps: int, zeno: str, chatter_windo
     return False
 
 
-def _event_outcome(run: _Run, result: _SegmentResult, mode: str) -> tuple[str, str] | None:
+def _event_outcome(run: ModelCalls, result: _SegmentResult, mode: str) -> tuple[str, str] | None:
     """A termination decided by the event itself (a stop function reached zero), or ``None``."""
     event = result.event
     assert event is not None
@@ -947,7 +712,7 @@ def _event_outcome(run: _Run, result: _SegmentResult, mode: str) -> tuple[str, s
     return None
 
 
-def _deadlock_detail(run: _Run, result: _SegmentResult, mode: str) -> str:
+def _deadlock_detail(run: ModelCalls, result: _SegmentResult, mode: str) -> str:
     event = result.event
     assert event is not None
     names = [result.watches[k].name for k in result.on if result.watches[k].role == "invariant"]
@@ -1090,7 +855,7 @@ def simulate_continuous(
     opts = _Options(method=method, rtol=rtol, atol=atol, max_step=max_step, event_tol=event_tol,
                     sign_checks=sign_checks, refine_depth=refine_depth, max_steps=max_steps, dense=dense, t_end=float(t0) + float(duration),
                     closed_form=closed_form)
-    run = _Run(system, dict(stops or {}), invariant_tol)
+    run = ModelCalls(system, dict(stops or {}), invariant_tol)
     book = _Book(zeno_interval if zeno_interval is not None else 1e-6 * float(duration))
     t = float(t0)
     instant = _resolve(run, mode, t, x, memory, max_jumps_per_instant)

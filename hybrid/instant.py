@@ -292,7 +292,7 @@ def settle_instant(
         if not enabled:
             return Instant(mode, state, frozen, tuple(jumps))
         winner, g = enabled[0]
-        tied = [t.name for t, _ in enabled[1:] if t.priority == winner.priority]
+        tied = [t.name for t, _ in enabled[1:] if t.priority == winner.priority] if len(enabled) > 1 else []
         if tied and ties == "raise":
             raise _tie_error(mode, [winner.name, *tied], winner.priority, time,
                              "" if where is None else f", {where(state)}")
@@ -305,7 +305,7 @@ def settle_instant(
         after = MappingProxyType(dict(new_memory))
         jumps.append(InstantJump(
             transition=winner, source=mode, target=winner.target, state_before=state, state_after=new_state,
-            memory_before=frozen, memory_after=after, enabled=tuple(t.name for t, _ in enabled),
+            memory_before=frozen, memory_after=after, enabled=tuple([t.name for t, _ in enabled]),
             tied=tuple(tied), guard_value=g,
         ))
         mode, state, frozen = winner.target, new_state, after

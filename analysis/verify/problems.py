@@ -61,7 +61,8 @@ __all__ = [
 ]
 
 
-def _grid(t_start: float, t_end: float, step_times: np.ndarray, period: float | None) -> np.ndarray:
+def _grid(t_start: float, t_end: float, step_times: np.ndarray, period: float | None) -> np.ndarray | list[float]:
+    """The sample times of a segment: its step points, or (``period``) a uniform grid and both ends, as a list."""
     if period is None or t_end <= t_start:
         return step_times
     grid = [t_start]  # t_start + period * i in plain floats: the same IEEE products and sums as numpy's
@@ -70,7 +71,7 @@ def _grid(t_start: float, t_end: float, step_times: np.ndarray, period: float | 
         if t < t_end:
             grid.append(t)
     grid.append(t_end)
-    return np.array(grid)
+    return grid
 
 
 def trace_from_trajectory(
@@ -101,18 +102,18 @@ def trace_from_trajectory(
         Signals: the state names, the memory names (constant on a segment), the
         system's variables (when given and not states); label ``mode``.
     """
-    times: list[np.ndarray] = []
+    times: list[np.ndarray | list[float]] = []
     states: list[np.ndarray | None] = []
     modes: list[str] = []
     jumps: list[int] = []
-    pieces: list[tuple[int, FlowSegment, np.ndarray]] = []  # (chunk, segment, grid): sampled at the end, together
+    pieces: list[tuple[int, FlowSegment]] = []  # (chunk, segment): sampled on its grid at the end, together
     memory_chunks: list[Mapping[str, float] | None] = []
 
-    def add(t: np.ndarray, x: np.ndarray | None, mode: str, jump: int, mem: Sequence[tuple[str, float]] | None
-            ) -> None:
+    def add(t: np.ndarray | list[float], x: np.ndarray | None, mode: str, jump: int,
+            mem: Sequence[tuple[str, float]] | None) -> None:
         times.append(t)
         states.append(x)
-        modes.extend([mode] * t.size)
+        modes.extend([mode] * len(t))
         jumps.append(jump)
         memory_chunks.append(None if mem is None else dict(mem))
 
@@ -130,23 +131,29 @@ def trace_from_trajectory(
             pending += 1
         t = _grid(seg.t_start, seg.t_end, seg.times, sample_period)
         if t is not seg.times:
-            pieces.append((len(states), seg, t))
+            pieces.append((len(states), seg))
         add(t, seg.states if t is seg.times else None, seg.mode, seg.jump, seg.memory)
     for e in events[pending:]:
         if e.jump not in covered:
             add(np.array([e.time]), np.array([e.state_after], dtype=float), e.target, e.jump, e.memory)
-    for (k, _, _), x in zip(pieces, sample_segments([(seg, t) for _, seg, t in pieces])):
+    sizes = [len(t) for t in times]
+    flat: list[float] = []
+    for t in times:  # one array of all the times (the grids are lists: one conversion, not one per segment)
+        flat.extend(t if t.__class__ is list else t.tolist())
+    t_all = np.array(flat, dtype=float)
+    starts = np.cumsum([0, *sizes]).tolist()
+    grids = [t_all[starts[k]:starts[k + 1]] for k, _ in pieces]
+    for (k, _), x in zip(pieces, sample_segments([(seg, t) for (_, seg), t in zip(pieces, grids)])):
         states[k] = x
-    t_all = np.concatenate(times)
     x_all = np.concatenate(states)  # type: ignore[arg-type]
     signals = {name: x_all[:, i] for i, name in enumerate(trajectory.state_names)}
-    signals.update(_memory_signals(memory_chunks, [t.size for t in times], exclude=signals))
+    signals.update(_memory_signals(memory_chunks, sizes, exclude=signals))
     if system is not None and system.output is not None:
         values = np.array([system.output(float(ti), tuple(xi)) for ti, xi in zip(t_all, x_all)], dtype=float)
         for i, name in enumerate(system.automaton.variables):
             if name not in signals:
                 signals[name] = values[:, i]
-    counter = np.repeat(np.array(jumps, dtype=int), [t.size for t in times])
+    counter = np.repeat(np.array(jumps, dtype=int), sizes)
     said, why = (None, "") if final_stops is None else _end_words(
         float(t_all[-1]), trajectory.termination, getattr(trajectory, "detail", ""), final_stops)
     return SignalTrace(times=t_all, signals=signals, labels={"mode": tuple(modes)}, jumps=counter, termination=said,
