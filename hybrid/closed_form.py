@@ -592,18 +592,19 @@ def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], wat
 def closed_form_switch(solver: Any, values: Callable[[float, tuple[float, ...]], list[float]],
                        watches: Sequence[Any], phi: list[float], *, outgoing: Sequence[Any], invariant: Any,
                        memory: Mapping[str, float], system: Any, stops: bool, max_step: float,
-                       event_tol: float) -> ScalarSwitch | None:
+                       event_tol: float, forms: Any = None) -> ScalarSwitch | None:
     """The end of a segment on the closed form (:func:`scalar_switch`) where it applies, else ``None``.
 
     It applies to a :class:`ClosedFormSolver` of a one-state mode whose watches (``phi``, their values at the
     start) are the affine guards of ``outgoing`` and the affine ``invariant`` of the state itself: the
     ``system`` has no output map, the run no stop function (``stops``) and no ``max_step`` (a step limit
-    asks for the steps).  ``None``: the executor steps and searches as usual.
+    asks for the steps).  ``None``: the executor steps and searches as usual.  ``forms``: what
+    :func:`scalar_watch_forms` gives for them, when the caller has it.
     """
     if not (isinstance(solver, ClosedFormSolver) and solver.propagator.x0.size == 1 and watches and not stops
             and system.output is None and max_step == math.inf):
         return None
-    forms = scalar_watch_forms(outgoing, invariant, memory)
+    forms = scalar_watch_forms(outgoing, invariant, memory) if forms is None else forms
     if forms is None or len(forms) != len(watches):
         return None
     return scalar_switch(values, watches, phi, solver, solver.flow, forms, event_tol)

@@ -450,7 +450,8 @@ def _flow_segment(run: ModelCalls, opts: _Options, mode: str, jump: int, t: floa
                                        rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step))
         found = (closed_form_switch(solver, values, watches, phi_old, outgoing=run.outgoing[mode], memory=seg_memory,
                                     invariant=run.invariants[mode], system=run.system, stops=bool(run.stops),
-                                    max_step=opts.max_step, event_tol=opts.event_tol)
+                                    max_step=opts.max_step, event_tol=opts.event_tol,
+                                    forms=run.watch_forms(mode, seg_memory) if affine.route[0] == "scalar" else None)
                  if affine is not None and steps_before < opts.max_steps else None)
         if found is not None:  # one piece of the exact solution, its event found on the closed form
             event, on = found.event(watches)

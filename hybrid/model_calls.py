@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .closed_form import AffineFlow, affine_flow
+from .closed_form import AffineFlow, affine_flow, scalar_watch_forms
 from .errors import DivergenceError, NumericalFailure
 from .events import UnresolvedLog, Watch
 from .model import Transition, not_a_number
@@ -58,6 +58,7 @@ class ModelCalls:
         self.watch_sets: dict[str, tuple[Watch, ...]] = {}  # per mode, see watches()
         self.direct: dict[int, Callable[..., Any]] = {}  # id of a guard or invariant -> direct_function of it
         self.affine_flows: dict[str, AffineFlow | None] = {}  # per mode, see affine()
+        self.forms: dict[str, Any] = {}  # per mode, see watch_forms()
         self.guard_sets: dict[int, Any] = {}  # id of a watch tuple -> (it, guard_watches of it)
 
     def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
@@ -161,6 +162,15 @@ class ModelCalls:
         if hit is self:
             hit = self.affine_flows[mode] = affine_flow(self.system.flows[mode], self.system.dimension, memory)
         return hit  # type: ignore[return-value]
+
+    def watch_forms(self, mode: str, memory: Mapping[str, float]) -> Any:
+        """:func:`hybrid.closed_form.scalar_watch_forms` of ``mode`` (looked up once per mode without memory)."""
+        if memory:
+            return scalar_watch_forms(self.outgoing[mode], self.invariants[mode], memory)
+        hit = self.forms.get(mode, self)
+        if hit is self:
+            hit = self.forms[mode] = scalar_watch_forms(self.outgoing[mode], self.invariants[mode], memory)
+        return hit
 
     def guard_watches(self, watches: tuple[Watch, ...]) -> tuple[list[tuple[int, int, float]], bool]:
         """``(k, id of the transition, sign of phi)`` of the guard watches, and whether one is a crossing."""
