@@ -22,6 +22,10 @@ Prints, per model, the median CPU time per simulation of each path (``time.proce
 shared), the ratio, and how far the two agree: the largest difference of the jump times and of the sampled
 signals, and the robustness of each requirement (the verdicts must be the same).  ``--quick``: fewer points
 and rounds (the test suite runs it).
+
+Then the throughput of the ARCH-COMP automatic transmission (``examples/arch/autotrans.py``, every AT problem,
+its own simulator: a fixed-step integration between the shift logic's ticks): simulations per second of CPU
+(one core), on the same seeded points; issue 29 asks for at least 20.
 """
 
 from __future__ import annotations
@@ -65,6 +69,29 @@ def cases() -> dict[str, VerificationProblem]:
     """The benchmarked problems by name."""
     return {"thermostat": load_problem(str(ROOT / "examples" / "thermostat.py") + ":problem"),
             "bouncing ball": ball_problem()}
+
+
+AT_PROBLEMS = ("at1", "at2", "at51", "at52", "at53", "at54", "at6a", "at6b", "at6c")
+"""The AT problems of ``examples/arch/autotrans.py`` (horizons 10 to 32.6 s)."""
+
+
+def at_throughput(count: int, rounds: int) -> dict[str, Any]:
+    """Median CPU seconds per simulation of each AT problem over ``count`` seeded points; the slowest's rate."""
+    per: dict[str, float] = {}
+    for name in AT_PROBLEMS:
+        problem = load_problem(str(ROOT / "examples" / "arch" / "autotrans.py") + ":" + name)
+        pts = points(problem, count)
+        problem.simulate(pts[0])  # warm
+        samples = []
+        for _ in range(rounds):
+            start = time.process_time()
+            for point in pts:
+                problem.simulate(point)
+            samples.append((time.process_time() - start) / len(pts))
+        per[name] = statistics.median(samples)
+    slowest = max(per, key=per.__getitem__)
+    return {"seconds": per, "slowest": slowest,
+            "sims_per_s": 1.0 / per[slowest] if per[slowest] > 0 else float("inf")}
 
 
 def points(problem: VerificationProblem, count: int, seed: int = SEED) -> list[dict[str, float]]:
@@ -127,7 +154,7 @@ def measure(problem: VerificationProblem, count: int, rounds: int) -> dict[str, 
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, Any]]:
-    """Run the benchmark, print the table, return the figures by model."""
+    """Run the benchmark, print the table, return the figures by model (and ``"AT"``: :func:`at_throughput`)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 points, 3 rounds (the test suite's run)")
     parser.add_argument("--points", type=int, default=None, help="points per round (default 10; quick 3)")
@@ -145,6 +172,12 @@ def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, Any]]:
         print(f"{name:<14} {1e3 * r['numerical_s']:>10.3f} {1e3 * r['closed_form_s']:>12.3f} {r['ratio']:>6.1f}x  "
               f"{r['jump_times']:>10.2e} {r['signals']:>9.2e} {r['robustness']:>9.2e}  "
               f"{'same' if r['same_verdicts'] and r['same_jump_counts'] else 'DIFFER'}")
+    at = at_throughput(count, rounds)
+    results["AT"] = at
+    print(f"AT (examples/arch/autotrans.py, {len(AT_PROBLEMS)} problems, CPU ms per simulation): "
+          + ", ".join(f"{name} {1e3 * sec:.2f}" for name, sec in at["seconds"].items()))
+    print(f"AT throughput: {at['sims_per_s']:.1f} simulations/s/core (the slowest, {at['slowest']}; "
+          f"issue 29 asks >= 20)")
     return results
 
 

@@ -20,8 +20,12 @@ def test_quick_benchmark_agrees_and_the_closed_form_is_cheaper(capsys):
     results = bench.main(["--quick"])
     out = capsys.readouterr().out
     assert "thermostat" in out and "bouncing ball" in out and "ratio" in out
-    for name, r in results.items():
+    for name in ("thermostat", "bouncing ball"):
+        r = results[name]
         assert r["same_verdicts"] and r["same_jump_counts"], name
         assert r["jump_times"] < 1e-6 and r["signals"] < 1e-6 and r["robustness"] < 1e-6, (name, r)
         assert r["numerical_s"] > 0 and r["closed_form_s"] > 0
     assert results["thermostat"]["ratio"] > 2.0, results["thermostat"]
+    at = results["AT"]  # issue 29 asks >= 20 simulations/s/core; the bound here is loose (a shared machine)
+    assert set(at["seconds"]) == set(bench.AT_PROBLEMS) and all(s > 0 for s in at["seconds"].values())
+    assert "AT throughput" in out and at["sims_per_s"] > 5.0, at
