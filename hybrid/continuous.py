@@ -111,6 +111,8 @@ StopFunction = Callable[[float, Sequence[float], str, Mapping[str, float]], floa
 _ZENO_WINDOW = 10
 """Intervals fitted by the accumulation test."""
 
+_NONE: frozenset[str] = frozenset()
+
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class HybridEvent:
@@ -439,7 +441,7 @@ def _flow_segment(run: ModelCalls, opts: _Options, mode: str, jump: int, t: floa
     values = run.evaluator(watches, mode, seg_memory)  # watches: armed below, the same roles and order
     if t < opts.t_end:
         phi_old = values(t, x)
-        watches = arm_watches(watches, phi_old, disarmed)
+        watches = arm_watches(watches, phi_old, disarmed) if run.crossing_names else watches
     refiner = None
     resolution = 0.0
     run.last_point = (t, x)
@@ -582,7 +584,7 @@ def _disarmed_after(run: ModelCalls, instant: Instant, located: _SegmentResult) 
     One disarmed before and not yet strictly below stays disarmed.
     """
     if not run.crossing_names:
-        return frozenset()
+        return _NONE
     crossed_now = (n for n in instant.jumps[0].enabled if n in run.crossing_names) if instant.jumps else ()
     assert located.event is not None
     return still_disarmed(located.watches, located.event.left_values, located.disarmed).union(crossed_now)
@@ -889,7 +891,7 @@ def simulate_continuous(
             if book.segments[-1].jump != book.j:
                 book.point_segment(mode, t, x, memory)
             break
-        outcome = _event_outcome(run, result, mode)
+        outcome = _event_outcome(run, result, mode) if result.on else None
         if outcome is not None:
             book.end(*outcome)
             break

@@ -59,6 +59,7 @@ class ModelCalls:
         self.direct: dict[int, Callable[..., Any]] = {}  # id of a guard or invariant -> direct_function of it
         self.affine_flows: dict[str, AffineFlow | None] = {}  # per mode, see affine()
         self.forms: dict[str, Any] = {}  # per mode, see watch_forms()
+        self.evaluators: dict[str, Any] = {}  # per mode, see evaluator()
         self.guard_sets: dict[int, Any] = {}  # id of a watch tuple -> (it, guard_watches of it)
 
     def diverged(self, err: NumericalFailure, mode: str, t: float, x: Sequence[float]) -> DivergenceError:
@@ -184,7 +185,19 @@ class ModelCalls:
 
     def evaluator(self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float]
                   ) -> Callable[[float, Sequence[float]], list[float]]:
-        """``values(t, x)``: :meth:`values` of ``watches`` in ``mode`` with ``memory``, the fast pass bound once."""
+        """``values(t, x)``: :meth:`values` of ``watches`` in ``mode`` with ``memory``, the fast pass bound once
+        (once per mode when the automaton has no memory)."""
+        if not memory and not self.automaton.memory:
+            known = self.evaluators.get(mode)
+            if known is not None and known[0] is watches:
+                return known[1]
+            values = self._evaluator(watches, mode, {})
+            self.evaluators[mode] = (watches, values)
+            return values
+        return self._evaluator(watches, mode, memory)
+
+    def _evaluator(self, watches: Sequence[Watch], mode: str, memory: Mapping[str, float]
+                   ) -> Callable[[float, Sequence[float]], list[float]]:
         compiled = self.compiled.get(mode, self) if not self.stops else None
         if compiled is self:
             compiled = self.compiled[mode] = watch_function(self.outgoing[mode], self.invariants[mode])
