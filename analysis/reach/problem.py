@@ -172,6 +172,12 @@ def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: f
     scale = setup.scale
     tau_end = _up(Fraction(end) * scale)
     tau_step = min(float(Fraction(step) * scale), tau_end)
+    scaled = f"on the model's time scale (τ = {setup.scale_text or 1}·t, at most {float(scale):g}·t)"
+    if not math.isfinite(tau_end):  # refused in the user's values, not the scaled ones
+        raise ReachError("horizon", end, f"a horizon that stays finite {scaled}", "give a shorter horizon")
+    if not tau_step > 0.0:
+        raise ReachError("time_step", step, f"a step 0 < time_step <= horizon = {end:g} [s] that stays > 0 {scaled}",
+                         f"give e.g. time_step = {end / 1000.0:g}")
     out = []
     for i, (mode, box) in enumerate(starts):
         report = None if progress is None else (

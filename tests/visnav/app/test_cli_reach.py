@@ -148,3 +148,27 @@ def test_a_model_that_is_not_symbolic_is_bad_input_with_what_to_write(spec, caps
 def test_a_missing_problem_is_bad_input(tmp_path, capsys):
     code, _, err = _run(capsys, "reach", "--problem", f"{tmp_path / 'nope.py'}:problem")
     assert code == 2 and "nope.py" in err and "Traceback" not in err
+
+
+THERMOSTAT = str(__import__("pathlib").Path(__file__).resolve().parents[3] / "examples" / "thermostat.py") + ":problem"
+
+
+@pytest.mark.parametrize("extra, horizon", [((), "120"), (("--horizon", "60"), "60")])
+def test_a_step_lost_on_the_time_scale_is_refused_as_typed(capsys, extra, horizon):
+    """The thermostat runs on τ = rate·t (rate <= 0.2): 5e-324 s × 0.2 rounds to 0.  The message names the
+    step the user typed and the horizon the user gave (or the problem's), never the scaled ones."""
+    code, _, err = _run(capsys, "reach", "--time-step", "5e-324", *extra, "--problem", THERMOSTAT)
+    assert code == 2 and "Traceback" not in err
+    assert "--time-step 5e-324:" in err and f"--horizon {horizon} [s]" in err
+    assert "--time-step 0.0:" not in err and "24.000000000000004" not in err and "time_step =" not in err
+
+
+def test_the_library_refuses_the_step_in_the_users_values():
+    from analysis.reach.initial import ReachError
+    from analysis.reach.problem import problem_reach
+    from analysis.verify.loading import load_problem
+
+    with pytest.raises(ReachError) as caught:
+        problem_reach(load_problem(THERMOSTAT), time_step=5e-324)
+    assert caught.value.parameter == "time_step" and caught.value.value == 5e-324
+    assert "horizon = 120 [s]" in caught.value.expected and "0.2·t" in caught.value.expected
