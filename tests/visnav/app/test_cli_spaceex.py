@@ -76,6 +76,26 @@ def test_check_model_problem_on_the_ball_is_incomplete_without_a_box(tmp_path):
     assert "unreachable" in json.dumps(data)
 
 
+BUILDING = DATA / "arch2017" / "Building" / "SpaceEx"
+
+
+def test_check_model_problem_on_the_building_is_a_finding_and_says_what_did_not_run(tmp_path):
+    """The building's one location ``Model`` has no outgoing transition: the graph checks find a sink mode (a
+    warning, a finding: exit 1 by the contract, which a decided finding takes over the checks that could not
+    run), and the summary still lists the state-space checks that did not run (no box): never clean."""
+    proc = visnav("check-model", "--problem", BUILDING / "BLDC01.xml", "--config", BUILDING / "BLDC01-BDS01.cfg",
+                  "--json", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    data = json.loads(proc.stdout)
+    assert [(f["kind"], f["severity"]) for f in data["findings"]] == [("sink_mode", "warning")]
+    assert not data["complete"] and not data["clean"]
+    assert {line.split()[0] for line in data["incomplete"]} == {
+        "nondeterminism", "deadlock", "reset_outside_invariant", "reset_retriggers", "zeno"}
+    text = visnav("check-model", "--problem", BUILDING / "BLDC01.xml", "--config", BUILDING / "BLDC01-BDS01.cfg",
+                  cwd=tmp_path)
+    assert text.returncode == 1 and "1 warning(s); INCOMPLETE" in text.stdout and "sink_mode" in text.stdout
+
+
 def test_config_without_a_spaceex_model_is_refused(tmp_path):
     proc = visnav("verify", "paper", "--config", SAFE, "--budget", 1, cwd=tmp_path)
     assert proc.returncode == 2 and "drop --config" in proc.stderr and "Traceback" not in proc.stderr
