@@ -561,6 +561,12 @@ class Explanation:
         Robustness of ``atom`` at ``index``.
     signals : frozenset of str
         Numeric signals and labels ``atom`` reads.
+    window : tuple of float or None
+        ``(a, b)`` [s], the samples' times of the window of the first ``eventually`` (``once``; an ``always`` or
+        ``historically`` under a negation) the explanation descends through: ``time`` is then that operator's
+        *best* instant, where its operand came closest, not a violation instant; with a negative robustness the
+        operand is reached nowhere in ``[a, b]``.  ``None``: no such operator on the way (``time`` is where the
+        robustness is lowest).
     """
 
     index: int
@@ -568,6 +574,7 @@ class Explanation:
     atom: str
     value: float
     signals: frozenset[str]
+    window: tuple[float, float] | None = None
 
 
 def _step(ev: _Robustness, node: object, i: int) -> tuple[object, int] | None:
@@ -754,10 +761,16 @@ class Formula:
         ev = _Robustness(trace, self.text)
         node, i = self.tree, int(index)
         ev.value(node)
+        negated, window = False, None
         while (step := _step(ev, node, i)) is not None:
+            if window is None and isinstance(node, Temporal) and (node.op in _MIN_OPS) == negated:  # an argmax
+                lo, hi = (int(w[i]) for w in ev.window(node.interval, node.op in _PAST_OPS))
+                window = (float(trace.times[lo]), float(trace.times[hi]))
+            if isinstance(node, Not) or (isinstance(node, Implies) and step[0] is node.left):
+                negated = not negated
             node, i = step
         return Explanation(index=i, time=float(trace.times[i]), atom=canonical(node), value=float(ev.value(node)[i]),
-                           signals=signals_of(node) | labels_of(node))
+                           signals=signals_of(node) | labels_of(node), window=window)
 
 
 def parse_formula(text: str, *, signals: Collection[str] | None = None,

@@ -75,6 +75,10 @@ class Counterexample:
         The atomic comparison that decides it there.
     atom_value : float
         That atom's robustness at that instant.
+    window : tuple of float or None
+        ``(a, b)`` [s] when ``time`` is the best instant of an ``eventually`` (:attr:`analysis.stl.Explanation.window`):
+        the requirement was never reached within ``[a, b]``, and came closest at ``time``; ``None``: ``time`` is
+        where it is violated most.
     """
 
     unit: tuple[float, ...]
@@ -86,6 +90,7 @@ class Counterexample:
     atom: str
     atom_value: float
     first_time: float | None = None
+    window: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -255,7 +260,7 @@ def _counterexample(problem: VerificationProblem, search: Search, r: int, unit: 
     why = formula.explain(trace)
     return Counterexample(unit=unit, point=problem.point(unit), robustness=e.outcome.robustness[r],
                           evaluation=e.index, how=how, time=float(why.time), atom=str(why.atom),
-                          atom_value=float(why.value), first_time=formula.first_violation(trace))
+                          atom_value=float(why.value), first_time=formula.first_violation(trace), window=why.window)
 
 
 def _proofs(problem: VerificationProblem) -> dict[str, Proof]:

@@ -332,7 +332,9 @@ def _human(result: Any, written: Mapping[str, str], resumed: int, spec: str) -> 
         if r.counterexample is not None:
             cx = r.counterexample
             first = "" if cx.first_time is None else f"first violated at t = {cx.first_time:.4g} s, "
-            line += (f"  {first}lowest at t = {cx.time:.4g} s ({cx.atom}); replay: "
+            where = (f"lowest at t = {cx.time:.4g} s" if cx.window is None else
+                     f"never reached within [{cx.window[0]:.4g}, {cx.window[1]:.4g}] s, closest at t = {cx.time:.4g} s")
+            line += (f"  {first}{where} ({cx.atom}); replay: "
                      f"{replay_command(written.get(r.name), spec)}")
         elif r.lowest_at and r.verdict != "proven":
             line += "  lowest at " + ", ".join(f"{k}={v:.4g}" for k, v in r.lowest_at.items())

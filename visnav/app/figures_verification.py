@@ -277,8 +277,10 @@ def _panel(ax: plt.Axes, trace: SignalTrace, panel: RequirementPanel) -> list[Pa
         _label_step(ax, trace, x, sorted(formula.labels)[0])
     where = float(x[why.index]) if by_index else time
     text = f"at t = {time:.4g} s" + (f" (sample {why.index})" if by_index else "") + f": {_short(atom)}"
-    if panel.violated:
-        ax.axvline(where, color="tab:red", lw=1.6, label=f"violated {text}")
+    if panel.violated:  # an eventually's instant is where it came closest, not where it is violated
+        said = "violated" if why.window is None else (
+            f"never reached within [{why.window[0]:.4g}, {why.window[1]:.4g}] s; closest")
+        ax.axvline(where, color="tab:red", lw=1.6, label=f"{said} {text}")
     else:
         ax.axvline(where, color="0.35", lw=1.0, ls=":", label=f"decided {text}")
     rho = float(formula.robustness(trace)) + 0.0  # no "-0"

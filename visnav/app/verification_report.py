@@ -215,11 +215,21 @@ def _coverage_share(result: Any) -> float | None:
     return min(hits) if hits else None
 
 
+def _where(cx: Any) -> str:
+    """Where a counterexample is decided, in words: the instant it is violated most, or for an ``eventually`` the
+    window in which it was never reached and the instant it came closest (``cx.window``)."""
+    if getattr(cx, "window", None) is None:
+        return f"violated at t = {_number(cx.time, 'time')} s by `{cx.atom.strip()}`"
+    a, b = cx.window
+    return (f"never reached within [{_number(a, 'time')}, {_number(b, 'time')}] s; closest at t = "
+            f"{_number(cx.time, 'time')} s by `{cx.atom.strip()}`")
+
+
 def _evidence(verdict: Any, result: Any, problem: Any) -> str:
     """One sentence of evidence for a requirement's verdict."""
     cx, proof = verdict.counterexample, verdict.proof
     if cx is not None:
-        return (f"violated at t = {_number(cx.time, 'time')} s by `{cx.atom.strip()}` = {_number(cx.atom_value)} "
+        return (f"{_where(cx)} = {_number(cx.atom_value)} "
                 f"(simulation {cx.evaluation}; {cx.how}) at {_point_text(cx.point, problem)}")
     if verdict.verdict == "proven":
         return f"{proof.method}: {proof.evidence}"
@@ -244,8 +254,8 @@ def _requirement_claim(verdict: Any, result: Any, problem: Any, file: str | None
         cx = verdict.counterexample
         return Claim(section=section, status="measured",
                      text=(f"requirement {verdict.name} {label}: robustness {_number(cx.robustness)} at "
-                           f"{_point_text(cx.point, problem)}, violated at t = {_number(cx.time, 'time')} s by "
-                           f"`{cx.atom.strip()}`; replay with `{replay_command(file, spec)}`"))
+                           f"{_point_text(cx.point, problem)}, {_where(cx)}; replay with "
+                           f"`{replay_command(file, spec)}`"))
     share = _coverage_share(result)
     return Claim(section=section, status="sampled",
                  text=(f"requirement {verdict.name} {label} in {verdict.simulations} simulations (method "

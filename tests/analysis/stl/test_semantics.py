@@ -143,7 +143,32 @@ def test_rise_and_fall_at_a_jump_sit_on_its_later_side():
     f = parse_formula('eventually[0, 2] rise(mode == "B")')
     assert f.satisfied_signal(JUMP).tolist() == [True, True, True, False]
     assert f.explain(JUMP) == Explanation(index=2, time=1.0, atom='(mode == "B")', value=INF,
-                                          signals=frozenset({"mode"}))
+                                          signals=frozenset({"mode"}), window=(0.0, 2.0))
+
+
+RAMP = SignalTrace(times=np.arange(11.0), signals={"x": 5.0 - np.abs(np.arange(11.0) - 3.0)})  # peak 5 at t = 3
+
+
+@pytest.mark.parametrize("text, time, window", [
+    ("eventually[0, 9] x >= 6", 3.0, (0.0, 9.0)),          # never reached: the best instant, where x peaks
+    ("eventually[2, 20] x >= 6", 3.0, (2.0, 10.0)),        # the window clipped to the trace
+    ("not always[0, 9] x <= 5", 3.0, (0.0, 9.0)),          # = eventually x > 5 (the atom negated: its lowest)
+    ("(always[0, 9] x < 6) -> false", 3.0, (0.0, 9.0)),    # an implication's antecedent is negated (its lowest)
+    ("always[0, 9] x >= 0", 9.0, None),                    # the worst instant: a violation
+    ("not eventually[0, 9] x >= 4", 3.0, None),            # = always x < 4: violated most at the peak
+    ("always[0, 2] eventually[0, 3] x >= 6", 3.0, (0.0, 3.0)),  # the eventually at the always's worst instant 0
+])
+def test_explain_says_when_its_instant_is_an_eventuallys_best_one(text, time, window):
+    """``x = 5 - |t - 3|``: an ``eventually`` that fails is explained at its best instant, with its window (the
+    operand is reached nowhere in it); an ``always`` at its worst instant, without one."""
+    why = parse_formula(text).explain(RAMP)
+    assert (why.time, why.window) == (time, window)
+    rho = parse_formula(text).robustness(RAMP)
+    assert abs(why.value) == abs(rho)  # the atom decides the robustness (negated or not on the way)
+    if window is not None:  # the closest instant of the window: the atom's best there, or its worst when negated
+        a, b = window
+        atom = parse_formula(why.atom).robustness_signal(RAMP)[(RAMP.times >= a) & (RAMP.times <= b)]
+        assert why.value == (min(atom) if text.startswith(("not", "(")) else max(atom))
 
 
 def test_label_atoms_use_star_and_question_mark_wildcards_only():

@@ -367,3 +367,33 @@ def test_a_falsified_problem_keeps_its_verdict_and_names_its_structural_errors(z
     assert data["structural_errors"]["count"] >= 1 and data["structural_errors"]["kinds"] == ["reset_retriggers"]
     md, _ = _documents(report)
     assert "Overall verdict: FALSIFIED (exit code 1); the structural checks found" in md
+
+
+NEVER_REACHED = USER_PROBLEM.replace(
+    'requirements=(Requirement(name="positive", formula="always[0, 3] (x > 0)", description="x stays positive"),\n'
+    '                  Requirement(name="bounded", formula="always[0, 3] (x <= 1.5)", description="x stays below 1.5")))',
+    'requirements=(Requirement(name="settles", formula="eventually[0, 3] (x <= 0.01)", description="x settles"),))')
+
+
+def test_an_eventually_never_reached_says_so_and_where_it_came_closest(tmp_path):
+    """``eventually[0, 3] x <= 0.01`` on x' = -x, x0 in [0.5, 2]: x(t) = x0 e^-t >= 0.5 e^-3 = 0.0249 > 0.01, never
+    reached; it comes closest at the window's end, t = 3, where ``0.01 - x`` = 0.01 - x0 e^-3 (closed form)."""
+    assert "settles" in NEVER_REACHED
+    path = tmp_path / "settle.py"
+    path.write_text(textwrap.dedent(NEVER_REACHED))
+    problem = load_problem(f"{path}:problem")
+    report = build_problem_report(problem, spec=f"{path}:problem", seed=0, budget=BUDGET, quick=True)
+    row = {r["name"]: r for r in report.data["verification"]["requirements"]}["settles"]
+    cx = row["counterexample"]
+    assert row["verdict"] == "falsified" and cx["window"] == [0.0, 3.0] and cx["time"] == 3.0
+    x0 = cx["point"]["x0"]
+    # the report rounds to 6 significant digits (half a unit: 5e-8 at 0.0398), RK45 at rtol 1e-10 adds < 1e-9
+    assert abs(cx["atom_value"] - (0.01 - x0 * __import__("math").exp(-3.0))) < 6e-8
+    assert row["evidence"].startswith("never reached within [0, 3] s; closest at t = 3 s by `(x <= 0.01)` = ")
+    assert "violated at t" not in row["evidence"]
+    claim = next(c for c in report.data["claims"] if c["status"] == "measured" and "settles" in c["text"])
+    assert "never reached within [0, 3] s; closest at t = 3 s" in claim["text"]
+    ax = report.figures["verification_counterexample_settles"].axes[0]
+    (mark,) = [line for line in ax.get_lines() if line.get_color() == "tab:red"]
+    assert str(mark.get_label()).startswith("never reached within [0, 3] s; closest at t = 3 s")
+
