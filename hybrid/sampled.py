@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -39,8 +39,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .errors import DivergenceError, ExecutionError, NumericalFailure, ParameterError, ZenoError
-from .instant import MAX_JUMPS_PER_INSTANT, Instant, settle_instant
-from .model import HybridAutomaton
+from .instant import MAX_JUMPS_PER_INSTANT, Instant, guard_value, settle_instant
+from .model import HybridAutomaton, Transition
 from .system import call_user
 
 __all__ = [
@@ -311,11 +311,12 @@ def settle(
 
 def _sample_instant(
     outgoing: Mapping[str, tuple[Any, ...]], mode: str, memory: Mapping[str, float], v: Sequence[float],
-    previous: Sequence[float] | None, time: float, max_jumps: int,
+    previous: Sequence[float] | None, time: float, max_jumps: int, disarmed: frozenset[str] = frozenset(),
 ) -> Instant:
     """The kernel at one sample: errors carry the time and mode, Zeno raises."""
     try:
-        instant = settle_instant(outgoing, mode, v, memory, previous=previous, max_jumps=max_jumps, time=time)
+        instant = settle_instant(outgoing, mode, v, memory, previous=previous, max_jumps=max_jumps, time=time,
+                                 disarmed=disarmed)
     except ExecutionError as err:
         if str(err).startswith("non-determinism at t ="):  # the kernel's message already names both
             raise
@@ -323,6 +324,37 @@ def _sample_instant(
     if instant.zeno is not None:
         raise ZenoError(f"{instant.zeno} (simulate_sampled: max_jumps_per_sample)")
     return instant
+
+
+def _disarmed_after(transitions: Sequence[Transition], instant: Instant, v: Sequence[float],
+                   memory: Mapping[str, float], disarmed: Collection[str]) -> frozenset[str]:
+    """The crossing guards disarmed for the next sample (:mod:`hybrid.instant`: one event per crossing).
+
+    Parameters
+    ----------
+    transitions : sequence of Transition
+        The outgoing transitions of the mode the period ran in (the instant's first jump is from it).
+    instant : Instant
+        The instant settled at this sample.
+    v, memory
+        The signals at this sample and the memory the period ran with.
+    disarmed : collection of str
+        The crossing guards disarmed at this sample.
+
+    Returns
+    -------
+    frozenset of str
+        Those crossed at this instant (enabled at its first jump: the winner and the outranked), and those
+        disarmed before that are not yet strictly on their pre-crossing side (``direction · g(v) >= 0``): a
+        sample exactly on the zero, then one beyond it, is one crossing, not two.
+    """
+    crossing = {t.name: t for t in transitions if t.direction != 0}
+    if not crossing:
+        return frozenset()
+    still = {name for name in disarmed if name in crossing
+             and crossing[name].direction * guard_value(crossing[name], v, memory) >= 0.0}
+    crossed_now = {name for name in instant.jumps[0].enabled if name in crossing} if instant.jumps else set()
+    return frozenset(still | crossed_now)
 
 
 def _events(instant: Instant, time: float, sample: int, jump: int) -> list[SampledEvent]:
@@ -492,6 +524,7 @@ def simulate_sampled(
     events: list[SampledEvent] = []
     j = 0
     previous: Sequence[float] | None = None
+    disarmed: frozenset[str] = frozenset()  # crossing guards that had their crossing (_disarmed_after)
     termination = "end_time"
     t = t0
 
@@ -518,7 +551,8 @@ def simulate_sampled(
             if bad is not None:
                 raise NumericalFailure(f"signal {bad!r} is NaN")
             # --- discrete jumps at this instant -------------------------------------
-            instant = _sample_instant(outgoing, mode, memory, v, previous, t, max_jumps_per_sample)
+            instant = _sample_instant(outgoing, mode, memory, v, previous, t, max_jumps_per_sample, disarmed)
+            disarmed = _disarmed_after(outgoing[mode], instant, v, memory, disarmed)
             if instant.jumps:
                 fired = _events(instant, t, k, j)
                 events.extend(fired)
