@@ -262,6 +262,9 @@ def _first_nan(values: Sequence[float], names: Sequence[str]) -> str | None:
     return None
 
 
+_NONE: frozenset[str] = frozenset()
+
+
 def settle(
     automaton: HybridAutomaton,
     mode: str,
@@ -326,14 +329,15 @@ def _sample_instant(
     return instant
 
 
-def _disarmed_after(transitions: Sequence[Transition], instant: Instant, v: Sequence[float],
-                   memory: Mapping[str, float], disarmed: Collection[str]) -> frozenset[str]:
+def _disarmed_after(crossing: Mapping[str, Transition], instant: Instant, v: Sequence[float],
+                    memory: Mapping[str, float], disarmed: Collection[str]) -> frozenset[str]:
     """The crossing guards disarmed for the next sample (:mod:`hybrid.instant`: one event per crossing).
 
     Parameters
     ----------
-    transitions : sequence of Transition
-        The outgoing transitions of the mode the period ran in (the instant's first jump is from it).
+    crossing : Mapping[str, Transition]
+        The crossing-triggered outgoing transitions, by name, of the mode the period ran in (the instant's first
+        jump is from it).
     instant : Instant
         The instant settled at this sample.
     v, memory
@@ -348,9 +352,8 @@ def _disarmed_after(transitions: Sequence[Transition], instant: Instant, v: Sequ
         disarmed before that are not yet strictly on their pre-crossing side (``direction · g(v) >= 0``): a
         sample exactly on the zero, then one beyond it, is one crossing, not two.
     """
-    crossing = {t.name: t for t in transitions if t.direction != 0}
     if not crossing:
-        return frozenset()
+        return _NONE
     still = {name for name in disarmed if name in crossing
              and crossing[name].direction * guard_value(crossing[name], v, memory) >= 0.0}
     crossed_now = {name for name in instant.jumps[0].enabled if name in crossing} if instant.jumps else set()
@@ -513,6 +516,7 @@ def simulate_sampled(
     x = tuple(float(c) for c in x0)
     mode_index = {name: i for i, name in enumerate(automaton.mode_names)}
     outgoing = {name: automaton.outgoing(name) for name in automaton.mode_names}
+    crossing = {name: {t.name: t for t in ts if t.direction != 0} for name, ts in outgoing.items()}
     n_vars = len(automaton.variables)
     times: list[float] = []
     jumps: list[int] = []
@@ -552,7 +556,7 @@ def simulate_sampled(
                 raise NumericalFailure(f"signal {bad!r} is NaN")
             # --- discrete jumps at this instant -------------------------------------
             instant = _sample_instant(outgoing, mode, memory, v, previous, t, max_jumps_per_sample, disarmed)
-            disarmed = _disarmed_after(outgoing[mode], instant, v, memory, disarmed)
+            disarmed = _disarmed_after(crossing[mode], instant, v, memory, disarmed)
             if instant.jumps:
                 fired = _events(instant, t, k, j)
                 events.extend(fired)
