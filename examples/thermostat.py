@@ -29,6 +29,8 @@ that instant.
 
 from __future__ import annotations
 
+import functools
+
 from analysis.verify import Parameter, Requirement, VerificationProblem, hybrid_problem, min_dwell
 from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition, coordinates, flow_map
 
@@ -46,6 +48,30 @@ REQUIREMENTS = (
 )
 
 
+@functools.lru_cache(maxsize=32)
+def thermostat_automaton(band: float) -> HybridAutomaton:
+    """The thermostat's modes and switching (no flows): built, validated and compiled once per band.
+
+    The automaton does not depend on the room's rate: a problem that builds a system for every point of its
+    box (:func:`thermostat_problem`) shares it, and with it the compiled guards and invariants.
+
+    Parameters
+    ----------
+    band : float
+        Hysteresis band [°C], ``>= 0``.
+    """
+    low, high = SETPOINT_C - band / 2, SETPOINT_C + band / 2
+    v = coordinates("T")  # written once: each guard, invariant and flow gives its text, z3 form and bounds
+    return HybridAutomaton(
+        name="thermostat",
+        modes=(Mode(name="off", invariant=v.T >= low), Mode(name="on", invariant=v.T <= high)),
+        transitions=(Transition(name="heat_on", source="off", target="on", guard=v.T <= low),
+                     Transition(name="heat_off", source="on", target="off", guard=v.T >= high)),
+        variables=("T",),
+        initial_mode="off",
+    )
+
+
 def thermostat_system(band: float, rate: float) -> HybridSystem:
     """The room and its thermostat: state ``T`` [°C], modes ``off`` and ``on``.
 
@@ -56,17 +82,8 @@ def thermostat_system(band: float, rate: float) -> HybridSystem:
     rate : float
         Inverse time constant of the room [1/s].
     """
-    low, high = SETPOINT_C - band / 2, SETPOINT_C + band / 2
-    v = coordinates("T")  # written once: each guard, invariant and flow gives its text, z3 form and bounds
-    automaton = HybridAutomaton(
-        name="thermostat",
-        modes=(Mode(name="off", invariant=v.T >= low), Mode(name="on", invariant=v.T <= high)),
-        transitions=(Transition(name="heat_on", source="off", target="on", guard=v.T <= low),
-                     Transition(name="heat_off", source="on", target="off", guard=v.T >= high)),
-        variables=("T",),
-        initial_mode="off",
-    )
-    return HybridSystem(automaton=automaton, state_names=("T",),
+    v = coordinates("T")
+    return HybridSystem(automaton=thermostat_automaton(band), state_names=("T",),
                         flows={"off": flow_map(-rate * (v.T - OUTSIDE_C)), "on": flow_map(-rate * (v.T - HEATER_C))})
 
 

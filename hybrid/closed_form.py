@@ -549,7 +549,8 @@ def scalar_switch(values: Callable[[float, tuple[float, ...]], list[float]], wat
     without searching.  ``None`` (the caller runs the search instead) when rounding leaves it undecided.
     """
     prop = solver.propagator
-    t0, t_end, x0 = prop.t0, solver.t_bound, float(prop.x0[0])
+    t0, t_end = prop.t0, solver.t_bound
+    x0 = prop._scalar[2] if prop._scalar is not None else float(prop.x0[0])
     first = math.inf
     for form, phi, watch in zip(forms, phi0, watches):
         tau = _first_switch(flow, x0, form, phi, watch.kind)
