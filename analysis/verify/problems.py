@@ -33,6 +33,7 @@ True
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -141,7 +142,7 @@ def trace_from_trajectory(
     for t in times:  # one array of all the times (the grids are lists: one conversion, not one per segment)
         flat.extend(t if t.__class__ is list else t.tolist())
     t_all = np.array(flat, dtype=float)
-    starts = np.cumsum([0, *sizes]).tolist()
+    starts = list(itertools.accumulate(sizes, initial=0))
     grids = [t_all[starts[k]:starts[k + 1]] for k, _ in pieces]
     for (k, _), x in zip(pieces, sample_segments([(seg, t) for (_, seg), t in zip(pieces, grids)])):
         states[k] = x
