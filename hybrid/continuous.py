@@ -432,19 +432,18 @@ def _flow_segment(run: ModelCalls, opts: _Options, mode: str, jump: int, t: floa
     """
     seg_memory = dict(memory)
     watches = run.watches(mode, seg_memory, t, x)
+    values = run.evaluator(watches, mode, seg_memory)  # watches: armed below, the same roles and order
+    if t < opts.t_end:
+        phi_old = values(t, x)
+        watches = arm_watches(watches, phi_old, disarmed) if run.crossing_names else watches
+    run.last_point = (t, x)
     times, states, interpolants = [t], [x], []
     steps = rhs = roots = 0
     event: LocatedEvent | None = None
     on: tuple[int, ...] = ()
     failure: str | None = None
-
-    values = run.evaluator(watches, mode, seg_memory)  # watches: armed below, the same roles and order
-    if t < opts.t_end:
-        phi_old = values(t, x)
-        watches = arm_watches(watches, phi_old, disarmed) if run.crossing_names else watches
     refiner = None
     resolution = 0.0
-    run.last_point = (t, x)
     if t < opts.t_end:
         affine = run.affine(mode, seg_memory) if opts.closed_form else None
         solver = (ClosedFormSolver(affine, t, x, opts.t_end, opts.max_step, bool(watches)) if affine is not None else
@@ -541,7 +540,7 @@ def _resolve(run: ModelCalls, mode: str, t: float, x: tuple[float, ...], memory:
     disarmed: frozenset[str] = frozenset()
     if located is not None and located.event is not None:
         event = located.event
-        disarmed = still_disarmed(located.watches, event.left_values, located.disarmed)
+        disarmed = still_disarmed(located.watches, event.left_values, located.disarmed) if located.disarmed else _NONE
         v_now = run.signals(mode, t, x)
         guards, crossing = run.guard_watches(located.watches)
         if crossing:
@@ -559,10 +558,11 @@ def _resolve(run: ModelCalls, mode: str, t: float, x: tuple[float, ...], memory:
 
     def guard(tr: Transition, v: Sequence[float], m: Mapping[str, float]) -> float:
         if known and first_round[0]:
-            if v is v_now and id(tr) in known:
-                return known[id(tr)]
-            if v is v_left and v_left is not None and -id(tr) - 1 in known:
-                return known[-id(tr) - 1]
+            key = id(tr)
+            if v is v_now and key in known:
+                return known[key]
+            if v is v_left and v_left is not None and -key - 1 in known:
+                return known[-key - 1]
         return run.guard(tr, v, m, t, x)
 
     def fire(tr: Transition, state: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]
