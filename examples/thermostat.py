@@ -29,8 +29,6 @@ that instant.
 
 from __future__ import annotations
 
-import functools
-
 from analysis.verify import Parameter, Requirement, VerificationProblem, hybrid_problem, min_dwell
 from hybrid import Box, HybridAutomaton, HybridSystem, Mode, Transition, coordinates, flow_map
 
@@ -48,7 +46,9 @@ REQUIREMENTS = (
 )
 
 
-@functools.lru_cache(maxsize=32)
+_AUTOMATA: dict[float, HybridAutomaton] = {}
+
+
 def thermostat_automaton(band: float) -> HybridAutomaton:
     """The thermostat's modes and switching (no flows): built, validated and compiled once per band.
 
@@ -60,9 +60,11 @@ def thermostat_automaton(band: float) -> HybridAutomaton:
     band : float
         Hysteresis band [°C], ``>= 0``.
     """
+    if band in _AUTOMATA:
+        return _AUTOMATA[band]
     low, high = SETPOINT_C - band / 2, SETPOINT_C + band / 2
     v = coordinates("T")  # written once: each guard, invariant and flow gives its text, z3 form and bounds
-    return HybridAutomaton(
+    _AUTOMATA[band] = HybridAutomaton(
         name="thermostat",
         modes=(Mode(name="off", invariant=v.T >= low), Mode(name="on", invariant=v.T <= high)),
         transitions=(Transition(name="heat_on", source="off", target="on", guard=v.T <= low),
@@ -70,6 +72,7 @@ def thermostat_automaton(band: float) -> HybridAutomaton:
         variables=("T",),
         initial_mode="off",
     )
+    return _AUTOMATA[band]
 
 
 def thermostat_system(band: float, rate: float) -> HybridSystem:
