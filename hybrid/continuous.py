@@ -551,7 +551,6 @@ def _resolve(run: ModelCalls, mode: str, t: float, x: tuple[float, ...], memory:
             known[-key - 1] = sign * left_values[k]
 
     first_round = [True]
-    jump = run.fire(t)
 
     def signals(q: str, state: tuple[float, ...]) -> tuple[float, ...]:
         return v_now if (first_round[0] and v_now is not None) else run.signals(q, t, state)
@@ -568,11 +567,15 @@ def _resolve(run: ModelCalls, mode: str, t: float, x: tuple[float, ...], memory:
     def fire(tr: Transition, state: tuple[float, ...], v: Sequence[float], m: Mapping[str, float]
              ) -> tuple[tuple[float, ...], dict[str, float]]:
         first_round[0] = False
-        return jump(tr, state, v, m)
+        return run.jump(tr, state, v, m, t)
 
     return settle_instant(run.outgoing, mode, x, memory, signals=signals, previous=previous, guard=guard,
-                          fire=fire, ties="raise", max_jumps=max_jumps, time=t, disarmed=disarmed,
-                          where=lambda state: f"x = {_fmt(state)}")
+                          fire=fire, ties="raise", max_jumps=max_jumps, time=t, disarmed=disarmed, where=_where)
+
+
+def _where(state: tuple[float, ...]) -> str:
+    """The state in the kernel's messages."""
+    return f"x = {_fmt(state)}"
 
 
 def _disarmed_after(run: ModelCalls, instant: Instant, located: _SegmentResult) -> frozenset[str]:

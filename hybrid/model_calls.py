@@ -305,17 +305,12 @@ class ModelCalls:
                 out.append(real_value(s, what, mode, t, x))
         return out
 
-    def fire(self, t: float) -> Callable[[Transition, tuple[float, ...], Sequence[float], Mapping[str, float]],
-                                         tuple[tuple[float, ...], dict[str, float]]]:
+    def jump(self, tr: Transition, x: tuple[float, ...], v: Sequence[float], memory: Mapping[str, float], t: float
+             ) -> tuple[tuple[float, ...], dict[str, float]]:
         """The kernel's ``fire`` at time ``t``: jump map and memory reset, both reading pre-jump values."""
-
-        def fire(tr: Transition, x: tuple[float, ...], v: Sequence[float], memory: Mapping[str, float]
-                 ) -> tuple[tuple[float, ...], dict[str, float]]:
-            if tr.reset is None and tr.name not in self.system.jumps:  # what HybridSystem.jump and .reset return
-                return tuple([float(c) for c in x]), dict(memory)
-            mode = tr.source
-            new_x = self.checked(self.system.jump, mode, t, x, tr.name, t, x, memory)
-            new_memory = self.checked(self.system.reset, mode, t, x, tr, t, x, v, memory)
-            return new_x, new_memory
-
-        return fire
+        if tr.reset is None and tr.name not in self.system.jumps:  # what HybridSystem.jump and .reset return
+            return tuple([float(c) for c in x]), dict(memory)
+        mode = tr.source
+        new_x = self.checked(self.system.jump, mode, t, x, tr.name, t, x, memory)
+        new_memory = self.checked(self.system.reset, mode, t, x, tr, t, x, v, memory)
+        return new_x, new_memory
