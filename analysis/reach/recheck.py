@@ -67,6 +67,8 @@ import numpy as np
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .recheck_own import OwnFailure
+from .recheck_schedule import OWN_PARTS, schedule_recheck
 from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
 from .recheck_smooth import SmoothSet, SmoothStepper, StepFailed, reduced
 
@@ -620,7 +622,7 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     try:
         data = json.loads(saved) if isinstance(saved, str) else saved
         return _run(data, model, initial, fragment, initial_mode or model.initial_mode, given)
-    except (_Fail, InputMismatch) as fail:
+    except (_Fail, InputMismatch, OwnFailure) as fail:
         return RecheckResult(passed=False, failure=str(fail), segments=0, jumps=0, margin=None)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         return RecheckResult(passed=False, failure=f"the saved flowpipe is malformed: {exc!r}", segments=0, jumps=0,
@@ -636,6 +638,11 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
     if horizon < Fraction(fragment.end):
         raise _Fail(f"the saved horizon {float(horizon)} s ends before the window's end {fragment.end} s")
+    start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
+    if all(m.smooth is None for m in model.modes.values()):  # affine: the own-set re-check (recheck_own)
+        own = schedule_recheck(data, model, start, initial_mode, fragment, given)
+        return RecheckResult(passed=True, failure="", segments=own.segments, jumps=own.jumps, parts=OWN_PARTS,
+                             margin=None if own.margin is None else float(_down(own.margin)))
     modes: dict[str, Any] = {}
     for name, m in model.modes.items():
         if m.smooth is not None:
@@ -652,7 +659,6 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
         c = [x + y for x, y in zip(m.c, given[name].shift())] if name in given else list(m.c)  # B u_c
         modes[name] = _Mode(a=a, c=c, invariant=m.invariant, power=power)
     flows = {name: InputDynamics(a=modes[name].a, spec=spec, step=step) for name, spec in given.items()}
-    start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
     pipes = _pipes(data, start, initial_mode)
     jumps = data["jumps"]
     for j, jump in enumerate(jumps):

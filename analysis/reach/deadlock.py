@@ -1,0 +1,140 @@
+"""Deadlock freedom where a flow can leave its invariant, decided exactly on the part of the face it reaches.
+
+The executor ends a run early when a flow leaves its mode's invariant while no guard is enabled (a deadlock);
+reachability proves nothing about such runs.  :func:`face_uncovered` checks, for boxes holding every flowed
+state of a mode (the producer's segment boxes, or the re-check's own pieces), that each state on the boundary of
+the invariant lies in an outgoing guard:
+
+* the invariant is one polyhedron ``{a_i·x <= b_i}`` (a disjunctive one is refused with a message);
+* for each row ``a·x <= b`` and each box that may reach it (``max a·x >= b`` over the box), the *face part*
+  ``box ∩ {a·x = b} ∩ invariant`` is enclosed by exact box clipping (rationals; optionally narrowed by a
+  callback, e.g. the re-check's zonotope), and that box must lie in one guard polyhedron of an outgoing
+  transition (exact: ``max g·x <= e`` over the box for every row of the guard).
+
+A flowing state that leaves the invariant does so through a face point that it reaches while flowing, so that
+point is in a flowed box and in the face part: every exit is covered.  The check is sufficient, not necessary
+(a face part covered only by a union of guards fails it).  A whole-face test (the closed outside of the row lies
+in one guard: the earlier check) accepts a row at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from fractions import Fraction
+from typing import Any
+
+__all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows"]
+
+Box = list[tuple[Fraction, Fraction]]
+
+
+class FaceRow:
+    """``−a·x <= −b`` (the closed outside of an invariant row), duck-typed like a model halfspace."""
+
+    __slots__ = ("normal", "offset", "text")
+
+    def __init__(self, normal: Sequence[Fraction], offset: Fraction) -> None:
+        self.normal = tuple(-v for v in normal)
+        self.offset = -offset
+        self.text = ""
+
+
+def clip_exact(box: Box, rows: Sequence[Any]) -> Box | None:
+    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty."""
+    out = list(box)
+    for _ in range(2):
+        for h in rows:
+            a, b = h.normal, h.offset
+            mins = [min(ai * lo, ai * hi) for ai, (lo, hi) in zip(a, out)]
+            total = sum(mins, Fraction(0))
+            if total > b:
+                return None
+            for i, ai in enumerate(a):
+                if ai == 0:
+                    continue
+                room = (b - (total - mins[i])) / ai
+                lo, hi = out[i]
+                out[i] = (lo, min(hi, room)) if ai > 0 else (max(lo, room), hi)
+                if out[i][0] > out[i][1]:
+                    return None
+    return out
+
+
+def _top(a: Sequence[Fraction], box: Box) -> Fraction:
+    return sum((max(ai * lo, ai * hi) for ai, (lo, hi) in zip(a, box) if ai), Fraction(0))
+
+
+def box_in_polyhedron(box: Box, poly: Any) -> bool:
+    """Whether the box lies in the polyhedron (exact)."""
+    return all(_top(h.normal, box) <= h.offset for h in poly.halfspaces)
+
+
+def _whole_face_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
+    """Whether ``{x : a·x >= b}`` lies in ``{x : g·x <= e}`` (exact: ``g = −λ a``, ``λ >= 0``, ``−λ b <= e``)."""
+    g, e = row.normal, row.offset
+    if not any(g):
+        return e >= 0
+    k = next((i for i, v in enumerate(a) if v != 0), None)
+    if k is None:
+        return False
+    lam = -g[k] / a[k]
+    return lam >= 0 and all(gi == -lam * ai for gi, ai in zip(g, a)) and -lam * b <= e
+
+
+def open_rows(model: Any, mode: str) -> list[Any]:
+    """The rows of a one-polyhedron invariant whose whole closed outside no single guard polyhedron holds (the
+    rows :func:`face_uncovered` must look at); every row of a disjunctive invariant."""
+    invariant = model.modes[mode].invariant
+    rows = [h for poly in invariant for h in poly.halfspaces]
+    if len(invariant) != 1:
+        return rows
+    guards = [poly for t in model.outgoing(mode) for poly in t.guard]
+    return [h for h in rows if not any(all(_whole_face_in(h.normal, h.offset, g) for g in poly.halfspaces)
+                                       for poly in guards)]
+
+
+def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[Sequence[Any]], Box | None] | None]],
+                   where: Callable[[int], str] | None = None) -> str | None:
+    """``None`` when every face part of the boxes lies in a guard of ``mode`` (see the module); else the message.
+
+    Parameters
+    ----------
+    model : AffineHybridModel
+    mode : str
+    parts : iterable of (box, narrow)
+        Boxes (exact rationals) holding the flowed states of the mode; ``narrow(rows)`` (or ``None``) returns a
+        box holding the set ∩ the rows (``None``: empty), intersected with the clipped box.
+    where : callable or None
+        ``where(i)`` names the ``i``-th box in the message.
+    """
+    invariant = model.modes[mode].invariant
+    if len(invariant) == 1 and not invariant[0].halfspaces:
+        return None
+    if len(invariant) != 1:
+        return f"mode {mode!r}: a disjunctive invariant (deadlock freedom at its exits is not checked)"
+    rows = list(invariant[0].halfspaces)
+    guards = [poly for t in model.outgoing(mode) for poly in t.guard]
+    remaining = open_rows(model, mode)
+    if not remaining:
+        return None
+    for i, (box, narrow) in enumerate(parts):
+        for h in remaining:
+            if _top(h.normal, box) < h.offset:
+                continue
+            face_rows = [*rows, FaceRow(h.normal, h.offset)]
+            face = clip_exact(box, face_rows)
+            if face is not None and narrow is not None:
+                tight = narrow(face_rows)
+                face = None if tight is None else _meet(face, tight)
+            if face is None or any(box_in_polyhedron(face, poly) for poly in guards):
+                continue
+            place = f" ({where(i)})" if where is not None else ""
+            return (f"mode {mode!r}: where the flow may leave the invariant ({h.text or 'a face'}){place}, the states "
+                    f"[{[float(lo) for lo, _ in face]}, {[float(hi) for _, hi in face]}] lie in no guard "
+                    "(a possible deadlock: the run would end early)")
+    return None
+
+
+def _meet(a: Box, b: Box) -> Box | None:
+    out = [(max(p[0], q[0]), min(p[1], q[1])) for p, q in zip(a, b)]
+    return None if any(lo > hi for lo, hi in out) else out
