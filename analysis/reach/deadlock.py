@@ -7,7 +7,8 @@ the invariant lies in an outgoing guard:
 
 * the invariant is one polyhedron ``{a_i·x <= b_i}`` (a disjunctive one is refused with a message);
 * for each row ``a·x <= b`` and each box that may reach it (``max a·x >= b`` over the box), the *face part*
-  ``box ∩ {a·x = b} ∩ invariant`` is enclosed by exact box clipping (rationals; optionally narrowed by a
+  ``box ∩ {a·x = b} ∩ invariant ∩ {a·ẋ >= 0 possible}`` (an affine flow: where the flow, with any input, may
+  point outward or along the face; :func:`outward_row`) is enclosed by exact box clipping (rationals; optionally narrowed by a
   callback, e.g. the re-check's zonotope), and that box must lie in one guard polyhedron of an outgoing
   transition (exact: ``max g·x <= e`` over the box for every row of the guard).
 
@@ -23,7 +24,7 @@ from collections.abc import Callable, Iterable, Sequence
 from fractions import Fraction
 from typing import Any
 
-__all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows"]
+__all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row"]
 
 Box = list[tuple[Fraction, Fraction]]
 
@@ -93,8 +94,31 @@ def open_rows(model: Any, mode: str) -> list[Any]:
                                        for poly in guards)]
 
 
+def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow | None:
+    """The states where the flow may point out of ``row`` (``a·x <= b``): ``a·(A x + c) + max_u a·B u >= 0``, as a
+    row ``−(aA)·x <= a·c + max_u a·B u``; ``None`` for a nonlinear mode (no such restriction).
+
+    A state on the face where this is negative moves strictly inside (continuity of the solution and of the bound,
+    for every measurable input): it cannot leave there.  ``inputs`` is ``(B, low, high)`` (exact) or ``None``.
+    """
+    m = model.modes[mode]
+    if getattr(m, "smooth", None) is not None or m.a is None:
+        return None
+    a = row.normal
+    n = len(a)
+    aa = [sum((a[i] * m.a[i][j] for i in range(n) if a[i]), Fraction(0)) for j in range(n)]
+    offset = sum((ai * ci for ai, ci in zip(a, m.c) if ai), Fraction(0))
+    if inputs is not None:
+        b, low, high = inputs
+        ab = [sum((a[i] * b[i][k] for i in range(n) if a[i]), Fraction(0)) for k in range(len(low))]
+        offset += sum((max(v * lo, v * hi) for v, lo, hi in zip(ab, low, high)), Fraction(0))
+    out = FaceRow(aa, Fraction(0))
+    out.offset = offset
+    return out
+
+
 def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[Sequence[Any]], Box | None] | None]],
-                   where: Callable[[int], str] | None = None) -> str | None:
+                   where: Callable[[int], str] | None = None, inputs: Any = None) -> str | None:
     """``None`` when every face part of the boxes lies in a guard of ``mode`` (see the module); else the message.
 
     Parameters
@@ -104,6 +128,8 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
     parts : iterable of (box, narrow)
         Boxes (exact rationals) holding the flowed states of the mode; ``narrow(rows)`` (or ``None``) returns a
         box holding the set ∩ the rows (``None``: empty), intersected with the clipped box.
+    inputs : (B, low, high) or None
+        The mode's bounded input (exact), for the flow's direction (:func:`outward_row`).
     where : callable or None
         ``where(i)`` names the ``i``-th box in the message.
     """
@@ -117,11 +143,14 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
     remaining = open_rows(model, mode)
     if not remaining:
         return None
+    outward = {id(h): outward_row(model, mode, h, inputs) for h in remaining}
     for i, (box, narrow) in enumerate(parts):
         for h in remaining:
             if _top(h.normal, box) < h.offset:
                 continue
             face_rows = [*rows, FaceRow(h.normal, h.offset)]
+            if outward[id(h)] is not None:
+                face_rows.append(outward[id(h)])
             face = clip_exact(box, face_rows)
             if face is not None and narrow is not None:
                 tight = narrow(face_rows)

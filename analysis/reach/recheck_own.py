@@ -96,7 +96,7 @@ class _Run:
     margin: Fraction | None = None
     pieces: int = 0
     jumps: int = 0
-    atoms: dict[int, Any] = field(default_factory=dict)
+    atoms: dict[str, Any] = field(default_factory=dict)
 
 
 def _fbox(lo: np.ndarray, hi: np.ndarray) -> Box:
@@ -111,13 +111,25 @@ def _round_box(box: Box) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+_ROWS: dict[int, tuple[Any, np.ndarray, float]] = {}
+
+
+def _row_floats(row: Any) -> tuple[np.ndarray, float]:
+    key = id(row)
+    got = _ROWS.get(key)
+    if got is None or got[0] is not row:
+        got = (row, np.array([float(v) for v in row.normal]), float(row.offset))
+        _ROWS[key] = got
+    return got[1], got[2]
+
+
 def _maybe_above(row: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
     """False only when ``max a·x < b`` over the box for sure (a float test with a margin that dominates its
     rounding by many orders of magnitude: ``10⁻⁹ (1 + Σ|a_i| max|x_i|)``)."""
-    a = np.array([float(v) for v in row.normal])
+    a, offset = _row_floats(row)
     top = float(np.sum(np.maximum(a * lo, a * hi)))
     scale = 1.0 + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
-    return top >= float(row.offset) - 1e-9 * scale
+    return top >= offset - 1e-9 * scale
 
 
 def _contract(z: FZ, rows: Sequence[Any]) -> Box | None:
@@ -170,42 +182,54 @@ def _part(rows: Sequence[Any], lo: np.ndarray, hi: np.ndarray, z: FZ) -> Box | N
     return None if tight is None else _meet(clipped, tight)
 
 
-def _atom(run: _Run, atom: LinearAtom) -> tuple[np.ndarray, np.ndarray]:
-    key = id(atom)
-    if key not in run.atoms:
-        run.atoms[key] = float_interval(list(atom.coefficients))
-    return run.atoms[key]
+def _atoms(run: _Run) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """The fragment's linear atoms (by id) and their coefficients as floats ``cm ± cr`` (rows)."""
+    if not run.atoms:
+        found: list[LinearAtom] = []
+
+        def walk(node: Nnf) -> None:
+            if isinstance(node, LinearAtom):
+                found.append(node)
+            elif not isinstance(node, LabelAtom):
+                for p in node.parts:
+                    walk(p)
+        walk(run.fragment.body)
+        pairs = [float_interval(list(a.coefficients)) for a in found]
+        n = len(run.model.state_names)
+        run.atoms = {"ids": [id(a) for a in found],
+                     "cm": np.array([p[0] for p in pairs]).reshape(len(found), n),
+                     "cr": np.array([p[1] for p in pairs]).reshape(len(found), n)}
+    return run.atoms["ids"], run.atoms["cm"], run.atoms["cr"]
 
 
-def _top(cm: np.ndarray, cr: np.ndarray, lo: np.ndarray, hi: np.ndarray, z: FZ | None) -> Fraction:
-    """A rigorous upper bound of ``max c·x`` over the box (∩ the zonotope), ``c ∈ [cm ± cr]``."""
+def _tops(run: _Run, lo: np.ndarray, hi: np.ndarray, z: FZ | None) -> dict[int, Fraction]:
+    """A rigorous upper bound of ``max c·x`` over the box (∩ the zonotope) for every atom ``c ∈ [cm ± cr]``."""
+    ids, cm, cr = _atoms(run)
+    if not ids:
+        return {}
     mag = np.maximum(np.abs(lo), np.abs(hi))
     terms = up(np.maximum(cm * lo, cm * hi))
-    k = terms.size
-    top_box = float(up(up(np.sum(terms)) + up(sum_up(np.abs(terms)) * ((k + 2) * U)) + (k + 2) * TINY
-                       + float(nn_up(cr.reshape(1, -1), mag.reshape(-1, 1))[0, 0])))
-    if z is None:
-        return Fraction(top_box)
-    y0, r0 = point_product(cm.reshape(1, -1), z.center.reshape(-1, 1))
-    spread = 0.0
-    if z.gens.shape[1]:
-        y, ry = point_product(cm.reshape(1, -1), z.gens)
-        spread = float(sum_up(up(np.abs(y) + ry)))
-    rest = float(add_up(r0[0, 0], spread, nn_up(np.abs(cm).reshape(1, -1), z.err.reshape(-1, 1))[0, 0],
-                        nn_up(cr.reshape(1, -1), z.magnitude().reshape(-1, 1))[0, 0]))
-    top_z = float(up(y0[0, 0] + rest))
-    return Fraction(min(top_box, top_z))
+    k = lo.size
+    top = up(up(up(np.sum(terms, axis=1)) + up(sum_up(np.abs(terms), axis=1) * ((k + 2) * U)) + (k + 2) * TINY)
+             + nn_up(cr, mag))
+    if z is not None:
+        y0, r0 = point_product(cm, z.center)
+        spread = 0.0
+        if z.gens.shape[1]:
+            y, ry = point_product(cm, z.gens)
+            spread = sum_up(up(np.abs(y) + ry), axis=1)
+        rest = add_up(r0, spread, nn_up(np.abs(cm), z.err), nn_up(cr, z.magnitude()))
+        top = np.minimum(top, up(y0 + rest))
+    return {i: Fraction(float(v)) for i, v in zip(ids, top)}
 
 
-def _value(run: _Run, node: Nnf, mode: str, lo: np.ndarray, hi: np.ndarray, z: FZ | None
-           ) -> tuple[bool, Fraction | None]:
+def _value(node: Nnf, mode: str, tops: Mapping[int, Fraction]) -> tuple[bool, Fraction | None]:
     if isinstance(node, LabelAtom):
         return label_holds(node, mode), None
     if isinstance(node, LinearAtom):
-        cm, cr = _atom(run, node)
-        slack = node.bound - _top(cm, cr, lo, hi, z)
+        slack = node.bound - tops[id(node)]
         return (slack > 0 if node.strict else slack >= 0), slack
-    results = [_value(run, p, mode, lo, hi, z) for p in node.parts]
+    results = [_value(p, mode, tops) for p in node.parts]
     slacks = [v for _, v in results if v is not None]
     if isinstance(node, Conj):
         return all(ok for ok, _ in results), (min(slacks) if slacks else None)
@@ -220,7 +244,7 @@ def _decide(run: _Run, mode: str, lo: np.ndarray, hi: np.ndarray, z: FZ | None, 
     f = run.fragment
     if t_lo > Fraction(f.end) or t_hi < Fraction(f.start):
         return
-    ok, slack = _value(run, f.body, mode, lo, hi, z)
+    ok, slack = _value(f.body, mode, _tops(run, lo, hi, z))
     if not ok:
         raise OwnFailure(f"requirement: the atoms do not hold on the re-check's own states of {where} (mode {mode!r},"
                          f" t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s, slack {float(slack) if slack is not None else 'n/a'})")
@@ -309,7 +333,10 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
                          f"beyond the jump bound {run.max_jumps}: not every behaviour is covered")
     run.jumps += 1
     image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
-    return _Work(mode=t.target, start=image, t_lo=t_lo, t_hi=t_hi, depth=depth + 1)
+    exact = [(sum((min(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off,
+              sum((max(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off)
+             for row, off in zip(t.r_matrix, t.r_offset)]  # the exact image box (the zonotope's hull is rounded)
+    return _Work(mode=t.target, start=image, t_lo=t_lo, t_hi=t_hi, depth=depth + 1, box=exact)
 
 
 def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
@@ -322,9 +349,12 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     why = entry_uncovered(model, mode, box)
     if why:
         raise OwnFailure(f"entries: {where}: {why}")
+    if work.box is not None:  # the exact box (rounded outward) holds the start set too
+        blo, bhi = _round_box(work.box)
+        lo, hi = np.maximum(lo, blo), np.minimum(hi, bhi)
     out = []
     run.pieces += 1
-    _decide(run, mode, lo, hi, None if work.box is not None else work.start, work.t_lo, work.t_hi, f"{where} entry")
+    _decide(run, mode, lo, hi, work.start, work.t_lo, work.t_hi, f"{where} entry")
     for t in model.outgoing(mode):
         for guard in t.guard:
             part = _part(guard.halfspaces, lo, hi, work.start)
@@ -363,7 +393,9 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
         run.pieces += 1
         _decide(run, mode, clo, chi, piece, t_lo, t_hi, f"{where} step {k}")
         if any(_maybe_above(r, clo, chi) for r in faces):
-            why = face_uncovered(model, mode, [(_fbox(clo, chi), lambda rows, z=piece: _contract(z, rows))])
+            spec = run.inputs.get(mode)
+            why = face_uncovered(model, mode, [(_fbox(clo, chi), lambda rows, z=piece: _contract(z, rows))],
+                                 inputs=None if spec is None else (spec.matrix, spec.low, spec.high))
             if why:
                 raise OwnFailure(f"deadlock: {where} step {k} (t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s): {why}")
         for t in model.outgoing(mode):

@@ -34,7 +34,8 @@ from analysis.verify.verification import Proof
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
-from .recheck import entry_uncovered, exit_uncovered, recheck_flowpipe
+from .deadlock import clip_exact, face_uncovered
+from .recheck import entry_uncovered, recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
@@ -113,24 +114,19 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
     checked on it rather than on the saved segment's box (which rounding makes a little wider).
     """
     if model is not None:
-        for term in result.terminations:
-            why = exit_uncovered(model, term.mode) if term.reason == "left_invariant" else None
-            if why:
-                return False, math.nan, f"not decided by reachability: {why}"
         flowed: dict[str, list[Any]] = {}
         for seg in result.segments:
             if not seg.entry:
                 flowed.setdefault(seg.mode, []).append(
-                    [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)])
-        for mode, boxes in flowed.items():
-            why = exit_uncovered(model, mode, boxes)
+                    ([(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)], None))
+        given = {mode: ([[Fraction(v) for v in row] for row in b], [Fraction(v) for v in lo], [Fraction(v) for v in hi])
+                 for mode, b, lo, hi in result.inputs}
+        for mode, parts in flowed.items():  # every state leaving an invariant is on a face within a flowed box
+            why = face_uncovered(model, mode, parts, inputs=given.get(mode))
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
-        for seg in result.segments:
-            box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
-            if initial is not None and seg.entry and seg.jumps == 0:
-                box = [(Fraction(float(initial[k][0])), Fraction(float(initial[k][1]))) for k in result.state_names]
-            why = entry_uncovered(model, seg.mode, box) if seg.entry else None
+        for mode, box in _entries(result, model, initial):
+            why = entry_uncovered(model, mode, box)
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
     if not result.complete:
@@ -151,6 +147,34 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
         if slack is not None:
             margin = min(margin, slack)
     return True, margin, f"holds on all {len(result.segments)} segments"
+
+
+def _entries(result: ReachResult, model: Any, initial: Mapping[str, tuple[float, float]] | None) -> list[Any]:
+    """``(mode, box)`` holding each flowpipe's entry set, exactly: the initial box (when given), and after jump
+    ``i − 1`` (the engine's order) the exact reset images of its ``before`` box clipped to each guard polyhedron
+    (the states before a jump are in its guard; the saved boxes are rounded outward, which a face would not take)."""
+    out = []
+    entries = [seg for seg in result.segments if seg.entry]
+    for i, seg in enumerate(entries):
+        box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+        if i == 0 and initial is not None and seg.jumps == 0:
+            out.append((seg.mode, [(Fraction(float(initial[k][0])), Fraction(float(initial[k][1])))
+                                   for k in result.state_names]))
+            continue
+        t = next((t for t in model.transitions if i > 0 and i - 1 < len(result.jumps)
+                  and t.name == result.jumps[i - 1].transition), None)
+        if t is None:
+            out.append((seg.mode, box))
+            continue
+        jump = result.jumps[i - 1]
+        before = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(jump.before_lo, jump.before_hi)]
+        for poly in t.guard:
+            part = clip_exact(before, poly.halfspaces)
+            if part is not None:
+                out.append((seg.mode, [(sum((min(a * l, a * h) for a, (l, h) in zip(row, part) if a), Fraction(0)) + off,
+                                        sum((max(a * l, a * h) for a, (l, h) in zip(row, part) if a), Fraction(0)) + off)
+                                       for row, off in zip(t.r_matrix, t.r_offset)]))
+    return out
 
 
 def _evidence(decision: ReachDecision, check: Any) -> str:
