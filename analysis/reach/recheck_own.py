@@ -48,7 +48,7 @@ from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_
 from .recheck_inputs import InputSet, input_tube, tube_at
 from .recheck_sets import FZ, exact_image, tube
 
-__all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS"]
+__all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS", "INPUT_SPLIT"]
 
 MAX_OWN_FLOWPIPES = 4_000
 """Flowpipes the re-check follows before it fails (a run that keeps jumping is not re-checked)."""
@@ -56,6 +56,9 @@ SIZE_LIMIT = 1e6
 """A set whose half-width exceeds this (or is not finite) fails the re-check (it blew up)."""
 KEPT_INPUTS = 20
 """Generators of the carried inputs per state before the smallest are boxed (Girard's reduction, sound)."""
+INPUT_SPLIT = 4
+"""A mode with inputs is re-checked with a quarter of the schedule's step: each piece carries the current step's
+input response ``[−w, w]`` whole (``w ≈ δ |B| r``), which a shorter step makes smaller."""
 Box = list[tuple[Fraction, Fraction]]
 
 
@@ -262,7 +265,7 @@ def _enclosure(run: _Run, mode: str) -> tuple[ExpEnclosure, float, Any]:
     spec = run.inputs.get(mode)
     c = list(m.c) if spec is None else [x + y for x, y in zip(m.c, spec.shift())]
     a = [list(r) for r in m.a]
-    h = step
+    h = step if spec is None else step / INPUT_SPLIT
     for _ in range(40):
         try:
             enc = ExpEnclosure(a, c, h)
