@@ -9,8 +9,9 @@ the invariant lies in an outgoing guard:
 * for each row ``a·x <= b`` and each box that may reach it (``max a·x >= b`` over the box), the *face part*
   ``box ∩ {a·x = b} ∩ invariant ∩ {a·ẋ >= 0 possible}`` (an affine flow: where the flow, with any input, may
   point outward or along the face; :func:`outward_row`) is enclosed by exact box clipping (rationals; optionally narrowed by a
-  callback, e.g. the re-check's zonotope), and that box must lie in one guard polyhedron of an outgoing
-  transition (exact: ``max g·x <= e`` over the box for every row of the guard).
+  callback, e.g. the re-check's zonotope), and ``that box ∩ {a·x = b}`` must lie in one guard polyhedron of an
+  outgoing transition (exact: ``max g·x <= e`` over it for every row ``g·x <= e`` of the guard, by LP duality with
+  the one equality, :func:`_in_on_face`).
 
 A flowing state that leaves the invariant does so through a face point that it reaches while flowing, so that
 point is in a flowed box and in the face part: every exit is covered.  The check is sufficient, not necessary
@@ -24,7 +25,8 @@ from collections.abc import Callable, Iterable, Sequence
 from fractions import Fraction
 from typing import Any
 
-__all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row"]
+__all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row", "bounded_on",
+           "image_covered"]
 
 Box = list[tuple[Fraction, Fraction]]
 
@@ -68,6 +70,22 @@ def _top(a: Sequence[Fraction], box: Box) -> Fraction:
 def box_in_polyhedron(box: Box, poly: Any) -> bool:
     """Whether the box lies in the polyhedron (exact)."""
     return all(_top(h.normal, box) <= h.offset for h in poly.halfspaces)
+
+
+def _in_on_face(box: Box, poly: Any, face: Any) -> bool:
+    """Whether ``box ∩ {a·x = b}`` lies in the polyhedron (exact): for a row ``g·x <= e``, on the face
+    ``g·x = (g − μa)·x + μb`` for every ``μ``, so ``max g·x <= min_μ [max_box (g − μa)·x + μb]``; the minimum
+    of this convex piecewise-linear function of ``μ`` is at ``μ = 0`` or a breakpoint ``g_i/a_i`` (LP duality with
+    one equality), all tried exactly."""
+    a, b = face.normal, face.offset
+    for h in poly.halfspaces:
+        g, e = h.normal, h.offset
+        if _top(g, box) <= e:
+            continue
+        candidates = {Fraction(0), *(gi / ai for gi, ai in zip(g, a) if ai)}
+        if not any(_top([gi - mu * ai for gi, ai in zip(g, a)], box) + mu * b <= e for mu in candidates):
+            return False
+    return True
 
 
 def _whole_face_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
@@ -155,7 +173,7 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
             if face is not None and narrow is not None:
                 tight = narrow(face_rows)
                 face = None if tight is None else _meet(face, tight)
-            if face is None or any(box_in_polyhedron(face, poly) for poly in guards):
+            if face is None or any(_in_on_face(face, poly, h) for poly in guards):
                 continue
             place = f" ({where(i)})" if where is not None else ""
             return (f"mode {mode!r}: where the flow may leave the invariant ({h.text or 'a face'}){place}, the states "
@@ -167,3 +185,36 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
 def _meet(a: Box, b: Box) -> Box | None:
     out = [(max(p[0], q[0]), min(p[1], q[1])) for p, q in zip(a, b)]
     return None if any(lo > hi for lo, hi in out) else out
+
+
+def bounded_on(g: Sequence[Fraction], e: Fraction, box: Box, rows: Sequence[Any]) -> bool:
+    """Whether ``g·x <= e`` on ``box ∩ {c·x <= d for each row}`` is shown exactly by weak duality with one row:
+    ``g·x <= max_box (g − μc)·x + μd`` for ``μ >= 0`` on that set; ``μ = 0`` and the breakpoints ``g_i/c_i > 0``
+    are tried (a sufficient test)."""
+    if _top(g, box) <= e:
+        return True
+    for row in rows:
+        c, d = row.normal, row.offset
+        for mu in {gi / ci for gi, ci in zip(g, c) if ci and gi / ci > 0}:
+            if _top([gi - mu * ci for gi, ci in zip(g, c)], box) + mu * d <= e:
+                return True
+    return False
+
+
+def image_covered(model: Any, transition: Any, before: Box, rows: Sequence[Any]) -> bool:
+    """Whether the reset image of ``before ∩ rows`` (the states a jump leaves from: its guard, and the source's
+    invariant for flowed states) lies in the target's invariant or in one of its guard polyhedra (exact, sufficient:
+    each row of the target's polyhedron pulled back through the reset, :func:`bounded_on`)."""
+    r, off = transition.r_matrix, transition.r_offset
+    n = len(r)
+
+    def inside(poly: Any) -> bool:
+        for h in poly.halfspaces:
+            g = [sum((h.normal[i] * r[i][j] for i in range(n) if h.normal[i]), Fraction(0)) for j in range(len(before))]
+            e = h.offset - sum((a * b for a, b in zip(h.normal, off) if a), Fraction(0))
+            if not bounded_on(g, e, before, rows):
+                return False
+        return True
+    target = transition.target
+    return any(inside(p) for p in model.modes[target].invariant) or any(
+        inside(p) for t in model.outgoing(target) for p in t.guard)

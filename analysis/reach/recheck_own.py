@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .deadlock import clip_exact, face_uncovered, open_rows
+from .deadlock import clip_exact, face_uncovered, image_covered, open_rows
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
@@ -84,6 +84,7 @@ class _Work:
     t_hi: Fraction
     depth: int
     box: Box | None = None  # the exact start box (the initial one)
+    pre: tuple[Any, Box, Any] | None = None  # (transition, box before, rows holding the states before)
 
 
 @dataclass(slots=True)
@@ -328,7 +329,8 @@ def own_recheck(model: Any, initial: Box, initial_mode: str, fragment: SafetyFra
     return OwnOutcome(segments=run.pieces, jumps=run.jumps, flowpipes=count, margin=run.margin)
 
 
-def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: int, where: str) -> _Work | None:
+def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: int, where: str,
+          rows: Sequence[Any] = ()) -> _Work | None:
     if t_lo > run.end:
         return None  # after the window: nothing to decide there
     if depth + 1 > run.max_jumps:
@@ -339,7 +341,7 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
     exact = [(sum((min(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off,
               sum((max(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off)
              for row, off in zip(t.r_matrix, t.r_offset)]  # the exact image box (the zonotope's hull is rounded)
-    return _Work(mode=t.target, start=image, t_lo=t_lo, t_hi=t_hi, depth=depth + 1, box=exact)
+    return _Work(mode=t.target, start=image, t_lo=t_lo, t_hi=t_hi, depth=depth + 1, box=exact, pre=(t, box, rows))
 
 
 def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
@@ -350,6 +352,8 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     lo, hi = work.start.hull()
     box = work.box if work.box is not None else _fbox(lo, hi)
     why = entry_uncovered(model, mode, box)
+    if why and work.pre is not None and image_covered(model, *work.pre):
+        why = None  # the image of the states before the jump (not only its box) is covered
     if why:
         raise OwnFailure(f"entries: {where}: {why}")
     if work.box is not None:  # the exact box (rounded outward) holds the start set too
@@ -362,7 +366,7 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
         for guard in t.guard:
             part = _part(guard.halfspaces, lo, hi, work.start)
             if part is not None:
-                new = _jump(run, t, part, work.t_lo, work.t_hi, work.depth, f"{where} entry")
+                new = _jump(run, t, part, work.t_lo, work.t_hi, work.depth, f"{where} entry", guard.halfspaces)
                 if new is not None:
                     out.append(new)
     enc, step, terms = _enclosure(run, mode)
@@ -423,7 +427,8 @@ def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None
     """Add a guard part to the transition's open cluster; emit the cluster when it is full, broken or flushed."""
     open_ = clusters.get(t.name)
     if open_ is not None and (flush or (limit is not None and (part is None or k - open_[3] >= limit))):
-        new = _jump(run, t, open_[0], open_[1], open_[2], depth, f"{where} steps {open_[3]}..{open_[4]}")
+        new = _jump(run, t, open_[0], open_[1], open_[2], depth, f"{where} steps {open_[3]}..{open_[4]}",
+                    _flowed_rows(run.model, t))
         if new is not None:
             out.append(new)
         clusters.pop(t.name)
@@ -435,6 +440,14 @@ def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None
     else:
         open_[0] = [(min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(open_[0], part)]
         open_[2], open_[4] = max(open_[2], t_hi), k
+
+
+def _flowed_rows(model: Any, t: Any) -> tuple[Any, ...]:
+    """Rows every flowed state before ``t`` satisfies: its guard and the source's invariant (one polyhedron each)."""
+    invariant = model.modes[t.source].invariant
+    if len(t.guard) != 1 or len(invariant) != 1:
+        return ()
+    return (*t.guard[0].halfspaces, *invariant[0].halfspaces)
 
 
 def _clip_invariant(invariant: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

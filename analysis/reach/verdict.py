@@ -34,7 +34,7 @@ from analysis.verify.verification import Proof
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
-from .deadlock import clip_exact, face_uncovered
+from .deadlock import clip_exact, face_uncovered, image_covered
 from .recheck import entry_uncovered, recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
@@ -125,8 +125,10 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
             why = face_uncovered(model, mode, parts, inputs=given.get(mode))
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
-        for mode, box in _entries(result, model, initial):
+        for mode, box, pre in _entries(result, model, initial):
             why = entry_uncovered(model, mode, box)
+            if why and pre is not None and image_covered(model, *pre):
+                why = None
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
     if not result.complete:
@@ -159,21 +161,29 @@ def _entries(result: ReachResult, model: Any, initial: Mapping[str, tuple[float,
         box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
         if i == 0 and initial is not None and seg.jumps == 0:
             out.append((seg.mode, [(Fraction(float(initial[k][0])), Fraction(float(initial[k][1])))
-                                   for k in result.state_names]))
+                                   for k in result.state_names], None))
             continue
         t = next((t for t in model.transitions if i > 0 and i - 1 < len(result.jumps)
                   and t.name == result.jumps[i - 1].transition), None)
         if t is None:
-            out.append((seg.mode, box))
+            out.append((seg.mode, box, None))
             continue
         jump = result.jumps[i - 1]
         before = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(jump.before_lo, jump.before_hi)]
+        invariant = model.modes[t.source].invariant
+        # the source's invariant holds the states before only when no entry set of the source (at that depth) met
+        # the guard: the engine merges entry and flowed parts into one jump
+        flowed = len(invariant) == 1 and not any(
+            e.mode == t.source and e.jumps == jump.jumps - 1 and any(clip_exact(
+                [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(e.lo, e.hi)], p.halfspaces) is not None
+                for p in t.guard) for e in entries)
         for poly in t.guard:
             part = clip_exact(before, poly.halfspaces)
             if part is not None:
+                rows = (*poly.halfspaces, *(invariant[0].halfspaces if flowed else ()))
                 out.append((seg.mode, [(sum((min(a * l, a * h) for a, (l, h) in zip(row, part) if a), Fraction(0)) + off,
                                         sum((max(a * l, a * h) for a, (l, h) in zip(row, part) if a), Fraction(0)) + off)
-                                       for row, off in zip(t.r_matrix, t.r_offset)]))
+                                       for row, off in zip(t.r_matrix, t.r_offset)], (t, part, rows)))
     return out
 
 
