@@ -167,6 +167,40 @@ def _contract(z: FZ, rows: Sequence[Any]) -> Box | None:
             for i, c in enumerate(center)]
 
 
+DUAL_GENERATORS = 80
+"""Zonotopes with at most this many generators get the dual bound of :func:`_dual` in their guard parts."""
+
+
+def _dual(z: FZ, rows: Sequence[Any]) -> Box | None:
+    """A box holding ``z ∩ rows`` by weak duality with one row at a time: for ``a·x <= b`` and ``μ >= 0``,
+    ``±x_i <= ±c_i − μ a·c + μ b + Σ_j |±g_ij − μ a·g_j|`` on ``z ∩ {a·x <= b}`` (``z = c + Σ g_j ξ_j``, the error
+    box as generators); the minimum over ``μ`` of this convex piecewise-linear function is at ``μ = 0`` or a
+    breakpoint, all tried (exact rationals).  For one row (or an equality, given as two rows) this is the exact
+    maximum over ``z`` (LP duality); the boxes of all rows are intersected.  ``None``: shown empty."""
+    center, gens = z.exact()
+    n = len(center)
+    out: Box = [(c - sum((abs(g[i]) for g in gens), Fraction(0)), c + sum((abs(g[i]) for g in gens), Fraction(0)))
+                for i, c in enumerate(center)]
+    for row in rows:
+        a, b = row.normal, row.offset
+        ac = sum((ai * ci for ai, ci in zip(a, center) if ai), Fraction(0))
+        ag = [sum((ai * g[i] for i, ai in enumerate(a) if ai and g[i]), Fraction(0)) for g in gens]
+        if ac - sum((abs(v) for v in ag), Fraction(0)) > b:
+            return None
+        for i in range(n):
+            for sign in (1, -1):
+                best = None
+                for mu in {Fraction(0), *(sign * g[i] / v for g, v in zip(gens, ag) if v and sign * g[i] / v > 0)}:
+                    value = sign * center[i] - mu * ac + mu * b + sum((abs(sign * g[i] - mu * v) for g, v in
+                                                                       zip(gens, ag)), Fraction(0))
+                    best = value if best is None else min(best, value)
+                lo, hi = out[i]
+                out[i] = (lo, min(hi, best)) if sign > 0 else (max(lo, -best), hi)
+            if out[i][0] > out[i][1]:
+                return None
+    return out
+
+
 def _meet(a: Box, b: Box) -> Box | None:
     out = [(max(p[0], q[0]), min(p[1], q[1])) for p, q in zip(a, b)]
     return None if any(lo > hi for lo, hi in out) else out
@@ -183,6 +217,9 @@ def _part(rows: Sequence[Any], lo: np.ndarray, hi: np.ndarray, z: FZ) -> Box | N
     if clipped is None:
         return None
     tight = _contract(z, rows)
+    if tight is not None and z.gens.shape[1] + z.center.size <= DUAL_GENERATORS:
+        dual = _dual(z, rows)
+        tight = None if dual is None else _meet(tight, dual)
     return None if tight is None else _meet(clipped, tight)
 
 
