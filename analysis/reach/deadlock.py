@@ -117,7 +117,8 @@ def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow 
     row ``−(aA)·x <= a·c + max_u a·B u``; ``None`` for a nonlinear mode (no such restriction).
 
     A state on the face where this is negative moves strictly inside (continuity of the solution and of the bound,
-    for every measurable input): it cannot leave there.  ``inputs`` is ``(B, low, high)`` (exact) or ``None``.
+    for every measurable input): it cannot leave there.  When ``aA = 0`` the bound is a constant ``d``; ``d <= 0``
+    means ``a·x`` never increases along any solution, so nothing leaves through the face (an infeasible row).  ``inputs`` is ``(B, low, high)`` (exact) or ``None``.
     """
     m = model.modes[mode]
     if getattr(m, "smooth", None) is not None or m.a is None:
@@ -132,6 +133,8 @@ def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow 
         offset += sum((max(v * lo, v * hi) for v, lo, hi in zip(ab, low, high)), Fraction(0))
     out = FaceRow(aa, Fraction(0))
     out.offset = offset
+    if not any(aa) and offset <= 0:  # a·ẋ <= offset <= 0 everywhere: a·x never increases, nothing leaves here
+        out.offset = Fraction(-1)
     return out
 
 
