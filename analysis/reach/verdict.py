@@ -42,7 +42,8 @@ from .zonotope import from_box, round_down, support_bounds
 __all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "METHOD_NONLINEAR", "default_time_step",
            "default_max_jumps", "reach_proofs", "REACH_CHOICES", "scaled_fragment"]
 
-METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+METHOD = ("reachability (zonotope flowpipe, analysis.reach), re-checked on the re-check's own sets (outward-rounded "
+          "intervals, exact rationals)")
 METHOD_NONLINEAR = ("reachability (zonotope flowpipe by conservative linearisation with a Lagrange remainder, "
                     "analysis.reach.nonlinear), re-checked by interval Picard and a second-order Taylor map in "
                     "outward-rounded intervals")
