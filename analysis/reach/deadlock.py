@@ -26,7 +26,7 @@ from fractions import Fraction
 from typing import Any
 
 __all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row", "bounded_on",
-           "image_covered"]
+           "image_covered", "entry_uncovered"]
 
 Box = list[tuple[Fraction, Fraction]]
 
@@ -221,3 +221,16 @@ def image_covered(model: Any, transition: Any, before: Box, rows: Sequence[Any])
     target = transition.target
     return any(inside(p) for p in model.modes[target].invariant) or any(
         inside(p) for t in model.outgoing(target) for p in t.guard)
+
+
+def entry_uncovered(model: Any, mode: str, box: Box) -> str | None:
+    """``None`` when a start box of ``mode`` lies in its invariant (exact), or in one guard polyhedron."""
+    def inside(poly: Any) -> bool:
+        return all(sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) <= h.offset
+                   for h in poly.halfspaces)
+    if any(inside(p) for p in model.modes[mode].invariant):
+        return None
+    if any(inside(p) for t in model.outgoing(mode) for p in t.guard):
+        return None
+    return (f"mode {mode!r}: a start box is not inside the invariant nor inside a guard (a possible deadlock "
+            "at entry)")

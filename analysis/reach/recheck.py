@@ -48,6 +48,7 @@ import numpy as np
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .deadlock import entry_uncovered
 from .recheck_own import OwnFailure
 from .recheck_schedule import OWN_PARTS, schedule_recheck
 from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
@@ -292,19 +293,6 @@ def exit_uncovered(model: AffineHybridModel, mode: str, boxes: Sequence[Box] | N
             return (f"mode {mode!r}: where the flow leaves the invariant ({h.text or 'a face'}) no guard is "
                     "shown enabled (a possible deadlock: the run would end early)")
     return None
-
-
-def entry_uncovered(model: AffineHybridModel, mode: str, box: Box) -> str | None:
-    """``None`` when a start box of ``mode`` lies in its invariant (exact), or in one guard polyhedron."""
-    def inside(poly: Any) -> bool:
-        return all(sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) <= h.offset
-                   for h in poly.halfspaces)
-    if any(inside(p) for p in model.modes[mode].invariant):
-        return None
-    if any(inside(p) for t in model.outgoing(mode) for p in t.guard):
-        return None
-    return (f"mode {mode!r}: a start box is not inside the invariant nor inside a guard (a possible deadlock "
-            "at entry)")
 
 
 def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .deadlock import clip_exact, face_uncovered, image_covered, open_rows
+from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered, open_rows
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
@@ -382,8 +382,6 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
 
 
 def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
-    from .recheck import entry_uncovered
-
     model, mode = run.model, work.mode
     where = f"flowpipe {index} (mode {mode!r})"
     lo, hi = work.start.hull()

@@ -34,8 +34,8 @@ from analysis.verify.verification import Proof
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
-from .deadlock import clip_exact, face_uncovered, image_covered
-from .recheck import entry_uncovered, recheck_flowpipe
+from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered
+from .recheck import recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
