@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from analysis.verify.problems import hybrid_problem
+from analysis.reach import reach
 from analysis.reach.fragment import Conj, LinearAtom, NotInFragment, atoms, safety_fragment
 from analysis.reach.recheck import recheck_flowpipe
 from analysis.reach.verdict import decide, reach_proof
@@ -191,6 +192,18 @@ def test_corrupted_saved_boxes_cannot_fool_the_recheck():
         seg["box"] = [[mid], [mid]]
     again = recheck_flowpipe(squeezed, ROOM, {"T": (19.5, 20.5)}, fragment)
     assert again.passed and again.margin == clean.margin
+
+
+def test_a_flowpipe_of_another_flow_is_decided_for_the_given_model():
+    # a flowpipe of the slow room (rate 0.05) proves T <= 20.75 over 3 s from T0 in [19.5, 20.5]; the fast room
+    # (rate 0.2) cools from 19.5 to 19 in 0.26 s and heats at 0.2·(30 − 19) = 2.2 °C/s, so it exceeds 20.75 before
+    # t = 1.2 s: re-checked against the fast model, the slow flowpipe's JSON is refused (its sets are not used)
+    slow, fast = thermostat(rate=0.05).system, thermostat(rate=0.2).system
+    fragment = _fragment("always[0, 3] (T <= 20.75)")
+    saved = reach(slow, {"T": (19.5, 20.5)}, horizon=3.0, time_step=0.003, max_jumps=20).to_json()
+    assert recheck_flowpipe(saved, slow, {"T": (19.5, 20.5)}, fragment).passed
+    check = recheck_flowpipe(saved, fast, {"T": (19.5, 20.5)}, fragment)
+    assert not check.passed and check.failure.startswith("requirement") and "mode 'on'" in check.failure
 
 
 def test_the_recheck_imports_no_set_code_of_the_engine():
