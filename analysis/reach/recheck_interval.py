@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 
 __all__ = ["U", "TINY", "up", "down", "nn_up", "add_up", "imatmul", "point_product", "float_interval",
-           "expm_taylor", "ExpEnclosure", "exp_enclosure", "sum_up"]
+           "expm_taylor", "ExpEnclosure", "exp_enclosure", "sum_up",
+           "EXPLICIT_POWERS", "WEIGHTS"]
 
 U = 2.0 ** -53
 TINY = 2.0 ** -1000
@@ -143,6 +144,12 @@ def expm_taylor(a: tuple[np.ndarray, np.ndarray], tol: float = 2.0 ** -60
     return (total[0], up(total[1] + tail)), terms, q
 
 
+EXPLICIT_POWERS = 8
+"""The interpolation error uses the signed powers ``(A_aug δ)^k/k!`` up to this ``k``; beyond, ``|A_aug δ|^k/k!``."""
+WEIGHTS = {2: 0.25, 3: 0.4, 4: 0.5}
+"""``c_k >= max_{θ∈[0,1]} θ − θ^k = (k − 1) k^{−k/(k−1)}``: 1/4, 0.385 <= 0.4, 0.472 <= 0.5; 1 beyond (``θ − θ^k <= 1``)."""
+
+
 class ExpEnclosure:
     """For ``ẋ = A x + c`` (exact rationals) and a float step ``δ``: the enclosures a step of the re-check needs.
 
@@ -155,7 +162,7 @@ class ExpEnclosure:
     The interpolation error of one solution over the step: for ``t ∈ [0, δ]``,
     ``x(t) − ((1 − t/δ) x₀ + (t/δ) x(δ)) = Σ_{k>=2} (t^k − t δ^{k−1})/k! A_aug^k x₀`` (augmented), and
     ``|t^k − t δ^{k−1}| = δ^k |θ − θ^k|·… <= c_k δ^k`` with ``θ = t/δ``; so its modulus is at most
-    ``Σ_{k=2}^4 |powers_k x₀| + rest |x₀|``.
+    ``Σ_{k=2}^{K'} |powers_k x₀| + rest |x₀|``.
     """
 
     def __init__(self, a: list[list[Fraction]], c: list[Fraction], step: float) -> None:
@@ -173,16 +180,16 @@ class ExpEnclosure:
         self.q = q
         self.phi = (total[0][:n, :n], total[1][:n, :n])
         self.shift = (total[0][:n, n] * self.scale, up(total[1][:n, n] * self.scale))
-        weights = {2: 0.25, 3: 0.4, 4: 0.5}
+        last = min(EXPLICIT_POWERS, len(terms) - 1)  # the Taylor terms computed (signed), k = 2..last
         self.powers = [(terms[k][0] * w, up(up(terms[k][1] * w) + np.abs(terms[k][0] * w) * (2 * U)))
-                       for k, w in weights.items() if k < len(terms)]
+                       for k, w in ((k, WEIGHTS.get(k, 1.0)) for k in range(2, last + 1))]
         absaug = up(np.abs(aug[0]) + aug[1])
         term = np.eye(n + 1)
         rest = np.zeros((n + 1, n + 1))
-        for k in range(1, 5):
+        for k in range(1, last + 1):
             term = up(nn_up(term, absaug) / k * (1 + 4 * U))
-        order = 4
-        while True:
+        order = last
+        while True:  # Σ_{k > last} |A_aug δ|^k/k! (weights <= 1), entrywise, plus the tail of the norms
             order += 1
             term = up(nn_up(term, absaug) / order * (1 + 4 * U))
             rest = up(rest + term)

@@ -11,7 +11,7 @@ never a containment target.  Per flowpipe of the re-check (a mode, a start set `
 1. **Entry.** The start set's box must lie in the invariant or in one guard polyhedron (else a deadlock at entry
    is possible).  Every guard the entry set may meet gives a jump at the entry times (instantaneous chains).
    The requirement is decided on the start set.
-2. **Steps.** With ``δ`` the schedule's step of the mode (halved until ``‖A_aug δ‖∞ <= 2``), ``e^{Aδ}`` and
+2. **Steps.** With ``δ`` the schedule's step of the mode (halved until ``‖A_aug δ‖∞ <= 1``), ``e^{Aδ}`` and
    ``∫₀^δ e^{Aτ}c dτ`` are enclosed (Taylor series in interval arithmetic plus a tail bound), and each step
    ``k`` gives ``Z_{k+1} = Φ Z_k + v`` (same generator weights: the initial generators are never reduced, so
    the set does not wrap) and the tube of ``[τ_lo + kδ, τ_hi + (k+1)δ]`` (convex hull of the two ends plus the
@@ -294,7 +294,7 @@ def _decide(run: _Run, mode: str, lo: np.ndarray, hi: np.ndarray, z: FZ | None, 
 
 
 def _enclosure(run: _Run, mode: str) -> tuple[ExpEnclosure, float, Any]:
-    """The mode's enclosure, its step (the schedule's, halved until ``q <= 2``) and its input terms."""
+    """The mode's enclosure, its step (the schedule's, halved until ``q <= 1``) and its input terms."""
     step = run.steps.get(mode)
     key = (mode, step)
     if key in run.encl:
@@ -307,7 +307,7 @@ def _enclosure(run: _Run, mode: str) -> tuple[ExpEnclosure, float, Any]:
     for _ in range(40):
         try:
             enc = ExpEnclosure(a, c, h)
-            if enc.q <= 2.0:
+            if enc.q <= 1.0:
                 break
         except ValueError:
             pass

@@ -100,7 +100,7 @@ def tube(z0: FZ, z1: FZ, enc: ExpEnclosure) -> FZ:
 
 
 def interpolation(z: FZ, enc: ExpEnclosure) -> np.ndarray:
-    """``Σ_{k=2}^4 |powers_k x̂| + rest |x̂|`` bounded over ``x̂ = (x, s)``, ``x ∈ z`` (first ``n`` rows)."""
+    """``Σ_k |powers_k x̂| + rest |x̂|`` bounded over ``x̂ = (x, s)``, ``x ∈ z`` (first ``n`` rows)."""
     n = z.center.size
     cols = np.zeros((n + 1, z.gens.shape[1] + 1))
     cols[:n, 0] = z.center
