@@ -122,6 +122,8 @@ def _row_floats(row: Any) -> tuple[np.ndarray, float]:
     key = id(row)
     got = _ROWS.get(key)
     if got is None or got[0] is not row:
+        if len(_ROWS) > 50_000:  # rows of models no longer used: the cache keeps them alive, so bound it
+            _ROWS.clear()
         got = (row, np.array([float(v) for v in row.normal]), float(row.offset))
         _ROWS[key] = got
     return got[1], got[2]
@@ -134,6 +136,14 @@ def _maybe_above(row: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
     top = float(np.sum(np.maximum(a * lo, a * hi)))
     scale = 1.0 + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
     return top >= offset - 1e-9 * scale
+
+
+def _surely_beyond(row: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """True only when ``min a·x > b`` over the box for sure (the margin of :func:`_maybe_above`)."""
+    a, offset = _row_floats(row)
+    bottom = float(np.sum(np.minimum(a * lo, a * hi)))
+    scale = 1.0 + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
+    return bottom > offset + 1e-9 * scale
 
 
 def _contract(z: FZ, rows: Sequence[Any]) -> Box | None:
@@ -209,9 +219,7 @@ def _meet(a: Box, b: Box) -> Box | None:
 def _part(rows: Sequence[Any], lo: np.ndarray, hi: np.ndarray, z: FZ) -> Box | None:
     """A box holding ``(box ∩ z) ∩ rows`` (``None``: empty); float pre-test, then exact."""
     for row in rows:
-        neg = type("R", (), {})()
-        neg.normal, neg.offset = tuple(-v for v in row.normal), -row.offset
-        if not _maybe_above(neg, lo, hi):  # min a·x > b for sure: empty
+        if _surely_beyond(row, lo, hi):  # min a·x > b for sure: empty
             return None
     clipped = clip_exact(_fbox(lo, hi), rows)
     if clipped is None:
