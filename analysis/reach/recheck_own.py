@@ -184,8 +184,8 @@ DUAL_GENERATORS = 80
 def _dual(z: FZ, rows: Sequence[Any]) -> Box | None:
     """A box holding ``z ∩ rows`` by weak duality with one row at a time: for ``a·x <= b`` and ``μ >= 0``,
     ``±x_i <= ±c_i − μ a·c + μ b + Σ_j |±g_ij − μ a·g_j|`` on ``z ∩ {a·x <= b}`` (``z = c + Σ g_j ξ_j``, the error
-    box as generators); the minimum over ``μ`` of this convex piecewise-linear function is at ``μ = 0`` or a
-    breakpoint, all tried (exact rationals).  For one row (or an equality, given as two rows) this is the exact
+    box as generators); the minimum over ``μ >= 0`` of this convex piecewise-linear function is found exactly at
+    ``μ = 0`` or the breakpoint where its slope turns non-negative (any ``μ >= 0`` gives a valid bound).  For one row (or an equality, given as two rows) this is the exact
     maximum over ``z`` (LP duality); the boxes of all rows are intersected.  ``None``: shown empty."""
     center, gens = z.exact()
     n = len(center)
@@ -197,13 +197,22 @@ def _dual(z: FZ, rows: Sequence[Any]) -> Box | None:
         ag = [sum((ai * g[i] for i, ai in enumerate(a) if ai and g[i]), Fraction(0)) for g in gens]
         if ac - sum((abs(v) for v in ag), Fraction(0)) > b:
             return None
+        weights = [abs(v) for v in ag]
         for i in range(n):
             for sign in (1, -1):
-                best = None
-                for mu in {Fraction(0), *(sign * g[i] / v for g, v in zip(gens, ag) if v and sign * g[i] / v > 0)}:
-                    value = sign * center[i] - mu * ac + mu * b + sum((abs(sign * g[i] - mu * v) for g, v in
-                                                                       zip(gens, ag)), Fraction(0))
-                    best = value if best is None else min(best, value)
+                # the slope of the convex function just right of μ = 0, then its breakpoints in order: the
+                # minimum is where the slope turns non-negative (a weighted median)
+                points = sorted((sign * g[i] / v, w) for g, v, w in zip(gens, ag, weights) if v)
+                slope = b - ac + sum((w if mu <= 0 else -w for mu, w in points), Fraction(0))
+                mu = Fraction(0)
+                for at, w in points:
+                    if slope >= 0:
+                        break
+                    if at > 0:
+                        slope += 2 * w
+                        mu = at
+                best = sign * center[i] - mu * ac + mu * b + sum((abs(sign * g[i] - mu * v) for g, v in
+                                                                   zip(gens, ag)), Fraction(0))
                 lo, hi = out[i]
                 out[i] = (lo, min(hi, best)) if sign > 0 else (max(lo, -best), hi)
             if out[i][0] > out[i][1]:
