@@ -398,9 +398,10 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
     return _Work(mode=t.target, start=image, t_lo=t_lo, t_hi=t_hi, depth=depth + 1, box=exact, pre=(t, box, rows))
 
 
-def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
+def _enter(run: _Run, work: _Work, where: str) -> tuple[np.ndarray, np.ndarray, list[_Work]]:
+    """The entry of a flowpipe (module, part 1): its deadlock check, the requirement on the start set, and the
+    jumps its guards allow at once; returns the start set's box and those jumps."""
     model, mode = run.model, work.mode
-    where = f"flowpipe {index} (mode {mode!r})"
     lo, hi = work.start.hull()
     box = work.box if work.box is not None else _fbox(lo, hi)
     why = entry_uncovered(model, mode, box)
@@ -421,6 +422,14 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
                 new = _jump(run, t, part, work.t_lo, work.t_hi, work.depth, f"{where} entry", guard.halfspaces)
                 if new is not None:
                     out.append(new)
+    return lo, hi, out
+
+
+def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
+    """One flowpipe of the re-check (module, parts 1–5); returns the flowpipes its jumps start."""
+    model, mode = run.model, work.mode
+    where = f"flowpipe {index} (mode {mode!r})"
+    lo, hi, out = _enter(run, work, where)
     enc, step, terms = _enclosure(run, mode)
     invariant = model.modes[mode].invariant
     faces = open_rows(model, mode)
