@@ -131,10 +131,10 @@ def _row_floats(row: Any) -> tuple[np.ndarray, float]:
 
 def _maybe_above(row: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
     """False only when ``max a·x < b`` over the box for sure (a float test with a margin that dominates its
-    rounding by many orders of magnitude: ``10⁻⁹ (1 + Σ|a_i| max|x_i|)``)."""
+    rounding by many orders of magnitude: ``10⁻⁹ (1 + |b| + Σ|a_i| max|x_i|)``)."""
     a, offset = _row_floats(row)
     top = float(np.sum(np.maximum(a * lo, a * hi)))
-    scale = 1.0 + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
+    scale = 1.0 + abs(offset) + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
     return top >= offset - 1e-9 * scale
 
 
@@ -142,7 +142,7 @@ def _surely_beyond(row: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
     """True only when ``min a·x > b`` over the box for sure (the margin of :func:`_maybe_above`)."""
     a, offset = _row_floats(row)
     bottom = float(np.sum(np.minimum(a * lo, a * hi)))
-    scale = 1.0 + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
+    scale = 1.0 + abs(offset) + float(np.sum(np.abs(a) * np.maximum(np.abs(lo), np.abs(hi))))
     return bottom > offset + 1e-9 * scale
 
 
