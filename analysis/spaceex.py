@@ -20,6 +20,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from hybrid.spaceex_config import forbidden_formula, initial_box, parse_config
 from hybrid.spaceex_import import SpaceExModel, load_spaceex, read_bytes
@@ -99,7 +100,8 @@ def split_spaceex_spec(spec: str) -> tuple[str, str | None]:
 
 def spaceex_problem(xml: str | Path, config: str | Path, component: str | None = None, *,
                     sample_period: float | None = None, input_points: int = INPUT_POINTS,
-                    constants: dict[str, float] | None = None) -> VerificationProblem:
+                    constants: dict[str, float] | None = None,
+                    reach_options: dict[str, Any] | None = None) -> VerificationProblem:
     """The verification problem of a SpaceEx model and configuration.
 
     Parameters
@@ -118,6 +120,9 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         Values of each input's piecewise-constant signal (:data:`INPUT_POINTS`).
     constants : dict or None
         Values of the component's own constants that no bind maps (:func:`hybrid.spaceex_import.load_spaceex`).
+    reach_options : dict or None
+        Options of the reachability proof (:func:`analysis.verify.problems.hybrid_problem`), e.g.
+        ``{"time_step": 0.5, "mode_time_steps": {"P3": 0.02}}`` for a model with a fast location.
 
     Raises
     ------
@@ -163,7 +168,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         parameters=parameters, initial_mode=mode, sample_period=period,
         description=f"SpaceEx model {xml} (component {model.system.automaton.name!r}) with {config}. "
                     + " ".join(notes),
-        source=f"{xml}:{model.system.automaton.name} --config {config}",
+        source=f"{xml}:{model.system.automaton.name} --config {config}", reach_options=reach_options,
     )
     return _with_input_proofs(problem, model, initial, mode)
 

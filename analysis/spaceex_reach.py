@@ -9,8 +9,8 @@ requirement of the STL safety fragment on that flowpipe (:func:`analysis.reach.v
 
 A decision that holds is re-checked from the saved flowpipe (whose JSON carries ``B`` and ``U``) by
 :func:`analysis.reach.recheck.recheck_flowpipe` with the model's inputs
-(:mod:`analysis.reach.recheck_inputs`: interval Picard with the input box, exact rationals); only a
-passed re-check gives ``rechecked=True`` and so ``proven``.
+(its own sets with the input bounds of :mod:`analysis.reach.recheck_inputs`, outward-rounded intervals and exact
+rationals: :mod:`analysis.reach.recheck_own`); only a passed re-check gives ``rechecked=True`` and so ``proven``.
 """
 
 from __future__ import annotations

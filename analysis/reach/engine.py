@@ -176,7 +176,17 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     return ReachResult(system=result.system, state_names=result.state_names, horizon=result.horizon,
                        max_jumps=max_jumps, time_step=result.time_step, segments=result.segments,
                        jumps=result.jumps, terminations=result.terminations, distances=distances,
-                       inputs=_input_records(inputs, run.inputs))
+                       inputs=_input_records(inputs, run.inputs), schedule=_schedule(mode_time_steps, jump_cluster))
+
+
+def _schedule(steps: Mapping[str, float] | None, cluster: int | None) -> tuple[tuple[str, Any], ...]:
+    """The options saved for the re-check's schedule (``()`` with the defaults: the JSON is then unchanged)."""
+    out: list[tuple[str, Any]] = []
+    if steps:
+        out.append(("mode_time_steps", {k: float(v) for k, v in sorted(steps.items())}))
+    if cluster is not None:
+        out.append(("jump_cluster", int(cluster)))
+    return tuple(out)
 
 
 def _input_records(inputs: Mapping[str, ModeInput] | None, checked: Mapping[str, tuple[list[list[Fraction]], Zonotope]]

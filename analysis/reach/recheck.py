@@ -1,56 +1,37 @@
 """An independent re-check of a reachability proof from the saved flowpipe (JSON) and the system.
 
-The re-check shares no set code with the producer (:mod:`analysis.reach.zonotope`,
-``flowpipe``, ``series``, ``sets``, ``engine`` are not imported): it reads the exact affine model
-(:func:`analysis.reach.model.affine_model`, rationals), the saved segment *boxes* and jump boxes
-of :meth:`~analysis.reach.result.ReachResult.to_json`, and decides everything on boxes whose
-bounds are floats, computed in exact rational arithmetic (:class:`fractions.Fraction`) and
-rounded outward.  Per flowpipe (a mode entered with a box ``X₀`` at times ``[τ_lo, τ_hi]``):
+The re-check shares no set code with the producer (:mod:`analysis.reach.zonotope`, ``flowpipe``, ``series``,
+``sets``, ``engine`` are not imported); it reads the exact model (:func:`analysis.reach.model.affine_model`,
+rationals) and the JSON of :meth:`~analysis.reach.result.ReachResult.to_json`.  Two routes:
 
-(a) **Segments.** For step ``k`` (times ``[τ_lo + kδ, τ_hi + (k+1)δ]``), from the re-checker's own
-    box ``X_k`` of the states at ``kδ`` after entry:
+**Affine models (every mode affine, with or without bounded inputs)** — :mod:`analysis.reach.recheck_schedule`
+and :mod:`analysis.reach.recheck_own`.  The saved flowpipe is a *schedule* only: it must be a well-formed,
+complete run of this model from this initial box (flowpipe, jump and termination counts; boxes finite and
+non-empty; every saved jump a transition of the model whose ``after`` box holds the exact reset image of its
+``before`` box; conclusive ends, not the jump bound; the first entry holds the initial box; the saved inputs
+cover the model's), and it gives the step per mode (``time_step``, ``schedule.mode_time_steps``), the jump
+clustering (``schedule.jump_cluster``) and the jump bound.  Everything else is the re-check's own: its sets per
+step (``e^{Aδ}`` enclosed in outward-rounded float intervals, zonotopes mapped without reduction, tubes with the
+interpolation error), the requirement's atoms on them (rigorous bounds compared in exact rationals), its guard
+parts (exact box clipping, the zonotope's weights, one-row LP duality), reset images and chaining, and the
+deadlock checks (:mod:`analysis.reach.deadlock`: the reached part of each invariant face must lie in a guard;
+an entry box, or the image of the states before its jump, in the invariant or a guard).  The saved boxes are
+never a containment target: runs with ``mode_time_steps``, ``merge_segments`` or ``jump_cluster`` are
+re-checked, a saved box that is too small cannot make a false requirement pass, and one that is corrupted
+while the requirement holds changes nothing (docs/reachability.md).
 
-    * an a-priori box ``W`` validated by the interval Picard operator,
-      ``X_k + [0, δ]·f(W) ⊂ int W``: every solution from ``X_k`` stays in ``W`` for ``δ``;
-    * a tight tube: ``m`` sub-steps ``s_j = jδ/m``, the Taylor box
-      ``Y_j = M(s_j) X_k + N(s_j) c + [0, s_j^{p+1}/(p+1)!]·A^p f(W)`` (order ``p = 4``,
-      ``M(s) = Σ_{i≤p} (sA)^i/i!``), and the piece ``hull(Y_j, (I + hA) Y_j + hc) + [0, h²/2]·A f(W)``
-      (the first two terms are exact for a point matrix and a box; the last is the Lagrange
-      remainder of order 2);
-    * the tube ``∩ W``, clipped to the invariant (flowing states satisfy it), must lie in the
-      saved segment box, and the saved times must cover the step's times.  ``m`` doubles from 4
-      to 256 when the containment fails.
-    * ``X_{k+1}`` is the Taylor box at ``δ``, clipped to the invariant.
+**Models with a nonlinear (smooth) mode** — this module with :mod:`analysis.reach.recheck_smooth`: per
+flowpipe, from the problem's initial box or the exact reset image of the saved box before the jump, the
+re-checker's own zonotope per step; affine modes by an interval Picard box ``W`` and Taylor boxes of order
+:data:`TAYLOR_ORDER` in exact rationals (``m`` = 4, 16, 64, 256 time pieces), nonlinear ones by the centred
+second-order Taylor map (:data:`SUB_STEPS` sub-steps).  Every piece must lie in the saved segment box (the saved
+times covering the step's), every guard part in the ``before`` box of a saved jump of that transition, every
+``after`` box must hold the exact reset image of ``before``; flowpipes ending at the horizon must reach it, those
+leaving the invariant must have their states there outside it; no deadlock at the exits and entries
+(:func:`exit_uncovered`, :func:`entry_uncovered`); the requirement's atoms are decided in exact rationals on the
+re-checker's own sets (box and zonotope).  Inputs are refused in a nonlinear mode.
 
-(b) **Chaining and ends.** The entry segment's box holds ``X₀``; the first flowpipe starts from
-    the problem's initial box, flowpipe ``i >= 1`` from the box after jump ``i − 1`` (the engine's
-    order).  A flowpipe ending at the horizon must reach it (``τ_lo + Kδ > horizon``); one ending
-    by leaving the invariant must have an empty ``X_K``; any other end (jump bound, a limit, a
-    blow-up) fails the re-check.
-
-(c) **Jumps.** Each segment box meeting a guard (the entry box: the guard; flowed boxes: guard ∩
-    invariant), clipped to it, lies in the ``before`` box of a saved jump of that transition whose
-    times cover the segment's; each jump's ``after`` box holds the exact reset image of ``before``.
-
-(d) **Requirement.** On the re-checker's own validated sets of every segment whose saved times
-    meet ``[a, b]`` (each time piece's box and its zonotope ``Y_j ⊕ [0, h]·f(W)``; the entry's start
-    box), which lie inside the saved boxes, the fragment's atoms ``c·x <= d`` are decided exactly
-    (the smaller of the rational maxima of ``c·x`` over the box and over the zonotope); label atoms
-    by the segment's mode.
-
-A mode with a nonlinear (smooth) flow is re-checked in (a) by :mod:`analysis.reach.recheck_smooth` instead
-(interval Picard, a second-order Taylor map in centred form, :data:`SUB_STEPS` sub-steps as time pieces);
-(b)–(d) are the same.  A flowpipe entered by a jump starts from the exact reset image of the box before
-the jump (a zonotope), which lies in the box after it (checked).
-
-Bounded inputs ``ẋ = A x + c + B u``, ``u ∈ U`` (a box) are re-checked by
-:mod:`analysis.reach.recheck_inputs`: the tube runs on the input-free set plus the carried inputs, and
-each piece gets the current step's input box; the saved JSON must carry ``B`` and ``U``.  Inputs are
-re-checked in affine modes only: an input in a nonlinear mode fails the re-check (with that reason).
-
-Anything failing fails the re-check, with the part and the place.  The interval Picard tube
-wraps for rotating or strongly coupled dynamics; the re-check then fails (no claim), it never
-passes by looseness.
+Anything failing fails the re-check, with the part and the place; it never passes by looseness.
 """
 
 from __future__ import annotations
@@ -67,6 +48,9 @@ import numpy as np
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
+from .deadlock import entry_uncovered
+from .recheck_own import OwnFailure
+from .recheck_schedule import OWN_PARTS, schedule_recheck
 from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
 from .recheck_smooth import SmoothSet, SmoothStepper, StepFailed, reduced
 
@@ -309,19 +293,6 @@ def exit_uncovered(model: AffineHybridModel, mode: str, boxes: Sequence[Box] | N
             return (f"mode {mode!r}: where the flow leaves the invariant ({h.text or 'a face'}) no guard is "
                     "shown enabled (a possible deadlock: the run would end early)")
     return None
-
-
-def entry_uncovered(model: AffineHybridModel, mode: str, box: Box) -> str | None:
-    """``None`` when a start box of ``mode`` lies in its invariant (exact), or in one guard polyhedron."""
-    def inside(poly: Any) -> bool:
-        return all(sum((max(a * lo, a * hi) for a, (lo, hi) in zip(h.normal, box)), Fraction(0)) <= h.offset
-                   for h in poly.halfspaces)
-    if any(inside(p) for p in model.modes[mode].invariant):
-        return None
-    if any(inside(p) for t in model.outgoing(mode) for p in t.guard):
-        return None
-    return (f"mode {mode!r}: a start box is not inside the invariant nor inside a guard (a possible deadlock "
-            "at entry)")
 
 
 def _picard(mode: _Mode, x: Box, step: Fraction) -> Box:
@@ -620,7 +591,7 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
     try:
         data = json.loads(saved) if isinstance(saved, str) else saved
         return _run(data, model, initial, fragment, initial_mode or model.initial_mode, given)
-    except (_Fail, InputMismatch) as fail:
+    except (_Fail, InputMismatch, OwnFailure) as fail:
         return RecheckResult(passed=False, failure=str(fail), segments=0, jumps=0, margin=None)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         return RecheckResult(passed=False, failure=f"the saved flowpipe is malformed: {exc!r}", segments=0, jumps=0,
@@ -636,6 +607,11 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
     step, horizon = Fraction(data["time_step"]), Fraction(data["horizon"])
     if horizon < Fraction(fragment.end):
         raise _Fail(f"the saved horizon {float(horizon)} s ends before the window's end {fragment.end} s")
+    start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
+    if all(m.smooth is None for m in model.modes.values()):  # affine: the own-set re-check (recheck_own)
+        own = schedule_recheck(data, model, start, initial_mode, fragment, given)
+        return RecheckResult(passed=True, failure="", segments=own.segments, jumps=own.jumps, parts=OWN_PARTS,
+                             margin=None if own.margin is None else float(_down(own.margin)))
     modes: dict[str, Any] = {}
     for name, m in model.modes.items():
         if m.smooth is not None:
@@ -652,7 +628,6 @@ def _run(data: Mapping[str, Any], model: AffineHybridModel, initial: Mapping[str
         c = [x + y for x, y in zip(m.c, given[name].shift())] if name in given else list(m.c)  # B u_c
         modes[name] = _Mode(a=a, c=c, invariant=m.invariant, power=power)
     flows = {name: InputDynamics(a=modes[name].a, spec=spec, step=step) for name, spec in given.items()}
-    start = [(Fraction(initial[k][0]), Fraction(initial[k][1])) for k in names]
     pipes = _pipes(data, start, initial_mode)
     jumps = data["jumps"]
     for j, jump in enumerate(jumps):

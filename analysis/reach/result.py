@@ -130,6 +130,7 @@ class ReachResult:
     terminations: tuple[Termination, ...]
     distances: tuple[tuple[str, float], ...] = ()
     inputs: tuple[tuple[str, list[list[float]], list[float], list[float]], ...] = ()
+    schedule: tuple[tuple[str, Any], ...] = ()
     _index: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -194,6 +195,8 @@ class ReachResult:
             "jumps": [j.as_dict() for j in self.jumps],
             "segments": [s.as_dict() for s in self.segments],
         }
+        if self.schedule:  # the options the re-check takes as its schedule; absent with the defaults
+            out["schedule"] = dict(self.schedule)
         if self.inputs:  # absent without inputs: the JSON of an input-free run is unchanged
             out["inputs"] = {mode: {"matrix": [list(r) for r in b], "low": list(lo), "high": list(hi)}
                              for mode, b, lo, hi in self.inputs}

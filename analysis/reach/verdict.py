@@ -34,14 +34,16 @@ from analysis.verify.verification import Proof
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
-from .recheck import entry_uncovered, exit_uncovered, recheck_flowpipe
+from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered
+from .recheck import recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
 
 __all__ = ["ReachDecision", "decide", "reach_proof", "ReachProof", "METHOD", "METHOD_NONLINEAR", "default_time_step",
            "default_max_jumps", "reach_proofs", "REACH_CHOICES", "scaled_fragment"]
 
-METHOD = "reachability (zonotope flowpipe, analysis.reach), re-checked by interval Picard and exact rationals"
+METHOD = ("reachability (zonotope flowpipe, analysis.reach), re-checked on the re-check's own sets (outward-rounded "
+          "intervals, exact rationals)")
 METHOD_NONLINEAR = ("reachability (zonotope flowpipe by conservative linearisation with a Lagrange remainder, "
                     "analysis.reach.nonlinear), re-checked by interval Picard and a second-order Taylor map in "
                     "outward-rounded intervals")
@@ -113,24 +115,21 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
     checked on it rather than on the saved segment's box (which rounding makes a little wider).
     """
     if model is not None:
-        for term in result.terminations:
-            why = exit_uncovered(model, term.mode) if term.reason == "left_invariant" else None
-            if why:
-                return False, math.nan, f"not decided by reachability: {why}"
         flowed: dict[str, list[Any]] = {}
         for seg in result.segments:
             if not seg.entry:
                 flowed.setdefault(seg.mode, []).append(
-                    [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)])
-        for mode, boxes in flowed.items():
-            why = exit_uncovered(model, mode, boxes)
+                    ([(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)], None))
+        given = {mode: ([[Fraction(v) for v in row] for row in b], [Fraction(v) for v in lo], [Fraction(v) for v in hi])
+                 for mode, b, lo, hi in result.inputs}
+        for mode, parts in flowed.items():  # every state leaving an invariant is on a face within a flowed box
+            why = face_uncovered(model, mode, parts, inputs=given.get(mode))
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
-        for seg in result.segments:
-            box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
-            if initial is not None and seg.entry and seg.jumps == 0:
-                box = [(Fraction(float(initial[k][0])), Fraction(float(initial[k][1]))) for k in result.state_names]
-            why = entry_uncovered(model, seg.mode, box) if seg.entry else None
+        for mode, box, pre in _entries(result, model, initial):
+            why = entry_uncovered(model, mode, box)
+            if why and pre is not None and image_covered(model, *pre):
+                why = None
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
     if not result.complete:
@@ -151,6 +150,42 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
         if slack is not None:
             margin = min(margin, slack)
     return True, margin, f"holds on all {len(result.segments)} segments"
+
+
+def _entries(result: ReachResult, model: Any, initial: Mapping[str, tuple[float, float]] | None) -> list[Any]:
+    """``(mode, box)`` holding each flowpipe's entry set, exactly: the initial box (when given), and after jump
+    ``i − 1`` (the engine's order) the exact reset images of its ``before`` box clipped to each guard polyhedron
+    (the states before a jump are in its guard; the saved boxes are rounded outward, which a face would not take)."""
+    out = []
+    entries = [seg for seg in result.segments if seg.entry]
+    for i, seg in enumerate(entries):
+        box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+        if i == 0 and initial is not None and seg.jumps == 0:
+            out.append((seg.mode, [(Fraction(float(initial[k][0])), Fraction(float(initial[k][1])))
+                                   for k in result.state_names], None))
+            continue
+        t = next((t for t in model.transitions if i > 0 and i - 1 < len(result.jumps)
+                  and t.name == result.jumps[i - 1].transition), None)
+        if t is None:
+            out.append((seg.mode, box, None))
+            continue
+        jump = result.jumps[i - 1]
+        before = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(jump.before_lo, jump.before_hi)]
+        invariant = model.modes[t.source].invariant
+        # the source's invariant holds the states before only when no entry set of the source (at that depth) met
+        # the guard: the engine merges entry and flowed parts into one jump
+        flowed = len(invariant) == 1 and not any(
+            e.mode == t.source and e.jumps == jump.jumps - 1 and any(clip_exact(
+                [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(e.lo, e.hi)], p.halfspaces) is not None
+                for p in t.guard) for e in entries)
+        for poly in t.guard:
+            part = clip_exact(before, poly.halfspaces)
+            if part is not None:
+                rows = (*poly.halfspaces, *(invariant[0].halfspaces if flowed else ()))
+                out.append((seg.mode, [(sum((min(a * l, a * h) for a, (l, h) in zip(row, part) if a), Fraction(0)) + off,
+                                        sum((max(a * l, a * h) for a, (l, h) in zip(row, part) if a), Fraction(0)) + off)
+                                       for row, off in zip(t.r_matrix, t.r_offset)], (t, part, rows)))
+    return out
 
 
 def _evidence(decision: ReachDecision, check: Any) -> str:
@@ -183,16 +218,20 @@ def scaled_fragment(fragment: SafetyFragment, scale: Fraction) -> SafetyFragment
 
 
 def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
-                 mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None
-                 ) -> tuple[ReachDecision, Any, float]:
+                 mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None,
+                 engine: Mapping[str, Any] | None = None) -> tuple[ReachDecision, Any, float]:
     """One start mode: the flowpipe, the producer's decision, the re-check (or None) and its seconds."""
     end = max(fragment.end, 1e-9)
     start = time.perf_counter()
-    key = (end, min(step, end), jumps, mode, tuple(sorted((k, tuple(v)) for k, v in initial.items())))
+    extra = dict(engine or {})
+    if "mode_time_steps" in extra:
+        extra["mode_time_steps"] = {k: min(float(v), end) for k, v in extra["mode_time_steps"].items()}
+    key = (end, min(step, end), jumps, mode, tuple(sorted((k, tuple(v)) for k, v in initial.items())),
+           repr(sorted(extra.items())))
     result = None if cache is None else cache.get(key)
     if result is None:
         result = reach(system, dict(initial), horizon=end, time_step=min(step, end), initial_mode=mode,
-                       max_jumps=jumps, max_segments=MAX_SEGMENTS)
+                       max_jumps=jumps, max_segments=MAX_SEGMENTS, **extra)
         if cache is not None:
             cache[key] = result
     holds, margin, reason = decide(result, fragment, affine_model(system, nonlinear=True), initial)
@@ -209,7 +248,8 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
                 initial_mode: str | None = None, time_step: float | None = None,
                 max_jumps: int | None = None, cache: dict[Any, ReachResult] | None = None,
                 starts: Sequence[tuple[str, Any]] | None = None, scale: Fraction = Fraction(1),
-                scale_text: str = "", splits: Mapping[str, int] | None = None) -> tuple[Proof, ReachDecision]:
+                scale_text: str = "", splits: Mapping[str, int] | None = None,
+                engine: Mapping[str, Any] | None = None) -> tuple[Proof, ReachDecision]:
     """Decide and re-check ``fragment`` over the initial box; the :class:`Proof` and the producer's decision.
 
     Parameters
@@ -237,18 +277,25 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
         Cut the initial box (of every start) into this grid (:func:`analysis.reach.split.split_box`); each
         piece is decided and re-checked on its own, and the proof holds when every piece's does (the pieces
         cover the box, checked exactly).
+    engine : mapping or None
+        Options of :func:`analysis.reach.reach` for long or hybrid runs: ``mode_time_steps`` ({mode: step},
+        scaled like ``time_step``), ``jump_cluster``, ``merge_segments`` (the re-check takes the first two as
+        its schedule).
     """
     if splits and any(k != 1 for k in dict(splits).values()):
         return _split_proof(system, fragment, initial, dict(splits), initial_mode=initial_mode,
                             time_step=time_step, max_jumps=max_jumps, cache=cache, starts=starts, scale=scale,
-                            scale_text=scale_text)
+                            scale_text=scale_text, engine=engine)
+    engine = dict(engine or {})
+    if "mode_time_steps" in engine:
+        engine["mode_time_steps"] = {k: float(v) * float(scale) for k, v in engine["mode_time_steps"].items()}
     jumps = default_max_jumps(max(fragment.end, 1e-9)) if max_jumps is None else max_jumps  # jumps: the same events
     fragment = scaled_fragment(fragment, scale)  # in both times; the window and the step scale
     end = max(fragment.end, 1e-9)
     step = default_time_step(end) if time_step is None else time_step * float(scale)
     begin = [(m, {k: (lo, hi) for k, lo, hi in b}) for m, b in starts] if starts else [(initial_mode, dict(initial))]
     modes = [m for m, _ in begin]
-    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache)) for m, b in begin]
+    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache, engine)) for m, b in begin]
     bad = next((r for r in runs if not r[1].holds), None)
     holds = bad is None
     chosen = bad if bad is not None else min(runs, key=lambda r: r[1].margin)
@@ -330,6 +377,7 @@ class ReachProof:
     scale_text: str = ""
     cache: dict[Any, ReachResult] | None = field(default=None, compare=False, repr=False)
     splits: tuple[tuple[str, int], ...] | None = None
+    engine: tuple[tuple[str, Any], ...] = ()
 
     def __call__(self) -> Proof:
         """The proof (never raises: a model or option reachability cannot handle gives a proof that does not hold)."""
@@ -342,7 +390,8 @@ class ReachProof:
                                    initial_mode=self.initial_mode, time_step=self.time_step,
                                    max_jumps=self.max_jumps, cache=self.cache, starts=self.starts,
                                    scale=self.scale, scale_text=self.scale_text,
-                                   splits=None if self.splits is None else dict(self.splits))
+                                   splits=None if self.splits is None else dict(self.splits),
+                                   engine=dict(self.engine))
         except (ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=METHOD, evidence=f"not decided by reachability: {exc}", rechecked=False)
         return proof
@@ -358,10 +407,11 @@ def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: 
         raise ProblemError(f"{where}: reach", reach_mode, "'auto', True or False",
                            "write reach='auto' (the default), True (required) or False (falsification only)")
     opts = dict(options or {})
-    unknown = sorted(set(opts) - {"time_step", "max_jumps", "splits"})
+    unknown = sorted(set(opts) - {"time_step", "max_jumps", "splits", *ENGINE_OPTIONS})
     if unknown:
-        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s], max_jumps and splits",
-                           f"remove {unknown}")
+        raise ProblemError(f"{where}: reach_options", opts, "keys time_step [s], max_jumps, splits, "
+                           "mode_time_steps, jump_cluster and merge_segments", f"remove {unknown}")
+    _check_engine(opts, where)
     splits = opts.get("splits")
     if splits is not None and not (isinstance(splits, Mapping) and all(
             isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) and v >= 1
@@ -378,6 +428,26 @@ def _checked_options(reach_mode: Any, options: Mapping[str, Any] | None, where: 
         raise ProblemError(f"{where}: reach_options['max_jumps']", jumps, "a whole number >= 0",
                            "give e.g. max_jumps=100, or leave it out")
     return opts
+
+
+ENGINE_OPTIONS = ("mode_time_steps", "jump_cluster", "merge_segments")
+"""``reach_options`` keys passed to :func:`analysis.reach.reach` as they are (long and hybrid runs)."""
+
+
+def _check_engine(opts: Mapping[str, Any], where: str) -> None:
+    from analysis.verify.verification import ProblemError
+
+    steps = opts.get("mode_time_steps")
+    if steps is not None and not (isinstance(steps, Mapping) and all(
+            isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            and v > 0 for k, v in steps.items())):
+        raise ProblemError(f"{where}: reach_options['mode_time_steps']", steps, "a mapping {mode: step > 0 [s]}",
+                           "give e.g. mode_time_steps={'fast': 0.001}, or leave it out")
+    for name in ("jump_cluster", "merge_segments"):
+        value = opts.get(name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+            raise ProblemError(f"{where}: reach_options[{name!r}]", value, "a whole number >= 1",
+                               f"give e.g. {name}=25, or leave it out")
 
 
 def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_mode: Any = "auto",
@@ -402,7 +472,8 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
         (:mod:`analysis.reach.parameters`); when they cannot be, each requirement in the fragment gets a
         proof that does not hold and says why.
     options : mapping or None
-        ``time_step`` [s], ``max_jumps`` and ``splits`` of :func:`reach_proof`.
+        ``time_step`` [s], ``max_jumps`` and ``splits`` of :func:`reach_proof`; ``mode_time_steps``,
+        ``jump_cluster`` and ``merge_segments`` of :func:`analysis.reach.reach` (:data:`ENGINE_OPTIONS`).
     box : sequence of Parameter
         Every coordinate of the problem's box (``problem.parameters``), for ``builder``.
 
@@ -451,7 +522,8 @@ def reach_proofs(system: Any, parsed: Any, initial: Mapping[str, Any], *, reach_
                                  initial_mode=modes[0][0], starts=modes, time_step=opts.get("time_step"),
                                  max_jumps=opts.get("max_jumps"), scale=setup.scale, scale_text=setup.scale_text,
                                  cache=shared, splits=None if opts.get("splits") is None
-                                 else tuple(sorted(opts["splits"].items())))
+                                 else tuple(sorted(opts["splits"].items())),
+                                 engine=tuple((k, opts[k]) for k in ENGINE_OPTIONS if opts.get(k) is not None))
     return out
 
 

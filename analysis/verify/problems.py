@@ -420,7 +420,8 @@ def hybrid_problem(
         caller passes in ``proofs`` wins over the reachability one.
     reach_options : mapping or None
         ``time_step`` [s] (default: the window's end / 1000) and ``max_jumps`` (default
-        ``max(50, 10·⌈end⌉)``) of the flowpipe.
+        ``max(50, 10·⌈end⌉)``) of the flowpipe, ``splits``, and the options of long or hybrid runs
+        ``mode_time_steps``, ``jump_cluster``, ``merge_segments`` (:func:`analysis.reach.reach`).
     """
     build = _builder(system, HybridSystem, f"problem {name!r}")
     probe = build({p.name: p.at(0.0) for p in _box(initial, parameters, list(initial), name)})

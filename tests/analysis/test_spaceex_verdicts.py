@@ -39,23 +39,23 @@ def test_the_platoon_input_matrix_is_the_published_one():
         assert spec.bounds == ([-9.0], [1.0])
 
 
-def test_plad01_bnd42_is_decided_by_the_flowpipe_but_the_recheck_with_inputs_fails_so_never_proven():
+def test_plad01_bnd42_is_proven_by_the_flowpipe_and_the_recheck_on_its_own_sets():
     problem = spaceex_problem(PLATOON / "PLAD01-BND.xml", SPECS / "PLAD01-BND42.cfg")
     assert problem.requirements[0].formula == "always[0, 20.0] not ((e1 <= (-42.0)) or (e2 <= (-42.0)) or " \
                                               "(e3 <= (-42.0)))"
     result = verify(problem, budget=6, seed=0)
     proof = result.requirement("safe").proof
-    # ARCH-COMP AFF: PLAD01-BND42 safe.  The producer decides it; the re-check with the input (issue 28) runs
-    # its own tube but is looser than the engine's stored boxes after some segments (its carried inputs are
-    # reduced to 4 generators per state, the engine's to 20): the re-check fails, so never proven
-    assert proof.holds and not proof.rechecked and not proof.proven
-    assert "re-check FAILED (segments: flowpipe 0" in proof.evidence and "aL in [-9, 1]" in proof.evidence
+    # ARCH-COMP AFF: PLAD01-BND42 safe.  The producer decides it; the re-check with the input (issue 28) decides it on
+    # its own sets (the saved flowpipe only as a schedule: analysis.reach.recheck_own), so it is proven
+    assert proof.holds and proof.rechecked and proof.proven, proof.evidence
+    assert "re-checked from the saved flowpipe with the inputs" in proof.evidence and "aL in [-9, 1]" in proof.evidence
     margin = float(proof.evidence.split("margin ")[1].split(";")[0])
-    assert result.verdict == "not_falsified" and result.requirement("safe").verdict == "not_falsified"
-    # the flowpipe's margin is a lower bound of the true one, the runs' robustness an upper bound (a sampled
-    # run's minimum distance to -42 m); BND30 is published safe too, so the true margin is at least 12 m
+    own = float(proof.evidence.split("exact margin ")[1].split()[0])
+    assert result.verdict == "proven" and result.requirement("safe").verdict == "proven"
+    # both margins are lower bounds of the true one, the runs' robustness an upper bound (a sampled run's minimum
+    # distance to -42 m); BND30 is published safe too, so the true margin is at least 12 m
     lowest = result.requirement("safe").robustness
-    assert 0.0 < margin <= lowest and lowest >= 12.0
+    assert 0.0 < margin <= lowest and 0.0 < own <= lowest and lowest >= 12.0
 
 
 def test_plad01_bnd30_is_not_decided_by_the_flowpipe():

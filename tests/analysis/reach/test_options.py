@@ -78,3 +78,40 @@ def test_bad_options_name_the_parameter(kwargs, name):
     with pytest.raises(ReachError) as err:
         reach(ROOM, BOX, horizon=1.0, time_step=0.01, **kwargs)
     assert err.value.parameter == name
+
+
+def test_runs_with_these_options_are_rechecked_on_the_rechecks_own_sets():
+    from analysis.reach.fragment import safety_fragment
+    from analysis.reach.recheck import recheck_flowpipe
+    from analysis.stl.syntax import parse_tree
+
+    # the band [18.95, 21.05] holds with slack 0.05 (closed form: the room cools to 19 within 1.5 s and heats to 21
+    # within 2 s more, both inside the 6 s window); [19.01, 21.05] does not (T reaches 19)
+    band = safety_fragment(parse_tree("always[0, 6] (T >= 18.95 and T <= 21.05)"), ("T",))
+    tight = safety_fragment(parse_tree("always[0, 6] (T >= 19.01 and T <= 21.05)"), ("T",))
+    for options in ({"mode_time_steps": {"on": 0.005}}, {"jump_cluster": 10, "max_jumps": 60},
+                    {"merge_segments": 25}):
+        result = reach(ROOM, BOX, horizon=6.0, time_step=0.02, **{"max_jumps": 20, **options})
+        saved = result.to_json()
+        assert ('"schedule"' in saved) == ("merge_segments" not in options)  # the hints the re-check takes
+        check = recheck_flowpipe(saved, ROOM, BOX, band)
+        assert check.passed and 0.045 < check.margin <= 0.05, (options, check.failure)
+        assert not recheck_flowpipe(saved, ROOM, BOX, tight).passed
+
+
+def test_verify_takes_the_engine_options_and_names_bad_ones():
+    from analysis.verify.problems import hybrid_problem
+    from analysis.verify.requirements import Requirement
+    from analysis.verify.verification import Parameter, ProblemError
+
+    def problem(**options):
+        return hybrid_problem(name="room", system=ROOM, initial={"T": Parameter(name="T0", low=19.5, high=20.5)},
+                              horizon=6.0, requirements=(Requirement(name="band", formula="always[0, 6] (T >= "
+                                                                                           "18.95 and T <= 21.05)"),),
+                              reach_options={"time_step": 0.02, **options})
+    proof = problem(mode_time_steps={"on": 0.005}, jump_cluster=10, max_jumps=60).proofs["band"]()
+    assert proof.proven and "exact margin 0.04" in proof.evidence, proof.evidence
+    for bad, name in (({"mode_time_steps": {"on": -1.0}}, "mode_time_steps"), ({"jump_cluster": 0}, "jump_cluster"),
+                      ({"merge_segments": 1.5}, "merge_segments")):
+        with pytest.raises(ProblemError, match=name):
+            problem(**bad)

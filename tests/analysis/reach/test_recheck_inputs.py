@@ -78,15 +78,21 @@ def test_the_tube_bound_against_the_closed_form():
     assert len(first) == 6 and 1 - math.exp(-d) <= radius <= math.exp(d) - 1 + 0.15 * d ** 6 / 720 + 1e-15
 
 
-def test_a_shrunk_segment_is_refused(saved):
-    # segment 59 covers t in [1.18, 1.2]; the closed form reaches 1 - 0.2 e^{-1.18} = 0.9385 there (x₀ = 0.8,
-    # u ≡ 1): a box ending at 0.93 misses reachable states, and the re-check must refuse it
+def test_shrunk_segments_cannot_fool_the_recheck(saved):
+    # segment 60 covers t in [1.18, 1.2]; the closed form reaches 1 - 0.2 e^{-1.18} = 0.9385 there (x₀ = 0.8,
+    # u ≡ 1).  The saved boxes are only a schedule: with every box squeezed below 0.93 the band |x| <= 0.95 (false
+    # after t = ln(0.2/0.05) = 1.39 s) is still refused, decided on the re-check's own sets
     data = json.loads(saved)
     seg = data["segments"][60]
     assert seg["t"][0] <= 1.18 and 1 - 0.2 * math.exp(-1.18) > 0.93
-    seg["box"][1][0] = 0.93
-    check = recheck_flowpipe(json.dumps(data), SYSTEM, START, _band(1.05), inputs=INPUTS)
-    assert not check.passed and "segments" in check.failure and "segment 59" in check.failure
+    for seg in data["segments"][1:]:
+        seg["box"] = [[max(v, -0.93) for v in seg["box"][0]], [min(v, 0.93) for v in seg["box"][1]]]
+    check = recheck_flowpipe(json.dumps(data), SYSTEM, START, _band(0.95), inputs=INPUTS)
+    assert not check.passed and check.failure.startswith("requirement"), check.failure
+    # the true band |x| <= 1.05 still holds and is re-checked with the clean flowpipe's margin
+    clean = recheck_flowpipe(saved, SYSTEM, START, _band(1.05), inputs=INPUTS)
+    squeezed = recheck_flowpipe(json.dumps(data), SYSTEM, START, _band(1.05), inputs=INPUTS)
+    assert squeezed.passed and squeezed.margin == clean.margin
 
 
 def test_dropped_input_bounds_are_refused(saved):
@@ -107,12 +113,13 @@ def test_a_model_input_wider_than_the_saved_one_is_refused(saved):
 
 def test_a_widened_input_in_the_json_alone_does_not_help():
     # a flowpipe computed with u in [-1, 1] but whose JSON claims u in [-1, 1.5]: the re-check uses the model's
-    # U = [-1, 1.5] (the JSON covers it) and the segments, computed for the smaller U, are too small
+    # U = [-1, 1.5] (the JSON covers it): with u ≡ 1.5, x(t) = 1.5 - 0.7 e^{-t} exceeds 1.05 after t = 0.44 s, and
+    # the re-check's own sets (for the model's U) refuse the band, whatever the saved segments say
     data = json.loads(reach(SYSTEM, START, horizon=0.5, time_step=STEP, inputs=INPUTS).to_json())
     data["inputs"]["m"]["high"] = [1.5]
     wide = {"m": ModeInput(matrix=[[1.0]], bounds=([-1.0], [1.5]))}
     check = recheck_flowpipe(json.dumps(data), SYSTEM, START, _band(1.05, 0.5), inputs=wide)
-    assert not check.passed and "segments" in check.failure
+    assert not check.passed and check.failure.startswith("requirement")
     assert recheck_flowpipe(json.dumps(data), SYSTEM, START, _band(1.05, 0.5), inputs=INPUTS).passed
 
 

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from analysis.verify.problems import hybrid_problem
+from analysis.reach import reach
 from analysis.reach.fragment import Conj, LinearAtom, NotInFragment, atoms, safety_fragment
 from analysis.reach.recheck import recheck_flowpipe
 from analysis.reach.verdict import decide, reach_proof
@@ -135,16 +136,24 @@ def test_a_tampered_flowpipe_fails_the_recheck():
     clean = json.loads(decision.result.to_json())
     assert recheck_flowpipe(clean, ROOM, {"T": (19.5, 20.5)}, fragment).passed
 
+    # the saved boxes are a schedule, not a containment target: a shrunk segment box changes nothing when the
+    # requirement holds on the true reach set (the re-check decides it on its own sets, the same margin)
     shrunk = json.loads(decision.result.to_json())
     lo, hi = shrunk["segments"][10]["box"]
     shrunk["segments"][10]["box"] = [lo, [hi[0] - 0.3 * (hi[0] - lo[0])]]
     check = recheck_flowpipe(shrunk, ROOM, {"T": (19.5, 20.5)}, fragment)
-    assert not check.passed and check.failure.startswith("segments") and "not inside the saved box" in check.failure
+    assert check.passed and check.margin == recheck_flowpipe(clean, ROOM, {"T": (19.5, 20.5)}, fragment).margin
 
     jumped = json.loads(decision.result.to_json())
-    jumped["jumps"][0]["before"] = [[21.0], [21.0 - 1e-9]]
+    jumped["jumps"][0]["before"] = [[21.0], [21.0 - 1e-9]]  # an empty box: malformed
     check = recheck_flowpipe(jumped, ROOM, {"T": (19.5, 20.5)}, fragment)
-    assert not check.passed and "jump" in check.failure
+    assert not check.passed and check.failure.startswith("jumps") and "malformed or empty" in check.failure
+
+    reset = json.loads(decision.result.to_json())  # a flowpipe of another reset (T+ = T - 1): refused
+    reset["jumps"][0]["after"] = [[v - 1.0 for v in reset["jumps"][0]["before"][0]],
+                                  [v - 1.0 for v in reset["jumps"][0]["before"][1]]]
+    check = recheck_flowpipe(reset, ROOM, {"T": (19.5, 20.5)}, fragment)
+    assert not check.passed and "reset image" in check.failure
 
     capped = json.loads(decision.result.to_json())
     capped["terminations"][-1]["reason"] = "max_jumps"
@@ -153,6 +162,48 @@ def test_a_tampered_flowpipe_fails_the_recheck():
 
     wider = recheck_flowpipe(clean, ROOM, {"T": (19.4, 20.5)}, fragment)  # not the box the flowpipe started from
     assert not wider.passed and "chaining" in wider.failure
+
+
+def test_corrupted_saved_boxes_cannot_fool_the_recheck():
+    # the room's temperature reaches the switching level 21 (closed form: T0 <= 20.5 heats up to 21 then cools),
+    # so "T <= 20.9" is false on the true reach set.  Every saved box (segments and jumps) is squeezed below
+    # 20.9 and the producer's claim is forged: the re-check decides on its own sets and refuses
+    fragment = _fragment(BAND)
+    _, decision = reach_proof(ROOM, fragment, {"T": (19.5, 20.5)})
+    false = _fragment("always[0, 30] (T <= 20.9)")
+    forged = json.loads(decision.result.to_json())
+    for seg in forged["segments"]:
+        (lo,), (hi,) = seg["box"]
+        seg["box"] = [[min(lo, 20.8)], [min(hi, 20.85)]]
+    for jump in forged["jumps"]:
+        for key in ("before", "after"):
+            (lo,), (hi,) = jump[key]
+            jump[key] = [[min(lo, 20.8)], [min(hi, 20.85)]]
+    check = recheck_flowpipe(forged, ROOM, {"T": (19.5, 20.5)}, false)
+    assert not check.passed and check.failure.startswith("requirement"), check.failure
+    # and with the true requirement the forged boxes change nothing: the re-check's own margin (<= the closed
+    # form's 0.05) is that of the clean flowpipe
+    clean = recheck_flowpipe(decision.result.to_json(), ROOM, {"T": (19.5, 20.5)}, fragment)
+    assert clean.passed and 0.049 < clean.margin <= 0.05
+    squeezed = json.loads(decision.result.to_json())
+    for seg in squeezed["segments"][1:]:  # the first entry must hold the initial box (the producer's claim)
+        (lo,), (hi,) = seg["box"]
+        mid = (lo + hi) / 2
+        seg["box"] = [[mid], [mid]]
+    again = recheck_flowpipe(squeezed, ROOM, {"T": (19.5, 20.5)}, fragment)
+    assert again.passed and again.margin == clean.margin
+
+
+def test_a_flowpipe_of_another_flow_is_decided_for_the_given_model():
+    # a flowpipe of the slow room (rate 0.05) proves T <= 20.75 over 3 s from T0 in [19.5, 20.5]; the fast room
+    # (rate 0.2) cools from 19.5 to 19 in 0.26 s and heats at 0.2·(30 − 19) = 2.2 °C/s, so it exceeds 20.75 before
+    # t = 1.2 s: re-checked against the fast model, the slow flowpipe's JSON is refused (its sets are not used)
+    slow, fast = thermostat(rate=0.05).system, thermostat(rate=0.2).system
+    fragment = _fragment("always[0, 3] (T <= 20.75)")
+    saved = reach(slow, {"T": (19.5, 20.5)}, horizon=3.0, time_step=0.003, max_jumps=20).to_json()
+    assert recheck_flowpipe(saved, slow, {"T": (19.5, 20.5)}, fragment).passed
+    check = recheck_flowpipe(saved, fast, {"T": (19.5, 20.5)}, fragment)
+    assert not check.passed and check.failure.startswith("requirement") and "mode 'on'" in check.failure
 
 
 def test_the_recheck_imports_no_set_code_of_the_engine():
@@ -169,8 +220,10 @@ def test_the_recheck_imports_no_set_code_of_the_engine():
             if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("analysis.reach."):
                 todo.append(node.module.split(".")[-1])
     # smooth: the reading of nonlinear flows (no set code); recheck_smooth: the re-check's own nonlinear step;
-    # recheck_inputs: the re-check's own bound of bounded inputs
-    assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth"}, seen
+    # recheck_inputs: the re-check's own bound of bounded inputs; recheck_schedule, recheck_own, recheck_sets,
+    # recheck_interval: the own-set re-check of affine flowpipes; deadlock: the exact face check (boxes)
+    assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth",
+                    "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "deadlock"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
