@@ -87,13 +87,13 @@ def unit_gradients(problem: VerificationProblem, unit: Sequence[float], trace: S
 def sensitivity_gradient(search: Search, r: int, x: np.ndarray, phase: str = "gradient"
                          ) -> tuple[float | None, np.ndarray | None]:
     """Robustness of requirement ``r`` at ``x`` (shape ``(k,)``) and its gradient in unit coordinates (shape
-    ``(k,)``) from one simulation with sensitivities (:meth:`Search.run_gradient`).  ``(None, None)`` when the
+    ``(k,)``) from one simulation with sensitivities (:meth:`Search.run_gradient`; the search's evaluator,
+    :func:`analysis.verify.falsification.evaluate`, called with ``sensitivities=True``).  ``(None, None)`` when the
     run was not evaluated; ``(f, None)`` when the model gave no gradient for ``r``.  Raises
     :class:`~analysis.verify.falsification_book.BudgetExhausted` when the budget ends."""
-    from analysis.verify.falsification import evaluate
-
     def differentiate(problem: VerificationProblem, unit: tuple[float, ...], timeout_s: float | None):
-        return evaluate(problem, unit, timeout_s, sensitivities=True)
+        # the search's evaluator, :func:`analysis.verify.falsification.evaluate`, with the sensitivities
+        return search.evaluator(problem, unit, timeout_s, sensitivities=True)  # type: ignore[call-arg]
 
     e = search.run_gradient(tuple(float(v) for v in x), phase, differentiate)
     o = e.outcome

@@ -39,6 +39,10 @@ Inputs as parameters (``analysis/verify/signals.py``): the throttle and the brak
 the last value holds to the end of the run.  Each problem simulates up to its requirement's horizon
 (AT5i: 32.6 s).
 
+Sensitivities (the ``whitebox`` search's gradients): :func:`sensitivities_inputs` runs the same
+:func:`simulate_autotrans` on dual numbers (:mod:`analysis.dual`), forward-mode through the Runge-Kutta steps and
+the tables, the shift logic deciding on the values; ``docs/arch.md``.
+
 Load them with ``visnav verify examples/arch/autotrans.py:at1`` (``at2``, ``at51`` .. ``at54``, ``at6a`` ..
 ``at6c``); :func:`problems` returns them all keyed by requirement name.
 """
