@@ -23,11 +23,11 @@ import numpy as np
 
 from analysis.stl import SignalTrace, TraceError
 from analysis.stl.gradient import robustness_gradient
-from analysis.verify.falsification_book import Search
+from analysis.verify.falsification_book import Evaluation, Search
 from analysis.verify.verification import Parameter, VerificationProblem
 
 __all__ = ["SENSITIVITIES", "FINITE_DIFFERENCES", "gradient_source", "unit_slope", "unit_gradients",
-           "sensitivity_gradient", "differentiate_restart"]
+           "simulate_with_gradient", "gradient_of", "sensitivity_gradient", "differentiate_restart"]
 
 SENSITIVITIES = "sensitivities"
 """:attr:`Outcome.gradient_method` of a gradient from the model's sensitivities."""
@@ -84,18 +84,21 @@ def unit_gradients(problem: VerificationProblem, unit: Sequence[float], trace: S
     return tuple(out), how
 
 
-def sensitivity_gradient(search: Search, r: int, x: np.ndarray, phase: str = "gradient"
-                         ) -> tuple[float | None, np.ndarray | None]:
-    """Robustness of requirement ``r`` at ``x`` (shape ``(k,)``) and its gradient in unit coordinates (shape
-    ``(k,)``) from one simulation with sensitivities (:meth:`Search.run_gradient`; the search's evaluator,
-    :func:`analysis.verify.falsification.evaluate`, called with ``sensitivities=True``).  ``(None, None)`` when the
-    run was not evaluated; ``(f, None)`` when the model gave no gradient for ``r``.  Raises
-    :class:`~analysis.verify.falsification_book.BudgetExhausted` when the budget ends."""
+def simulate_with_gradient(search: Search, x: np.ndarray, phase: str) -> Evaluation:
+    """Simulate ``x`` (shape ``(k,)``, clipped to the box) with its sensitivities: :meth:`Search.run_gradient`
+    with the search's evaluator, :func:`analysis.verify.falsification.evaluate`, called with
+    ``sensitivities=True``.  Raises :class:`~analysis.verify.falsification_book.BudgetExhausted` when the budget
+    ends."""
     def differentiate(problem: VerificationProblem, unit: tuple[float, ...], timeout_s: float | None):
-        # the search's evaluator, :func:`analysis.verify.falsification.evaluate`, with the sensitivities
         return search.evaluator(problem, unit, timeout_s, sensitivities=True)  # type: ignore[call-arg]
 
-    e = search.run_gradient(tuple(float(v) for v in x), phase, differentiate)
+    return search.run_gradient(tuple(float(v) for v in np.clip(x, -1.0, 1.0)), phase, differentiate)
+
+
+def gradient_of(e: Evaluation, r: int) -> tuple[float | None, np.ndarray | None]:
+    """Robustness of requirement ``r`` (clipped to ``+-1e300``) and its gradient in unit coordinates from a
+    simulation with sensitivities: ``(None, None)`` when the run was not evaluated, ``(f, None)`` when the model
+    gave no gradient for ``r``."""
     o = e.outcome
     if not o.evaluated:
         return None, None
@@ -104,6 +107,14 @@ def sensitivity_gradient(search: Search, r: int, x: np.ndarray, phase: str = "gr
     if len(o.gradient) <= r or not o.gradient[r]:
         return f0, None
     return f0, np.asarray(o.gradient[r], dtype=float)
+
+
+def sensitivity_gradient(search: Search, r: int, x: np.ndarray, phase: str = "gradient"
+                         ) -> tuple[float | None, np.ndarray | None]:
+    """Robustness of requirement ``r`` at ``x`` (shape ``(k,)``) and its gradient in unit coordinates (shape
+    ``(k,)``) from one simulation with sensitivities (:func:`simulate_with_gradient`, :func:`gradient_of`).
+    Raises :class:`~analysis.verify.falsification_book.BudgetExhausted` when the budget ends."""
+    return gradient_of(simulate_with_gradient(search, x, phase), r)
 
 
 def differentiate_restart(search: Search, restart: np.ndarray) -> bool:

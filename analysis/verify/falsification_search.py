@@ -334,7 +334,8 @@ def central_gradient(search: Search, r: int, x: np.ndarray, step: float = _FD_ST
 def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart: np.ndarray) -> bool:
     """One projected-gradient step with Armijo backtracking on requirement ``r``.  Returns whether the
     descent stalled and ``restart`` was taken as the new centre."""
-    from analysis.verify.falsification_gradient import differentiate_restart, sensitivity_gradient
+    from analysis.verify.falsification_gradient import (differentiate_restart, sensitivity_gradient,
+                                                         simulate_with_gradient)
 
     k = search.problem.dimension
     if book.center is None:
@@ -360,9 +361,15 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
         return differentiate_restart(search, restart)
     direction = -g / norm
     alpha = book.sigma
+    sens = how.endswith("(sensitivities)")
+    vertex = sens  # first the box's vertex that minimises the linearisation (Frank-Wolfe)
     while alpha >= _SIGMA_MIN:
-        y = np.clip(x + alpha * direction, -1.0, 1.0)
-        e = _try(search, y, "descent", falsified, how)
+        y = np.clip(x - np.sign(g), -1.0, 1.0) if vertex else np.clip(x + alpha * direction, -1.0, 1.0)
+        if sens:  # each trial with its sensitivities: the point accepted has its gradient for the next step
+            e = simulate_with_gradient(search, y, "descent")
+            _record(search, falsified, how)
+        else:
+            e = _try(search, y, "descent", falsified, how)
         fy = _rho(e, r)
         moved = float(np.dot(g, y - x))
         if fy is not None and fy <= f0 + 1e-4 * moved and np.any(y != x):
@@ -370,6 +377,9 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
             return False
         if r in falsified:
             return False
+        if vertex:
+            vertex = False
+            continue
         alpha *= 0.5
     book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
     return differentiate_restart(search, restart)
