@@ -16,9 +16,11 @@ Methods (:data:`METHODS`)
            violation persists).
         :mod:`analysis.verify.falsification_search` has the details.
     ``"whitebox"``
-        The same start, then projected gradient descent on the robustness with gradients by
-        central finite differences (a batch of ``2k`` simulations each: no flow sensitivities yet),
-        Armijo backtracking, restarts; then the shrink.
+        Projected gradient descent on the robustness, Armijo backtracking, restarts; then the shrink.
+        Gradients from the model's sensitivities when the problem gives them (one simulation each,
+        from the nominal point on: :mod:`analysis.verify.falsification_gradient`), otherwise by
+        central finite differences (a batch of ``2k`` simulations each) after the same start as
+        ``"guided"``; the result says which.
     ``"monte-carlo"``
         Independent draws from the parameters' distributions (point ``i``
         depends only on ``(seed, i)``): the baseline, and the one method that
