@@ -192,6 +192,15 @@ def test_whitebox_says_which_gradient_it_used_and_resumes_sensitivity_runs_from_
                            str(tmp_path / "a"))  # read back from the journal, the gradients with it
     assert code == 1 and json.loads(text)["gradients"].startswith("sensitivities"), err
     assert json.loads(text)["simulations"] == len(lines)
+    # interrupted after the gradient runs: the resumed search reads them back and ends as the whole one did
+    journal = (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "evaluations.jsonl").write_text("\n".join(journal[:4]) + "\n")
+    code, resumed, err = _run(capsys, "verify", at1, "--budget", "12", "--method", "whitebox", "--json", "--out",
+                              str(tmp_path / "c"))
+    assert code == 1, err
+    assert [json.loads(x)["result"] for x in (tmp_path / "c" / "evaluations.jsonl").read_text().splitlines()[1:]] \
+        == lines
     path = _module(tmp_path)
     code, text, err = _run(capsys, "verify", f"{path}:problem", "--budget", "8", "--method", "whitebox", "--out",
                            str(tmp_path / "b"))
