@@ -46,7 +46,9 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-METHODS = ("guided", "whitebox", "monte-carlo", "dual-annealing", "psy-taliro")
+METHODS = ("guided", "whitebox", "whitebox-fd", "monte-carlo", "dual-annealing", "psy-taliro")
+"""``whitebox-fd`` is ``whitebox`` on the problem without its sensitivities (gradients by central finite
+differences, ``2k`` simulations each): the comparison of the two gradients."""
 ARCH_FILES = ("examples/arch/autotrans.py", "examples/arch/chasing_cars.py", "examples/arch/afc.py")
 PLANTED = ("examples/acc.py:ACC-gross", "examples/acc.py:ACC-subtle", "planted:line-corner", "planted:line-well",
            "planted:ramp-late", "examples/thermostat.py:zero_band")
@@ -94,6 +96,8 @@ def _problem(source: str, key: str, requirement: str) -> Any:
 def _ours(problem: Any, method: str, seed: int, budget: int) -> int | None:
     from analysis.verify.falsification import falsify
 
+    if method == "whitebox-fd":
+        problem, method = problem.without_sensitivities(), "whitebox"
     count = [0]
 
     def stop(evaluation: Any) -> None:

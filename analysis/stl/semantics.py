@@ -567,6 +567,11 @@ class Explanation:
         *best* instant, where its operand came closest, not a violation instant; with a negative robustness the
         operand is reached nowhere in ``[a, b]``.  ``None``: no such operator on the way (``time`` is where the
         robustness is lowest).
+    sign : int
+        ``+1`` or ``-1``: the formula's robustness at the explained sample is ``sign * value`` (``not``, the
+        antecedent of ``implies`` and ``rise``/``fall`` negate).
+    node : Node or None
+        The deciding atom's syntax node (not compared).
     """
 
     index: int
@@ -575,6 +580,8 @@ class Explanation:
     value: float
     signals: frozenset[str]
     window: tuple[float, float] | None = None
+    sign: int = 1
+    node: object = field(default=None, compare=False, repr=False)
 
 
 def _step(ev: _Robustness, node: object, i: int) -> tuple[object, int] | None:
@@ -606,6 +613,18 @@ def _step(ev: _Robustness, node: object, i: int) -> tuple[object, int] | None:
             before = -x[i - 1] if op == "rise" else x[i - 1]
             return (arg, i) if now <= before else (arg, i - 1)
     return None
+
+
+def _step_sign(node: object, step: tuple[object, int], i: int) -> int:
+    """-1 where :func:`_step` passes a negation (``not``, an antecedent, the negated side of ``rise``/``fall``)."""
+    match node:
+        case Not():
+            return -1
+        case Implies(left, _):
+            return -1 if step[0] is left else 1
+        case Edge(op, _):
+            return -1 if (op == "rise") == (step[1] != i) else 1
+    return 1
 
 
 def _until_step(phi: np.ndarray, psi: np.ndarray, op: str, i: int, lo: int, hi: int, left: object,
@@ -759,7 +778,7 @@ class Formula:
         if not 0 <= index < trace.n:
             raise TraceError("index", index, f"a sample index in [0, {trace.n - 1}]", "explain an existing sample")
         ev = _Robustness(trace, self.text)
-        node, i = self.tree, int(index)
+        node, i, sign = self.tree, int(index), 1
         ev.value(node)
         negated, window = False, None
         while (step := _step(ev, node, i)) is not None:
@@ -768,9 +787,10 @@ class Formula:
                 window = (float(trace.times[lo]), float(trace.times[hi]))
             if isinstance(node, Not) or (isinstance(node, Implies) and step[0] is node.left):
                 negated = not negated
+            sign *= _step_sign(node, step, i)
             node, i = step
         return Explanation(index=i, time=float(trace.times[i]), atom=canonical(node), value=float(ev.value(node)[i]),
-                           signals=signals_of(node) | labels_of(node), window=window)
+                           signals=signals_of(node) | labels_of(node), window=window, sign=sign, node=node)
 
 
 def parse_formula(text: str, *, signals: Collection[str] | None = None,

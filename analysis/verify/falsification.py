@@ -16,9 +16,11 @@ Methods (:data:`METHODS`)
            violation persists).
         :mod:`analysis.verify.falsification_search` has the details.
     ``"whitebox"``
-        The same start, then projected gradient descent on the robustness with gradients by
-        central finite differences (a batch of ``2k`` simulations each: no flow sensitivities yet),
-        Armijo backtracking, restarts; then the shrink.
+        Projected gradient descent on the robustness, Armijo backtracking, restarts; then the shrink.
+        Gradients from the model's sensitivities when the problem gives them (one simulation each,
+        from the nominal point on: :mod:`analysis.verify.falsification_gradient`), otherwise by
+        central finite differences (a batch of ``2k`` simulations each) after the same start as
+        ``"guided"``; the result says which.
     ``"monte-carlo"``
         Independent draws from the parameters' distributions (point ``i``
         depends only on ``(seed, i)``): the baseline, and the one method that
@@ -39,6 +41,7 @@ import math
 import os
 import traceback
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -121,12 +124,16 @@ def _failed(point: Mapping[str, float], message: str, text: str) -> SimulationFa
     return error
 
 
-def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: float | None = None) -> Outcome:
+def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: float | None = None, *,
+             sensitivities: bool = False) -> Outcome:
     """Simulate ``problem`` at unit coordinates ``unit`` and evaluate every requirement.
 
     The status says how the run ended (:data:`STATUSES`); a run that ended before its horizon is
     judged on its prefix, each requirement decided only when every continuation would agree.
-    ``timeout_s`` bounds the simulation's wall-clock time (status ``timeout`` past it).
+    ``timeout_s`` bounds the simulation's wall-clock time (status ``timeout`` past it).  With
+    ``sensitivities`` the run is the problem's simulation with sensitivities
+    (:meth:`VerificationProblem.trace_sensitivities`) and the outcome carries each requirement's robustness
+    gradient in unit coordinates (:func:`analysis.verify.falsification_gradient.unit_gradients`).
 
     Raises
     ------
@@ -138,7 +145,7 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: flo
     pid = os.getpid()
     try:
         with time_limit(timeout_s):
-            trace = problem.trace(point)
+            trace, sens = problem.trace_sensitivities(point) if sensitivities else (problem.trace(point), None)
             _forked(pid)
     except TimeLimitExceeded as error:
         return Outcome(status="timeout", end="timeout",
@@ -161,7 +168,13 @@ def evaluate(problem: VerificationProblem, unit: Sequence[float], timeout_s: flo
                           "(build it with SignalTrace(times=..., signals={...}, labels={...}))")
         raise SimulationFailed(point, error)
     try:
-        return _judge(problem, trace)
+        outcome = _judge(problem, trace)
+        if sens is None or not outcome.evaluated:
+            return outcome
+        from analysis.verify.falsification_gradient import unit_gradients
+
+        gradient, how = unit_gradients(problem, unit, trace, sens)
+        return replace(outcome, gradient=gradient, gradient_method=how)
     except FormulaValueError as error:  # the formula's own arithmetic (the trace's values are finite)
         raise FalsificationError(f"requirement formula {error.formula!r}", error.value,
                                  "a formula whose arithmetic is finite on every run",

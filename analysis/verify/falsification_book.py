@@ -8,7 +8,7 @@ Shared by :mod:`analysis.verify.falsification` (which re-exports every name) and
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from hybrid.jsonable import float_from_json, to_jsonable
@@ -38,6 +38,12 @@ class Outcome:
         When it ended [s] (the trace's last sample).
     traceback : str
         The model's own traceback, for ``error``.
+    gradient : tuple of tuple of float
+        Per requirement, the gradient of its robustness in unit coordinates (shape ``(k,)``) from the model's
+        sensitivities (an empty tuple for a requirement whose gradient could not be formed); empty when the run
+        computed none (:meth:`Search.run_gradient`).
+    gradient_method : str
+        How ``gradient`` was obtained (``"sensitivities"``), and why a requirement has none; empty without one.
     """
 
     status: str
@@ -47,6 +53,8 @@ class Outcome:
     end: str = ""
     end_time: float | None = None
     traceback: str = ""
+    gradient: tuple[tuple[float, ...], ...] = ()
+    gradient_method: str = ""
 
     @property
     def evaluated(self) -> bool:
@@ -87,10 +95,12 @@ class Evaluation:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready (infinite robustness as ``"inf"``/``"-inf"``, read back by :meth:`from_dict`)."""
         o = self.outcome
-        return to_jsonable({"index": self.index, "phase": self.phase, "unit": list(self.unit), "status": o.status,
-                            "robustness": list(o.robustness), "satisfied": list(o.satisfied), "detail": o.detail,
-                            "end": o.end, "end_time": o.end_time, "traceback": o.traceback},
-                           nonfinite="string")
+        data = {"index": self.index, "phase": self.phase, "unit": list(self.unit), "status": o.status,
+                "robustness": list(o.robustness), "satisfied": list(o.satisfied), "detail": o.detail,
+                "end": o.end, "end_time": o.end_time, "traceback": o.traceback}
+        if o.gradient or o.gradient_method:  # only a sensitivity run has them (older journals read unchanged)
+            data["gradient"], data["gradient_method"] = [list(g) for g in o.gradient], o.gradient_method
+        return to_jsonable(data, nonfinite="string")
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Evaluation:
@@ -101,7 +111,10 @@ class Evaluation:
                           satisfied=tuple(None if v is None else bool(v) for v in data["satisfied"]),
                           detail=str(data["detail"]), end=str(data.get("end", "")),
                           end_time=None if end_time is None else float_from_json(end_time, where="end_time"),
-                          traceback=str(data.get("traceback", "")))
+                          traceback=str(data.get("traceback", "")),
+                          gradient=tuple(tuple(float_from_json(v, where="gradient") for v in g)
+                                         for g in data.get("gradient", ())),
+                          gradient_method=str(data.get("gradient_method", "")))
         return cls(index=int(data["index"]), phase=str(data["phase"]),
                    unit=tuple(float(v) for v in data["unit"]), outcome=outcome)
 
@@ -130,6 +143,7 @@ class Search:
     timeout_s: float | None = None
     evaluations: list[Evaluation] = field(default_factory=list)
     seen: dict[tuple[float, ...], int] = field(default_factory=dict)
+    differentiated: dict[tuple[float, ...], int] = field(default_factory=dict)
 
     @property
     def used(self) -> int:
@@ -145,8 +159,32 @@ class Search:
         outcome = self.cache.get(key)
         if outcome is None:
             outcome = self.evaluator(self.problem, key, self.timeout_s)
+        elif outcome.gradient or outcome.gradient_method:  # a resumed sensitivity run: this is a plain one
+            outcome = replace(outcome, gradient=(), gradient_method="")
+        return self._append(key, phase, outcome, self.seen)
+
+    def run_gradient(self, unit: Sequence[float], phase: str,
+                     evaluator: Callable[[VerificationProblem, tuple[float, ...], float | None], Outcome]
+                     ) -> Evaluation:
+        """Evaluate ``unit`` with ``evaluator``, a simulation with sensitivities (:attr:`Outcome.gradient`): one
+        more simulation, counted, even when the point was simulated plainly before; a point this search already
+        differentiated, or one a resumed journal holds with its gradient, is not simulated again.
+        :class:`BudgetExhausted` past the budget."""
+        key = unit_key(unit)
+        if key in self.differentiated:
+            return self.evaluations[self.differentiated[key]]
+        if self.used >= self.budget:
+            raise BudgetExhausted
+        outcome = self.cache.get(key)
+        if outcome is None or not outcome.gradient_method:
+            outcome = evaluator(self.problem, key, self.timeout_s)
+        evaluation = self._append(key, phase, outcome, self.differentiated)
+        self.seen.setdefault(key, evaluation.index)
+        return evaluation
+
+    def _append(self, key: tuple[float, ...], phase: str, outcome: Outcome, index: dict) -> Evaluation:
         evaluation = Evaluation(index=self.used, phase=phase, unit=key, outcome=outcome)
-        self.seen[key] = evaluation.index
+        index[key] = evaluation.index
         self.evaluations.append(evaluation)
         if self.on_evaluation is not None:
             self.on_evaluation(evaluation)

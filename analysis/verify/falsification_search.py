@@ -334,24 +334,42 @@ def central_gradient(search: Search, r: int, x: np.ndarray, step: float = _FD_ST
 def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart: np.ndarray) -> bool:
     """One projected-gradient step with Armijo backtracking on requirement ``r``.  Returns whether the
     descent stalled and ``restart`` was taken as the new centre."""
+    from analysis.verify.falsification_gradient import (differentiate_restart, sensitivity_gradient,
+                                                         simulate_with_gradient)
+
     k = search.problem.dimension
     if book.center is None:
         best = search.lowest(r)
         book.center = best.unit if best is not None else (0.0,) * k
     x = np.array(book.center)
-    f0, g = central_gradient(search, r, x)
-    _record(search, falsified, "gradient descent")
+    how = "gradient descent (central finite differences)"
+    if search.problem.sensitivities is not None:  # the model's sensitivities: one simulation per gradient
+        f0, g = sensitivity_gradient(search, r, x)
+        how = "gradient descent (sensitivities)"
+        _record(search, falsified, how)
+        if g is None and f0 is not None and r not in falsified:  # none for this requirement: said in the journal
+            f0, g = central_gradient(search, r, x)
+            how = "gradient descent (central finite differences)"
+    else:
+        f0, g = central_gradient(search, r, x)
+    _record(search, falsified, how)
     if r in falsified:
         return False
     norm = 0.0 if g is None else float(np.max(np.abs(g)))
     if f0 is None or g is None or not math.isfinite(norm) or norm == 0.0:
         book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
-        return True
+        return differentiate_restart(search, restart)
     direction = -g / norm
     alpha = book.sigma
+    sens = how.endswith("(sensitivities)")
+    vertex = sens  # first the box's vertex that minimises the linearisation (Frank-Wolfe)
     while alpha >= _SIGMA_MIN:
-        y = np.clip(x + alpha * direction, -1.0, 1.0)
-        e = _try(search, y, "descent", falsified, "gradient descent")
+        y = np.clip(x - np.sign(g), -1.0, 1.0) if vertex else np.clip(x + alpha * direction, -1.0, 1.0)
+        if sens:  # each trial with its sensitivities: the point accepted has its gradient for the next step
+            e = simulate_with_gradient(search, y, "descent")
+            _record(search, falsified, how)
+        else:
+            e = _try(search, y, "descent", falsified, how)
         fy = _rho(e, r)
         moved = float(np.dot(g, y - x))
         if fy is not None and fy <= f0 + 1e-4 * moved and np.any(y != x):
@@ -359,18 +377,25 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
             return False
         if r in falsified:
             return False
+        if vertex:
+            vertex = False
+            continue
         alpha *= 0.5
     book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
-    return True
+    return differentiate_restart(search, restart)
 
 
 def whitebox_search(search: Search, seed: int, falsified: dict) -> None:
     """The ``whitebox`` method after the nominal point: the same space-filling start as ``guided``, then
-    gradient descent on the robustness (module docstring)."""
+    gradient descent on the robustness (module docstring), its gradients from the model's sensitivities when
+    the problem gives them (:mod:`analysis.verify.falsification_gradient`, one simulation each), otherwise by
+    :func:`central_gradient`."""
     k = search.problem.dimension
     if k == 0 or not _open(search, falsified):
         return
     count = max(k + 1, round(START_SHARE * search.budget / 4))
+    if search.problem.sensitivities is not None:  # a gradient costs one simulation: descend from the nominal
+        count = 0                                 # point at once, restarts from the Sobol points
     try:
         used = _start(search, seed, falsified, count, "space-filling start")
         _allocate(search, seed, falsified, "descent", used)

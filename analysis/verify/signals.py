@@ -47,7 +47,8 @@ from analysis.verify.requirements import Requirement
 from analysis.stl import SignalTrace
 from analysis.verify.verification import Parameter, ProblemError, VerificationProblem
 
-__all__ = ["PiecewiseConstantInput", "InputSignal", "input_parameters", "signal_problem"]
+__all__ = ["PiecewiseConstantInput", "InputSignal", "input_parameters", "signal_problem", "dual_signals",
+           "InputSensitivities"]
 
 
 def _finite(parameter: str, value: object, fix: str) -> float:
@@ -186,11 +187,34 @@ def input_parameters(inputs: Sequence[PiecewiseConstantInput]) -> tuple[Paramete
 InputSimulator = Callable[[Mapping[str, InputSignal], Mapping[str, float]], SignalTrace]
 """``simulate(inputs, point) -> SignalTrace``: the input signals by name, and the whole point."""
 
+InputSensitivities = Callable[[Mapping[str, InputSignal], Mapping[str, float]],
+                              tuple[SignalTrace, Mapping[str, np.ndarray]]]
+"""``sensitivities(inputs, point) -> (trace, {signal: array (n, k)})``: the same run as the simulator, with each
+signal's value on a segment an :class:`analysis.dual.Dual` seeded with its coordinate of the box (``k`` the box's
+dimension, the signals' control points first); it returns the trace and ``d signal(t_i) / d p_j``."""
+
+
+def dual_signals(inputs: Sequence[PiecewiseConstantInput], point: Mapping[str, float], k: int
+                 ) -> dict[str, InputSignal]:
+    """The signals at ``point`` with dual values: control point ``j`` of the box (signals in order) carries the
+    unit gradient ``j`` of length ``k``."""
+    from analysis.dual import seeded
+
+    out, offset = {}, 0
+    for item in inputs:
+        values = item.values(point)
+        duals = np.empty(values.size, dtype=object)
+        for j, v in enumerate(values):
+            duals[j] = seeded(float(v), offset + j, k)
+        out[item.name] = InputSignal(name=item.name, starts=item.starts, values=duals)
+        offset += item.control_points
+    return out
+
 
 def signal_problem(*, name: str, simulate: InputSimulator, inputs: Sequence[PiecewiseConstantInput],
                    outputs: Sequence[str], horizon: float, requirements: Sequence[Requirement],
                    parameters: Sequence[Parameter] = (), labels: Mapping[str, tuple[str, ...]] | None = None,
-                   description: str = "") -> VerificationProblem:
+                   description: str = "", sensitivities: InputSensitivities | None = None) -> VerificationProblem:
     """A verification problem over input signals.
 
     Parameters
@@ -211,6 +235,9 @@ def signal_problem(*, name: str, simulate: InputSimulator, inputs: Sequence[Piec
     labels : mapping or None
         String-valued signals and their values.
     description : str
+    sensitivities : callable or None
+        :data:`InputSensitivities`: the model's run with the derivatives of its signals with respect to the box
+        (:attr:`analysis.verify.verification.VerificationProblem.sensitivities`); ``None``: none.
 
     Returns
     -------
@@ -225,6 +252,10 @@ def signal_problem(*, name: str, simulate: InputSimulator, inputs: Sequence[Piec
     def run(point: Mapping[str, float]) -> SignalTrace:
         return simulate({item.name: item.signal(point) for item in inputs}, point)
 
+    def differentiate(point: Mapping[str, float]) -> tuple[SignalTrace, Mapping[str, np.ndarray]]:
+        return sensitivities(dual_signals(inputs, point, len(box)), point)  # type: ignore[misc]
+
     return VerificationProblem(name=name, simulate=run, parameters=box, horizon=horizon,
                                requirements=tuple(requirements), signals=tuple(outputs), labels=labels or {},
-                               description=description, min_budget=sum(item.control_points for item in inputs))
+                               description=description, min_budget=sum(item.control_points for item in inputs),
+                               sensitivities=None if sensitivities is None else differentiate)

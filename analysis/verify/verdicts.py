@@ -168,6 +168,9 @@ class VerificationResult:
     evaluations: tuple[Evaluation, ...]
     ended_early: tuple[Mapping[str, Any], ...] = ()
     errors: tuple[Mapping[str, Any], ...] = ()
+    gradients: str = ""
+    """How ``whitebox`` differentiated the robustness (:func:`analysis.verify.falsification_gradient.gradient_source`);
+    empty for the other methods."""
 
     @property
     def passed(self) -> bool:
@@ -189,6 +192,8 @@ class VerificationResult:
             "ended_early": [dict(d) for d in self.ended_early], "errors": [dict(d) for d in self.errors],
             "requirements": [r.as_dict() for r in self.requirements],
         }
+        if self.gradients:
+            out["gradients"] = self.gradients
         if evaluations:
             out["evaluations"] = [e.as_dict() for e in self.evaluations]
         return to_jsonable(out, nonfinite="string")
@@ -362,5 +367,13 @@ def verify(
         simulations=search.used, invalid=len(invalid),
         invalid_reasons=tuple(dict.fromkeys(e.outcome.detail for e in invalid))[:5],
         diverged=diverged, coverage=coverage_of(problem, search.evaluations),
-        evaluations=tuple(search.evaluations),
+        evaluations=tuple(search.evaluations), gradients=_gradients(problem, method),
     )
+
+
+def _gradients(problem: VerificationProblem, method: str) -> str:
+    if method != "whitebox":
+        return ""
+    from analysis.verify.falsification_gradient import gradient_source
+
+    return gradient_source(problem)

@@ -243,6 +243,12 @@ class VerificationProblem:
     min_budget : int
         The fewest simulations a search of the problem may be given (0: any); a problem over input
         signals (:func:`analysis.verify.signals.signal_problem`) needs at least one per control point.
+    sensitivities : callable or None
+        ``sensitivities(point) -> (trace, {signal: array (n, k)})``: the run of ``simulate(point)`` (the same
+        trace) and, for each numeric signal, ``d signal(t_i) / d p_j`` at its ``n`` samples with respect to the
+        ``k`` parameters of the box in their own units (:meth:`trace_sensitivities`); the ``whitebox`` search
+        takes its gradients from them (one simulation each).  ``None``: the model gives none (``whitebox``
+        uses finite differences, and says so).
     """
 
     name: str
@@ -259,6 +265,7 @@ class VerificationProblem:
     source: str = ""
     automaton: Any = None
     min_budget: int = 0
+    sensitivities: Callable[[Mapping[str, float]], tuple[SignalTrace, Mapping[str, np.ndarray]]] | None = None
     parsed: tuple[ParsedRequirement, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -291,6 +298,10 @@ class VerificationProblem:
         if unknown:
             raise ProblemError("VerificationProblem.proofs", unknown, "names of the problem's requirements",
                                "key each proof by the requirement it decides")
+        if self.sensitivities is not None and not callable(self.sensitivities):
+            raise ProblemError("VerificationProblem.sensitivities", self.sensitivities,
+                               "a callable point -> (SignalTrace, {signal: array (n, k)}) or None",
+                               "pass the function that simulates one point with its sensitivities, or None")
         if isinstance(self.min_budget, bool) or not isinstance(self.min_budget, (int, np.integer)) \
                 or self.min_budget < 0:
             raise ProblemError("VerificationProblem.min_budget", self.min_budget, "a non-negative integer",
@@ -327,6 +338,28 @@ class VerificationProblem:
         signal (``always (d >= d_min)`` with ``d_min`` a parameter of the box)."""
         return self._with_parameters(point, self.simulate(point))
 
+    def trace_sensitivities(self, point: Mapping[str, float]) -> tuple[SignalTrace, dict[str, np.ndarray]]:
+        """``sensitivities(point)``: the trace (as :meth:`trace` gives it) and ``d signal(t_i) / d p_j``, shape
+        ``(n, k)``, per numeric signal; a parameter a formula reads as a constant signal has the unit column of
+        its own coordinate.  Raises :class:`ProblemError` when the problem gives no sensitivities."""
+        if self.sensitivities is None:
+            raise ProblemError("VerificationProblem.sensitivities", None, "a callable giving the sensitivities",
+                               "use finite differences, or give the problem sensitivities=")
+        trace, given = self.sensitivities(point)
+        trace = self._with_parameters(point, trace)
+        out = {name: np.asarray(value, dtype=float) for name, value in dict(given).items()}
+        if isinstance(trace, SignalTrace):
+            for j, p in enumerate(self.parameters):
+                if p.name in trace.signals and p.name not in out and p.name not in self.signals:
+                    column = np.zeros((trace.n, len(self.parameters)))
+                    column[:, j] = 1.0
+                    out[p.name] = column
+        return trace, out
+
+    def without_sensitivities(self) -> VerificationProblem:
+        """The same problem with ``sensitivities=None`` (a search then differentiates by finite differences)."""
+        return self.with_requirements(self.requirements, sensitivities=None)
+
     def _with_parameters(self, point: Mapping[str, float], trace: Any) -> Any:
         """``trace`` with the parameters a formula reads and it lacks added as constant signals."""
         if not isinstance(trace, SignalTrace):
@@ -361,8 +394,10 @@ class VerificationProblem:
         """The nominal point."""
         return self.point((0.0,) * len(self.parameters))
 
-    def with_requirements(self, requirements: Sequence[Requirement]) -> VerificationProblem:
-        """The same problem with other requirements (proofs of dropped ones removed)."""
+    def with_requirements(self, requirements: Sequence[Requirement], *, sensitivities: Any = "same"
+                          ) -> VerificationProblem:
+        """The same problem with other requirements (proofs of dropped ones removed); ``sensitivities``: the
+        problem's own (``"same"``) or another (``None``: none)."""
         names = {r.name for r in requirements}
         return VerificationProblem(
             name=self.name, simulate=self.simulate, parameters=self.parameters, horizon=self.horizon,
@@ -370,4 +405,5 @@ class VerificationProblem:
             description=self.description, proofs={k: v for k, v in self.proofs.items() if k in names},
             structural=self.structural, stability=self.stability, source=self.source, automaton=self.automaton,
             min_budget=self.min_budget,
+            sensitivities=self.sensitivities if isinstance(sensitivities, str) else sensitivities,
         )

@@ -39,6 +39,10 @@ Inputs as parameters (``analysis/verify/signals.py``): the throttle and the brak
 the last value holds to the end of the run.  Each problem simulates up to its requirement's horizon
 (AT5i: 32.6 s).
 
+Sensitivities (the ``whitebox`` search's gradients): :func:`sensitivities_inputs` runs the same
+:func:`simulate_autotrans` on dual numbers (:mod:`analysis.dual`), forward-mode through the Runge-Kutta steps and
+the tables, the shift logic deciding on the values; ``docs/arch.md``.
+
 Load them with ``visnav verify examples/arch/autotrans.py:at1`` (``at2``, ``at51`` .. ``at54``, ``at6a`` ..
 ``at6c``); :func:`problems` returns them all keyed by requirement name.
 """
@@ -53,6 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.dual import split
 from analysis.verify.signals import InputSignal, PiecewiseConstantInput, signal_problem
 from analysis.stl import FormulaError, SignalTrace, parse_formula
 from analysis.verify import Requirement, VerificationProblem
@@ -275,14 +280,34 @@ def simulate_autotrans(throttle: Sequence[float], brake: Sequence[float], grid: 
             "gear": np.asarray(gears, dtype=float), "throttle": np.asarray(thr_out), "brake": np.asarray(brk_out)}
 
 
-def simulate_inputs(inputs: Mapping[str, InputSignal], horizon: float) -> SignalTrace:
-    """The trace for piecewise-constant ``throttle`` and ``brake`` signals over ``[0, horizon]``."""
+def _run(inputs: Mapping[str, InputSignal], horizon: float) -> dict[str, np.ndarray]:
     throttle, brake = inputs["throttle"], inputs["brake"]
     grid, is_tick = _grid(horizon, [*throttle.starts.tolist(), *brake.starts.tolist()])
     starts = np.asarray(grid[:-1])
     run = simulate_autotrans(throttle.at(starts).tolist(), brake.at(starts).tolist(), grid, is_tick)
     run["throttle"], run["brake"] = throttle.at(run["time"]), brake.at(run["time"])  # right-continuous
-    return _trace(run)
+    return run
+
+
+def simulate_inputs(inputs: Mapping[str, InputSignal], horizon: float) -> SignalTrace:
+    """The trace for piecewise-constant ``throttle`` and ``brake`` signals over ``[0, horizon]``."""
+    return _trace(_run(inputs, horizon))
+
+
+def sensitivities_inputs(inputs: Mapping[str, InputSignal], horizon: float
+                         ) -> tuple[SignalTrace, dict[str, np.ndarray]]:
+    """:func:`simulate_inputs` on signals whose values are :class:`analysis.dual.Dual` (seeded with ``k``
+    parameters): the same run, the same code (:func:`simulate_autotrans` on dual numbers: forward-mode
+    differentiation through the Runge-Kutta steps and the tables, the shift logic's decisions taken on the
+    values), and ``d signal(t_i) / d p``, shape ``(n, k)``, of every output (the gear's is zero: it is discrete).
+    """
+    first = next(iter(inputs.values())).values[0]
+    k = first.grad.size
+    run = _run(inputs, horizon)
+    values, sens = {"time": run["time"]}, {}
+    for name in OUTPUTS:
+        values[name], sens[name] = split(run[name], k)
+    return _trace(values), sens
 
 
 def _trace(run: Mapping[str, np.ndarray]) -> SignalTrace:
@@ -323,9 +348,13 @@ def autotrans_problem(requirement: Requirement, *, throttle_points: int = 7, bra
     def simulate(signals: Mapping[str, InputSignal], point: Mapping[str, float]) -> SignalTrace:
         return simulate_inputs(signals, span)
 
+    def differentiate(signals: Mapping[str, InputSignal], point: Mapping[str, float]
+                      ) -> tuple[SignalTrace, dict[str, np.ndarray]]:
+        return sensitivities_inputs(signals, span)
+
     name = getattr(requirement, "name", "requirement")
     return signal_problem(name=f"arch-at-{name}", simulate=simulate, inputs=inputs, outputs=OUTPUTS,
-                          horizon=span, requirements=(requirement,),
+                          horizon=span, requirements=(requirement,), sensitivities=differentiate,
                           description=f"ARCH-COMP FALS automatic transmission, {name}: throttle "
                                       f"{throttle_points} and brake {brake_points} piecewise-constant control "
                                       f"points over [0, {INPUT_SPAN:g}] s, simulated over [0, {span:g}] s")

@@ -34,17 +34,21 @@ Requirements (ARCH-COMP 2019-2022 FALS reports, "CC")::
 
 Inputs: throttle and brake piecewise constant over [0, 100] s, 7 and 3 control points by default.
 
+Sensitivities (the ``whitebox`` search's gradients): :func:`sensitivities_cars` runs the same closed forms on
+dual numbers (:mod:`analysis.dual`), each event time given its derivative by the implicit function theorem.
+
 Load them with ``visnav verify examples/arch/chasing_cars.py:cc1`` (``cc2`` .. ``cc5``, ``ccx``); :func:`problems`
 returns them keyed by requirement name.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
+from functools import partial
 
 import numpy as np
 
+from analysis.dual import Dual, exp, expm1, split, value_of
 from analysis.verify.signals import InputSignal, PiecewiseConstantInput, signal_problem
 from analysis.stl import SignalTrace
 from analysis.verify import Requirement, VerificationProblem
@@ -80,19 +84,19 @@ _GUARDS = {  # mode -> ((comparison, threshold, next mode), ...): d <= c is "le"
 
 def _phi1(x: float) -> float:
     """(1 - e^-x) / x, accurate for small x."""
-    return 1.0 - x / 2 + x * x / 6 if abs(x) < 1e-5 else -math.expm1(-x) / x
+    return 1.0 - x / 2 + x * x / 6 if abs(x) < 1e-5 else -expm1(-x) / x
 
 
 def _phi2(x: float) -> float:
     """(x - 1 + e^-x) / x^2, accurate for small x."""
-    return 0.5 - x / 6 + x * x / 24 if abs(x) < 1e-3 else (x + math.expm1(-x)) / (x * x)
+    return 0.5 - x / 6 + x * x / 24 if abs(x) < 1e-3 else (x + expm1(-x)) / (x * x)
 
 
 def lead(y: float, v: float, throttle: float, brake: float, s: float) -> tuple[float, float]:
     """Car 1 after ``s`` seconds of ``v' = -throttle - brake v``, ``y' = v`` (closed form)."""
     x = brake * s
     return (y + v * s * _phi1(x) - throttle * s * s * _phi2(x),
-            v * math.exp(-x) - throttle * s * _phi1(x))
+            v * exp(-x) - throttle * s * _phi1(x))
 
 
 def follower(mode: str, y: float, v: float, s: float, keeping_sign: float) -> tuple[float, float]:
@@ -101,7 +105,7 @@ def follower(mode: str, y: float, v: float, s: float, keeping_sign: float) -> tu
         return y - v * s - s * s / 2, v + s
     if mode == "keeping":
         return y + keeping_sign * v * s, v
-    decay = math.exp(-s)
+    decay = exp(-s)
     return y - v * (1.0 - decay), v * decay
 
 
@@ -167,22 +171,39 @@ def _first_event(state, modes, u, b, h, sign, end) -> float | None:
     """The earliest guard crossing in ``(0, h]`` seen at the step's end state ``end``, located on the closed form.
 
     A guard ``d <= c`` is the root of ``c - d``, ``d >= c`` of ``d - c``: negative before, non-negative at the end.
-    ``None`` when no guard holds at the end.
+    ``None`` when no guard holds at the end.  The root is found on the values; on dual numbers (sensitivities)
+    its derivative is the implicit function's, ``d tau / d p = -(d g / d p) / (d g / d s)`` (:func:`_event_time`).
     """
+    values = [(value_of(y), value_of(v)) for y, v in state]
+    uv, bv = value_of(u), value_of(b)
+    dual = isinstance(u, Dual) or isinstance(b, Dual) or any(isinstance(x, Dual) for pair in state for x in pair)
     best = None
     for i in range(1, CARS):
-        gap_end = end[i][0] - end[i - 1][0]
+        gap_end = value_of(end[i][0]) - value_of(end[i - 1][0])
         for kind, threshold, _ in _GUARDS[modes[i]]:
             if not _fires(kind, gap_end, threshold):
                 continue
             sense = 1.0 if kind == "ge" else -1.0
 
-            def g(s, i=i, threshold=threshold, sense=sense):
+            def g(s, i=i, threshold=threshold, sense=sense, state=values, u=uv, b=bv):
                 return sense * (_gap(state, modes, u, b, i, s, sign) - threshold)
 
-            tau = _crossing(g, 0.0, h, g(0.0), sense * (gap_end - threshold))
-            best = tau if best is None else min(best, tau)
+            tau = _crossing(g, 0.0, value_of(h), g(0.0), sense * (gap_end - threshold))
+            if best is None or tau < value_of(best):
+                best = _event_time(tau, g, partial(g, state=state, u=u, b=b)) if dual else tau
     return best
+
+
+def _event_time(tau: float, g_values, g_duals) -> Dual:
+    """The crossing time ``tau`` of ``g(s, p) = 0`` (found on the values) with its derivative by the implicit
+    function theorem: ``d tau / d p = -(dg/dp) / (dg/ds)`` at ``tau`` (the event-time correction: advancing the
+    closed form by this ``tau`` gives the states after the event their saltation).  ``dg/ds``: ``g`` of the
+    values on a dual time; ``dg/dp``: ``g`` of the dual state at the float time."""
+    slope = g_values(Dual(tau, np.ones(1))).grad[0]
+    partial = g_duals(tau)
+    if not isinstance(partial, Dual) or slope == 0:
+        return tau  # a grazing crossing: no derivative (the event time is not differentiable there)
+    return Dual(tau, -partial.grad / slope)
 
 
 def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HORIZON, *,
@@ -213,7 +234,7 @@ def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HO
                 state, t = _advance(state, modes, u, b, tau, keeping_sign), t + tau
             _switch(state, modes)
             if t > times[-1]:
-                times.append(t), states.append(list(state)), mode_log.append(tuple(modes[1:]))
+                times.append(value_of(t)), states.append(list(state)), mode_log.append(tuple(modes[1:]))
             else:  # an event at the sample's time: the sample shows the modes after it
                 states[-1], mode_log[-1] = list(state), tuple(modes[1:])
     arr = np.asarray(states)
@@ -222,6 +243,28 @@ def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HO
         out[f"y{i + 1}"], out[f"v{i + 1}"] = arr[:, i, 0], arr[:, i, 1]
     out["modes"] = tuple(mode_log)
     return out
+
+
+def _trace(run: dict) -> SignalTrace:
+    modes = run.pop("modes")
+    return SignalTrace(times=run.pop("time"), signals=run,
+                       labels={f"mode{i + 2}": tuple(m[i] for m in modes) for i in range(CARS - 1)},
+                       termination="end_time")
+
+
+def sensitivities_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HORIZON, *,
+                       keeping_sign: float = 1.0) -> tuple[SignalTrace, dict[str, np.ndarray]]:
+    """:func:`simulate_cars` on signals whose values are :class:`analysis.dual.Dual` (seeded with ``k`` parameters):
+    the same run and code (the closed forms on dual numbers; each event time found on the values and given its
+    derivative by the implicit function theorem, :func:`_event_time`, so the states after it carry the
+    saltation), the trace and ``d signal(t_i) / d p``, shape ``(n, k)``, of ``y1..y5`` and ``v1..v5`` (an event's
+    sample: the derivative of the state at the event, its time moving with ``p``)."""
+    k = throttle.values[0].grad.size
+    run = simulate_cars(throttle, brake, horizon, keeping_sign=keeping_sign)
+    sens = {}
+    for name in OUTPUTS:
+        run[name], sens[name] = split(run[name], k)
+    return _trace(run), sens
 
 
 def _inputs(throttle_points: int, brake_points: int) -> tuple[PiecewiseConstantInput, PiecewiseConstantInput]:
@@ -248,17 +291,17 @@ def chasing_cars_problem(requirement: Requirement, *, throttle_points: int = 7, 
     sign = float(keeping_sign)
 
     def simulate(signals: Mapping[str, InputSignal], point: Mapping[str, float]) -> SignalTrace:
-        run = simulate_cars(signals["throttle"], signals["brake"], keeping_sign=sign)
-        modes = run.pop("modes")
-        return SignalTrace(times=run.pop("time"), signals=run,
-                           labels={f"mode{i + 2}": tuple(m[i] for m in modes) for i in range(CARS - 1)},
-                           termination="end_time")
+        return _trace(simulate_cars(signals["throttle"], signals["brake"], keeping_sign=sign))
+
+    def differentiate(signals: Mapping[str, InputSignal], point: Mapping[str, float]
+                      ) -> tuple[SignalTrace, dict[str, np.ndarray]]:
+        return sensitivities_cars(signals["throttle"], signals["brake"], keeping_sign=sign)
 
     name = getattr(requirement, "name", "requirement")
     variant = "" if sign > 0 else " (keeping mode holding its speed)"
     return signal_problem(name=f"arch-cc-{name}" + ("" if sign > 0 else "-keeping-held"), simulate=simulate,
                           inputs=_inputs(throttle_points, brake_points), outputs=OUTPUTS, horizon=HORIZON,
-                          requirements=(requirement,),
+                          requirements=(requirement,), sensitivities=differentiate,
                           labels={f"mode{i}": MODES for i in range(2, CARS + 1)},
                           description=f"ARCH-COMP FALS chasing cars{variant}, {name}: throttle {throttle_points} "
                                       f"and brake {brake_points} piecewise-constant control points over "

@@ -324,6 +324,8 @@ def _fmt(value: float | None) -> str:
 def _human(result: Any, written: Mapping[str, str], resumed: int, spec: str) -> str:
     lines = [f"verify {result.problem}: {result.verdict.upper()} ({result.simulations} simulations, method "
              f"{result.method}, seed {result.seed}{f', {resumed} read back from the journal' if resumed else ''})"]
+    if getattr(result, "gradients", ""):
+        lines.append(f"  gradients: {result.gradients}")
     width = max(len(r.name) for r in result.requirements)
     decided = max(len(r.decided_by) for r in result.requirements)
     for r in result.requirements:

@@ -178,3 +178,30 @@ def test_an_interrupted_search_resumes_from_its_journal_byte_identically(tmp_pat
     assert strip(whole) == strip(resumed)
     assert [{k: v for k, v in r.items() if k != "counterexample"} for r in a["requirements"]] == \
            [{k: v for k, v in r.items() if k != "counterexample"} for r in b["requirements"]]
+
+
+def test_whitebox_says_which_gradient_it_used_and_resumes_sensitivity_runs_from_the_journal(tmp_path, capsys):
+    at1 = "examples/arch/autotrans.py:at1"
+    code, text, err = _run(capsys, "verify", at1, "--budget", "12", "--method", "whitebox", "--out",
+                           str(tmp_path / "a"))
+    assert code == 1, err
+    assert "gradients: sensitivities (the model's, one simulation per gradient)" in text
+    lines = [json.loads(x)["result"] for x in (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()[1:]]
+    assert any(x.get("gradient_method") == "sensitivities" and x["phase"] == "gradient" for x in lines)
+    code, text, err = _run(capsys, "verify", at1, "--budget", "12", "--method", "whitebox", "--json", "--out",
+                           str(tmp_path / "a"))  # read back from the journal, the gradients with it
+    assert code == 1 and json.loads(text)["gradients"].startswith("sensitivities"), err
+    assert json.loads(text)["simulations"] == len(lines)
+    # interrupted after the gradient runs: the resumed search reads them back and ends as the whole one did
+    journal = (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "evaluations.jsonl").write_text("\n".join(journal[:4]) + "\n")
+    code, resumed, err = _run(capsys, "verify", at1, "--budget", "12", "--method", "whitebox", "--json", "--out",
+                              str(tmp_path / "c"))
+    assert code == 1, err
+    assert [json.loads(x)["result"] for x in (tmp_path / "c" / "evaluations.jsonl").read_text().splitlines()[1:]] \
+        == lines
+    path = _module(tmp_path)
+    code, text, err = _run(capsys, "verify", f"{path}:problem", "--budget", "8", "--method", "whitebox", "--out",
+                           str(tmp_path / "b"))
+    assert "gradients: central finite differences (the problem gives no sensitivities" in text, err
