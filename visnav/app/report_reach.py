@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from visnav.app.precision import round_tree
+from visnav.app.precision import KINDS, round_tree, round_value
 from visnav.app.verification_report import Claim
 
-__all__ = ["bypass_reach_data"]
+__all__ = ["bypass_reach_data", "radius_inward"]
 
 PATH = "analysis/path_following/bypass_reach"
 """Where the data sits in ``report.json`` (the precision rules' path)."""
@@ -44,11 +44,16 @@ def bypass_reach_data(scenario: Any, *, samples: int, seed: int, run: bool) -> t
     return data, _claims(data)
 
 
+def radius_inward(radii: Any) -> tuple[float, float]:
+    """The radii covered, printed with 4 significant digits rounded inward (a smaller range than proven)."""
+    return round_value(radii[0], KINDS["bound_up"]), round_value(radii[1], KINDS["bound_down"])
+
+
 def _claims(data: dict[str, Any]) -> list[Claim]:
     box, cov = data["entry_box"], data["coverage"]
+    low, high = radius_inward(data["radius_m"])
     where = (f"delta in [{box['delta_m'][0]:.12g}, {box['delta_m'][1]:.12g}] m, alpha in "
-             f"[{box['alpha_rad'][0]:.12g}, {box['alpha_rad'][1]:.12g}] rad, R in "
-             f"[{data['radius_m'][0]:.12g}, {data['radius_m'][1]:.12g}] m")
+             f"[{box['alpha_rad'][0]:.12g}, {box['alpha_rad'][1]:.12g}] rad, R in [{low:g}, {high:g}] m")
     loop = (f"the sampled path-following loop ({data['period_s'] * 1000:g} ms hold, k = {data['k']:g}, "
             f"v_coll = {data['v_mps']:g} m/s)")
     coverage = Claim(section="analysis", status="sampled", text=(

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from visnav.app.precision import KINDS
+from visnav.app.report_reach import radius_inward
 from visnav.app.verification_report import VERDICT_LABELS
 
 __all__ = ["Block", "report_blocks", "findings_blocks", "structural_blocks", "render_markdown", "render_html",
@@ -396,7 +397,8 @@ def _reach_blocks(reach: dict[str, Any] | None) -> list[Block]:
     if reach["status"] == "not run":
         return [Block("p", f"Sampled loop (flowpipe from the campaign's entries): not run ({reach['why']}).")]
     box, cov = reach["entry_box"], reach["coverage"]
-    where = (f"δ ∈ [{_fmt(box['delta_m'])}] m, α ∈ [{_fmt(box['alpha_rad'])}] rad, R ∈ [{_fmt(reach['radius_m'])}] m "
+    where = (f"δ ∈ [{_fmt(box['delta_m'])}] m, α ∈ [{_fmt(box['alpha_rad'])}] rad, "
+             f"R ∈ [{_fmt(radius_inward(reach['radius_m']))}] m "
              f"at k = {_fmt(reach['k'])}, v_coll = {_fmt(reach['v_mps'])} m/s")
     if reach["status"] == "proven":
         verdict = (f"**proven, re-checked**: |δ| <= {_fmt(reach['delta_bound_m'])} m (margin >= "

@@ -241,10 +241,17 @@ def _entry_box(entries: Sequence[BypassEntry], margin_delta: float, margin_alpha
     """The entries' hull widened by the margins, its bounds rounded outward to :data:`BOX_GRID` (a larger box
     whose bounds are short decimals; where the rounding of the grid's floats would cut into the hull, the
     hull's own bound is kept)."""
+    from fractions import Fraction
+
     def outward(values: list[float], margin: float) -> tuple[float, float]:
         lo, hi = min(values) - margin, max(values) + margin
         grid_lo = round(math.floor(lo / BOX_GRID) * BOX_GRID, 4)
         grid_hi = round(math.ceil(hi / BOX_GRID) * BOX_GRID, 4)
+        # the floats on the decimals' outer side: the box proven holds the box its decimals print
+        if Fraction(grid_lo) > Fraction(repr(grid_lo)):
+            grid_lo = math.nextafter(grid_lo, -math.inf)
+        if Fraction(grid_hi) < Fraction(repr(grid_hi)):
+            grid_hi = math.nextafter(grid_hi, math.inf)
         return min(grid_lo, lo), max(grid_hi, hi)
 
     return {"delta_m": outward([e.delta_m for e in entries], margin_delta),
@@ -345,7 +352,8 @@ def bypass_reach(scenario: Any, *, samples: int = 40, seed: int = 0, time_step: 
     period = scenario.sampling_period_s
     finite = [e.duration_s for e in entries if math.isfinite(e.duration_s)]
     longest = max(finite) if finite else 10.0 * period
-    horizon = math.ceil(longest / period - 1e-9) * period
+    # whole periods, and never below the measured bypass (its duration is a difference of float instants)
+    horizon = max(math.ceil(longest / period - 1e-9) * period, longest)
     out = prove_bypass(scenario, entries=entries, horizon_s=horizon, time_step=time_step, samples=samples, seed=seed)
     coverage = {**out.coverage, "longest_bypass_s": longest, "unfinished_bypasses": len(entries) - len(finite)}
     return BypassReach(k=out.k, v_mps=out.v_mps, d_zero_m=out.d_zero_m, period_s=out.period_s, radius_m=out.radius_m,
