@@ -396,21 +396,27 @@ def _trig_iv(op: str, a: Interval) -> Interval:
 
 
 def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[str, Interval] | None = None,
-            time_bounds: Interval = (0.0, 0.0), param_bounds: Mapping[str, Interval] | None = None) -> Interval:
+            time_bounds: Interval = (0.0, 0.0), param_bounds: Mapping[str, Interval] | None = None,
+            shared: dict[int, tuple[Expr, Interval]] | None = None) -> Interval:
     """A sound interval containing ``node`` over a box (coordinates by name, memory, time).
 
     Rounding is outward (one ulp per operation); a function outside its domain
     (``log`` of an interval reaching 0, ``sqrt`` below 0, ``select`` out of range)
     gives ``(-inf, inf)``.  A coordinate or memory variable missing from the
     bounds is unbounded; a parameter named in ``param_bounds`` ranges over its interval (else its value).
+    ``shared``: a dictionary kept by the caller across calls with the same bounds, so that a subtree common
+    to several expressions is enclosed once (the same numbers as without it; entries hold their node).
     """
     mb = memory_bounds or {}
     pb = param_bounds or {}
     memo: dict[int, Interval] = {}
+    held: dict[int, tuple[Expr, Interval]] = {} if shared is None else shared  # holding the node keeps its id
 
     def iv(n: Expr) -> Interval:
         if id(n) in memo:
             return memo[id(n)]
+        if id(n) in held and held[id(n)][0] is n:
+            return held[id(n)][1]
         if isinstance(n, Unsupported):
             raise SymbolicError(n.message())
         if isinstance(n, Param) and n.name in pb:
@@ -442,6 +448,8 @@ def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[s
         elif out[1] == -math.inf:
             out = (-math.inf, -_MAX)
         memo[id(n)] = out
+        if shared is not None:
+            shared[id(n)] = (n, out)
         return out
 
     lo, hi = iv(as_expr(node))

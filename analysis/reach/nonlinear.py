@@ -121,18 +121,20 @@ class _Evaluator:
     def point_enclosures(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Enclosures of ``f(x)`` and ``Df(x)`` at a float point: (f_lo, f_hi, J_lo, J_hi)."""
         bounds = self.box(x, x)
-        f = np.array([enclose(e, bounds) for e in self.flow.components])
+        shared: dict = {}  # subtrees common to the entries enclosed once (the same numbers)
+        f = np.array([enclose(e, bounds, shared=shared) for e in self.flow.components])
         j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
         for i, j in self.j_vary:
-            j_lo[i, j], j_hi[i, j] = enclose(self.flow.jacobian[i][j], bounds)
+            j_lo[i, j], j_hi[i, j] = enclose(self.flow.jacobian[i][j], bounds, shared=shared)
         return f[:, 0], f[:, 1], j_lo, j_hi
 
     def hessian(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Enclosures of every ``∂²f_i/∂x_j∂x_k`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n, n)."""
         bounds = self.box(lo, hi)
+        shared: dict = {}  # subtrees common to the entries enclosed once (the same numbers)
         h_lo, h_hi = self.h_const.copy(), self.h_const.copy()
         for i, j, k in self.h_vary:
-            h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds)
+            h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds, shared=shared)
             h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
         return h_lo, h_hi
 

@@ -349,9 +349,10 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
     for _ in range(3):
         for row in rows:
             a, b = row.normal, row.offset
-            g = [sum((ai * col[i] for i, ai in enumerate(a)), Fraction(0)) for col in gens]
-            mins = [min(gj * l, gj * u) for gj, l, u in zip(g, lo, hi)]
-            total = sum((ai * ci for ai, ci in zip(a, z.center)), Fraction(0)) + sum(mins, Fraction(0))
+            nonzero = [(i, ai) for i, ai in enumerate(a) if ai != 0]  # exact: a zero coefficient adds 0
+            g = [sum((ai * col[i] for i, ai in nonzero), Fraction(0)) for col in gens]
+            mins = [min(gj * l, gj * u) if gj else Fraction(0) for gj, l, u in zip(g, lo, hi)]
+            total = sum((ai * z.center[i] for i, ai in nonzero), Fraction(0)) + sum(mins, Fraction(0))
             if total > b:
                 return None
             for j, gj in enumerate(g):
@@ -364,10 +365,12 @@ def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
                     lo[j] = max(lo[j], room)
                 if lo[j] > hi[j]:
                     return None
-                mins[j] = min(gj * lo[j], gj * hi[j])
-                total = sum((ai * ci for ai, ci in zip(a, z.center)), Fraction(0)) + sum(mins, Fraction(0))
-    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi)), Fraction(0)),
-             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi)), Fraction(0)))
+                narrowed = min(gj * lo[j], gj * hi[j])
+                total += narrowed - mins[j]  # exact rationals: the sum with mins[j] replaced
+                mins[j] = narrowed
+    # a zero entry of a generator adds exactly 0: skipped
+    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)),
+             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)))
             for i, c in enumerate(z.center)]
 
 
@@ -742,8 +745,9 @@ def _jumps_from(model: AffineHybridModel, mode: str, box: Box, t_lo: Fraction, t
                     part = None if narrow is None else _meet(part, narrow)
                 if part is None:
                     continue
-                if not any(j["transition"] == t.name and _inside(part, _box_of(j["before"]))
-                           and Fraction(j["t"][0]) <= t_lo and Fraction(j["t"][1]) >= t_hi for j in jumps):
+                # the times first: cheaper than the box (the same conjunction)
+                if not any(j["transition"] == t.name and Fraction(j["t"][0]) <= t_lo and Fraction(j["t"][1]) >= t_hi
+                           and _inside(part, _box_of(j["before"])) for j in jumps):
                     return (f"jumps: flowpipe {index} (mode {mode!r}) may take {t.name!r} from "
                             f"[{[float(v[0]) for v in part]}, {[float(v[1]) for v in part]}] at t in "
                             f"[{float(t_lo):.6g}, {float(t_hi):.6g}] s, which no saved jump covers")

@@ -40,6 +40,7 @@ import numpy as np
 from analysis.interval import Interval
 from hybrid.symbolic import Apply, Const, Coordinate, Expr, diff
 
+from .interval_tape import IntervalTape, TapeFallback, compile_tape
 from .smooth import SmoothFlow
 
 __all__ = ["SmoothStepper", "SmoothSet", "MAX_GENERATORS", "StepFailed", "reduced"]
@@ -105,8 +106,19 @@ class SmoothSet:
         return _dn(self.center - r), _upn(self.center + r)
 
 
-def _evaluate(roots: Sequence[Expr], lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Enclosures of each root over the box with :class:`Interval` (one memo for all roots)."""
+def _evaluate(roots: Sequence[Expr], lo: np.ndarray, hi: np.ndarray,
+              tape: IntervalTape | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Enclosures of each root over the box with :class:`Interval` (one memo for all roots); with ``tape`` (the
+    roots compiled, :mod:`analysis.reach.interval_tape`) the same numbers, vectorised."""
+    if tape is not None:
+        try:
+            out_lo, out_hi = tape.evaluate(lo, hi)
+        except TapeFallback:
+            pass  # node by node below: the same numbers, and the same errors
+        else:
+            if not (np.all(np.isfinite(out_lo)) and np.all(np.isfinite(out_hi))):
+                raise StepFailed("an enclosure of the flow or of its derivatives is not finite")
+            return out_lo, out_hi
     memo: dict[int, Interval] = {}
 
     def ev(node: Any) -> Interval:
@@ -174,16 +186,18 @@ class SmoothStepper:
         self.at_point = list(f) + q + [e for row in jac for e in row] + [e for row in dq for e in row]
         self.over_hull = [e for a in hess for b in a for e in b] + [e for row in dq for e in row]
         self.over_w = list(f) + third + q
+        # each list compiled once (the re-check's vectorised evaluation, same numbers as Interval's)
+        self.tapes = {id(roots): compile_tape(roots) for roots in (self.f, self.at_point, self.over_hull, self.over_w)}
 
     def picard(self, lo: np.ndarray, hi: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
         """A box ``W`` with ``[lo, hi] + [0, δ] f(W) ⊂ int W``."""
-        f_lo, f_hi = _evaluate(self.f, lo, hi)
+        f_lo, f_hi = _evaluate(self.f, lo, hi, self.tapes[id(self.f)])
         reach_lo, reach_hi = _imul((0.0, step), (f_lo, f_hi))
         w_lo, w_hi = _dn(lo + np.minimum(reach_lo, 0.0)), _upn(hi + np.maximum(reach_hi, 0.0))
         for _ in range(12):
             grow = np.maximum(w_hi - w_lo, 1e-9 * (1.0 + np.abs(w_lo) + np.abs(w_hi))) / 8.0
             w_lo, w_hi = _dn(w_lo - grow), _upn(w_hi + grow)
-            f_lo, f_hi = _evaluate(self.f, w_lo, w_hi)
+            f_lo, f_hi = _evaluate(self.f, w_lo, w_hi, self.tapes[id(self.f)])
             reach_lo, reach_hi = _imul((0.0, step), (f_lo, f_hi))
             i_lo, i_hi = _dn(lo + np.minimum(reach_lo, 0.0)), _upn(hi + np.maximum(reach_hi, 0.0))
             if np.all(w_lo < i_lo) and np.all(i_hi < w_hi):
@@ -196,9 +210,9 @@ class SmoothStepper:
         n = self.n
         lo, hi = z.hull()
         w = self.picard(lo, hi, step)
-        p_lo, p_hi = _evaluate(self.at_point, z.center, z.center)
-        h_lo, h_hi = _evaluate(self.over_hull, lo, hi)
-        w_lo, w_hi = _evaluate(self.over_w, *w)
+        p_lo, p_hi = _evaluate(self.at_point, z.center, z.center, self.tapes[id(self.at_point)])
+        h_lo, h_hi = _evaluate(self.over_hull, lo, hi, self.tapes[id(self.over_hull)])
+        w_lo, w_hi = _evaluate(self.over_w, *w, tape=self.tapes[id(self.over_w)])
         cut = [0, n, 2 * n, 2 * n + n * n, 2 * n + 2 * n * n]
         part = [(p_lo[a:b], p_hi[a:b]) for a, b in zip(cut, cut[1:])]
         return {"f": part[0], "q": part[1], "jac": tuple(v.reshape(n, n) for v in part[2]),

@@ -1039,3 +1039,23 @@ def test_a_compiled_function_shows_its_source_in_tracebacks():
     v = coordinates("x")
     fn = compiled_function(v.x - 1.0, "condition")
     assert linecache.getline(fn.__code__.co_filename, 1).strip() == "lambda v, m: (v[0] - 1.0)"
+
+
+def test_enclose_with_a_shared_memo_gives_the_same_numbers():
+    """``shared`` only skips re-enclosing a common subtree: the bounds equal the ones of separate calls."""
+    import random
+
+    from hybrid.symbolic import coordinates, cos, diff, enclose, sin
+
+    x = coordinates("a", "b", "c")
+    f = x.a * sin(x.b) * x.c - cos(x.a + 0.3 * x.b) * x.c ** 2
+    entries = [diff(diff(f, u), w) for u in ("a", "b", "c") for w in ("a", "b", "c")] + [f]
+    rng = random.Random(5)
+    for _ in range(50):
+        bounds = {}
+        for name in ("a", "b", "c"):
+            lo = rng.uniform(-2, 2)
+            bounds[name] = (lo, lo + rng.choice([0.0, 1e-6, 0.3, 2.0]))
+        shared: dict = {}
+        assert [enclose(e, bounds, shared=shared) for e in entries] == [enclose(e, bounds) for e in entries]
+        assert shared  # it was used

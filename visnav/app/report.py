@@ -245,6 +245,7 @@ def _sos_claims(sos: dict[str, Any] | None) -> list[Claim]:
 def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[str, Any], list[Claim], dict]:
     from visnav.studies.loop_analysis import analyse
     from visnav.app.figures_analysis import analysis_figures
+    from visnav.app.report_reach import bypass_reach_data
 
     # the quick report judges the scenario's k only; the full one scans the gains as `visnav analyse` does
     # rounded first (visnav.app.precision): the claims, the documents and the figures all use the same digits
@@ -253,6 +254,9 @@ def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
     data = {k: v for k, v in full.items() if k not in ("frequency_responses", "scenario")}
     data["figures"] = sorted(figures)
     pf = full["path_following"]
+    # the sampled loop's flowpipe from the campaign's measured entries, beside the SOS bounds (full report only)
+    pf["bypass_reach"], reach_claims = bypass_reach_data(scenario, samples=options.campaign_samples,
+                                                         seed=options.seed, run=not options.quick)
     eig = ", ".join(f"{re:.6g}" for re, _ in pf["eigenvalues"])
     region = ", ".join(f"{n} in [{lo:.4g}, {hi:.4g}]" for n, (lo, hi) in pf["lyapunov"]["region"].items())
     goal = full["goal"]
@@ -267,6 +271,7 @@ def _analysis_section(scenario: Scenario, options: ReportOptions) -> tuple[dict[
         Claim(section="analysis", status="sampled",
               text=f"admissible k for the simulated entry angles: {pf['admissible']['finding']}"),
         *_sos_claims(pf["sos"]),
+        *reach_claims,
         Claim(section="analysis", status="measured",
               text=("goal: visual-servoing task eigenvalues "
                     + ", ".join(f"{re:.4g}" for re, _ in goal["visual_servoing_task"]["eigenvalues"])

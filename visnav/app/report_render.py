@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from visnav.app.precision import KINDS
+from visnav.app.report_reach import radius_inward
 from visnav.app.verification_report import VERDICT_LABELS
 
 __all__ = ["Block", "report_blocks", "findings_blocks", "structural_blocks", "render_markdown", "render_html",
@@ -379,10 +380,48 @@ def _simulation_blocks(data: dict[str, Any]) -> list[Block]:
     return blocks
 
 
-def _sos_blocks(sos: dict[str, Any] | None) -> list[Block]:
-    """The SOS study beside the hand-given V: region, bypass bounds by each set, admissible gains."""
-    if sos is None:
+def _reach_row(reach: dict[str, Any] | None) -> list[list[str]]:
+    """The sampled loop's proven bound as a row of the SOS bounds' table (none unless proven)."""
+    if reach is None or reach["status"] != "proven":
         return []
+    return [[f"[{_fmt(reach['entry_box']['alpha_rad'])}]",
+             f"sampled loop, flowpipe over {_fmt(reach['horizon_s'])} s (re-checked)",
+             _fmt(reach["delta_bound_m"]), _fmt(reach["margin_m"]), "—"]]
+
+
+def _reach_blocks(reach: dict[str, Any] | None) -> list[Block]:
+    """The sampled loop's reachability proof in words: bound, window, entry box, coverage, and how it differs
+    from the SOS bounds."""
+    if reach is None:
+        return []
+    if reach["status"] == "not run":
+        return [Block("p", f"Sampled loop (flowpipe from the campaign's entries): not run ({reach['why']}).")]
+    box, cov = reach["entry_box"], reach["coverage"]
+    where = (f"δ ∈ [{_fmt(box['delta_m'])}] m, α ∈ [{_fmt(box['alpha_rad'])}] rad, "
+             f"R ∈ [{_fmt(radius_inward(reach['radius_m']))}] m "
+             f"at k = {_fmt(reach['k'])}, v_coll = {_fmt(reach['v_mps'])} m/s")
+    if reach["status"] == "proven":
+        verdict = (f"**proven, re-checked**: |δ| <= {_fmt(reach['delta_bound_m'])} m (margin >= "
+                   f"{_fmt(reach['margin_m'])} m to d0 = {_fmt(reach['d_zero_m'])} m)")
+    else:
+        verdict = f"**NOT PROVEN**: |δ| < d0 = {_fmt(reach['d_zero_m'])} m was not decided"
+    return [Block("p", (
+        f"Sampled loop (`visnav.studies.path_following_reach`): {verdict} over the first {_fmt(reach['horizon_s'])} s "
+        f"after entry, for the loop the robot runs (ω sampled every {_fmt(reach['period_s'] * 1000)} ms and held), "
+        f"from every entry in {where}: a flowpipe by conservative linearisation ({reach['segments']} segments, "
+        f"{reach['jumps']} samples, step {_fmt(reach['time_step_s'])} s) and its independent re-check. Coverage: "
+        f"{cov['inside']}/{cov['entries']} measured entries (a sample of the campaign, not a proof of coverage) of "
+        f"{cov['samples']} campaign draws (seed {cov['seed']}); the window is the longest measured bypass "
+        f"({_fmt(cov['longest_bypass_s'])} s); the campaign's gain factors are not covered. The SOS rows bound the "
+        "continuous loop for all time from one entry angle; the flowpipe bounds the sampled loop over a finite "
+        "window from a range of entry angles."))]
+
+
+def _sos_blocks(sos: dict[str, Any] | None, reach: dict[str, Any] | None = None) -> list[Block]:
+    """The SOS study beside the hand-given V: region, bypass bounds by each set (and the sampled loop's proven
+    bound, ``reach``), admissible gains."""
+    if sos is None:
+        return _reach_blocks(reach)
     region = sos["region"]
     blocks = [Block("h3", "Sum-of-squares certificates of path following"),
               Block("p", (f"Region: {{V <= 1}} of a degree-{region['degree']} SOS function, {region['status']} by "
@@ -399,7 +438,8 @@ def _sos_blocks(sos: dict[str, Any] | None) -> list[Block]:
             rows.append([_fmt(b["alpha0_rad"]), label, _fmt(pair["delta_max_m"]), _fmt(pair["min_distance_m"]),
                          _fmt(pair["omega_max_radps"])])
     blocks.append(Block("table", (["entry alpha0 [rad]", "bound from", "max |delta| [m]", "clearance [m]",
-                                   "max |omega| [rad/s]"], rows)))
+                                   "max |omega| [rad/s]"], rows + _reach_row(reach))))
+    blocks += _reach_blocks(reach)
     scope = "" if sos["scan"] else " (quick report: only the scenario's k judged)"
     blocks.append(Block("p", f"Admissible gains from the SOS certificates{scope}: {sos['admissible']['finding']}. "
                              f"Entry angles {sos['entry_angles_source']}."))
@@ -413,7 +453,7 @@ def _analysis_blocks(data: dict[str, Any]) -> list[Block]:
     blocks.append(Block("p", f"V̇ normal form: `{pf['lyapunov']['normal_form']}`. {pf['lyapunov']['lasalle']}"))
     blocks.append(Block("p", f"Region of attraction: {pf['lyapunov']['region_of_attraction']}"))
     blocks.append(Block("p", f"Admissible gains: {pf['admissible']['finding']}"))
-    blocks += _sos_blocks(pf["sos"])
+    blocks += _sos_blocks(pf["sos"], pf.get("bypass_reach"))
     blocks.append(Block("h3", "Stability margins of the loops"))
     rows = []
     for name, pair in ana["margins"].items():

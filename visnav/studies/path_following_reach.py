@@ -45,7 +45,13 @@ from typing import Any
 from hybrid.jsonable import to_jsonable
 
 __all__ = ["BypassEntry", "BypassReach", "campaign_entries", "modal_basis", "sampled_bypass_system", "prove_bypass",
-           "bypass_reach"]
+           "bypass_reach", "default_step"]
+
+STEP_SLACK_S = 1e-9
+"""The default flowpipe step is ``(T − STEP_SLACK_S) / 2`` [s] (:func:`default_step`), not ``T / 2``."""
+
+BOX_GRID = 1e-4
+"""The entry box's bounds are rounded outward to multiples of this (m, rad): short decimals, printed exactly."""
 
 _NOT_FOLLOWING = ("LEAVE", "FAR", "APPROACH")
 """Supervisor modes in which the path-following law no longer drives ω (AVOID, ARMED, PASSED use it)."""
@@ -85,10 +91,15 @@ class BypassReach:
     status : str
         ``"proven"`` (the flowpipe decides it and the independent re-check passed), ``"not proven"``.
     margin_m : float
-        Smallest slack of ``|δ| < d0`` over the flowpipe [m] (``nan`` if not decided).
+        Smallest slack of ``|δ| < limit`` over the flowpipe [m] (``nan`` if not decided); the limit is ``d0``
+        unless :func:`prove_bypass` was given another.
     delta_bound_m : float
-        ``d0 − margin``: the proven bound of ``|δ|`` over the window [m] (``nan`` if not proven).
+        ``limit − margin``: the proven bound of ``|δ|`` over the window [m] (``nan`` if not proven).
     evidence : str
+    time_step_s : float
+        The flowpipe's step [s].
+    segments, jumps : int
+        The flowpipe's segments and jumps (samples), each re-checked.
     seconds : float
         Wall clock of the proof (flowpipes and re-checks) [s].
     """
@@ -105,6 +116,9 @@ class BypassReach:
     margin_m: float
     delta_bound_m: float
     evidence: str
+    time_step_s: float
+    segments: int
+    jumps: int
     seconds: float
 
     def as_dict(self) -> dict[str, Any]:
@@ -114,7 +128,7 @@ class BypassReach:
             "radius_m": list(self.radius_m), "entry_box": {k: list(v) for k, v in self.entry_box.items()},
             "coverage": self.coverage, "horizon_s": self.horizon_s, "status": self.status,
             "margin_m": self.margin_m, "delta_bound_m": self.delta_bound_m, "evidence": self.evidence,
-            "seconds": self.seconds,
+            "time_step_s": self.time_step_s, "segments": self.segments, "jumps": self.jumps, "seconds": self.seconds,
         })
 
 
@@ -224,16 +238,43 @@ def _modal_box(box: dict[str, tuple[float, float]], basis: tuple[tuple[float, fl
 
 def _entry_box(entries: Sequence[BypassEntry], margin_delta: float, margin_alpha: float
                ) -> dict[str, tuple[float, float]]:
-    deltas = [e.delta_m for e in entries]
-    alphas = [e.alpha_rad for e in entries]
-    return {"delta_m": (min(deltas) - margin_delta, max(deltas) + margin_delta),
-            "alpha_rad": (min(alphas) - margin_alpha, max(alphas) + margin_alpha)}
+    """The entries' hull widened by the margins, its bounds rounded outward to :data:`BOX_GRID` (a larger box
+    whose bounds are short decimals; where the rounding of the grid's floats would cut into the hull, the
+    hull's own bound is kept)."""
+    from fractions import Fraction
+
+    def outward(values: list[float], margin: float) -> tuple[float, float]:
+        lo, hi = min(values) - margin, max(values) + margin
+        grid_lo = round(math.floor(lo / BOX_GRID) * BOX_GRID, 4)
+        grid_hi = round(math.ceil(hi / BOX_GRID) * BOX_GRID, 4)
+        # the floats on the decimals' outer side: the box proven holds the box its decimals print
+        if Fraction(grid_lo) > Fraction(repr(grid_lo)):
+            grid_lo = math.nextafter(grid_lo, -math.inf)
+        if Fraction(grid_hi) < Fraction(repr(grid_hi)):
+            grid_hi = math.nextafter(grid_hi, math.inf)
+        return min(grid_lo, lo), max(grid_hi, hi)
+
+    return {"delta_m": outward([e.delta_m for e in entries], margin_delta),
+            "alpha_rad": outward([e.alpha_rad for e in entries], margin_alpha)}
+
+
+def default_step(period: float) -> float:
+    """The flowpipe step [s] for the sampling period ``period``: ``(period − STEP_SLACK_S) / 2``.
+
+    The sample at ``c = T`` then falls strictly inside the third step of each period (the second ends
+    ``STEP_SLACK_S`` before it, far beyond the engine's padding of the clock, ~5e-12 s), so one segment
+    meets the sample's guard and the jump's time interval starts ``1e-9`` s before the sample: the flowpipe
+    stays in step with the samples (``T / 5`` drifted a step a period: 790 samples for 632 periods).
+    """
+    return (period - STEP_SLACK_S) / 2.0
 
 
 def prove_bypass(scenario: Any, *, entries: Sequence[BypassEntry], horizon_s: float,
                  margin_delta_m: float = 0.005, margin_alpha_rad: float = 0.05, time_step: float | None = None,
-                 splits: dict[str, int] | None = None, samples: int | None = None, seed: int = 0) -> BypassReach:
-    """Prove ``|δ| < d0`` over ``[0, horizon_s]`` after entry for every entry in the hull of ``entries`` (widened).
+                 splits: dict[str, int] | None = None, samples: int | None = None, seed: int = 0,
+                 limit_m: float | None = None) -> BypassReach:
+    """Prove ``|δ| < d0`` (or ``< limit_m``) over ``[0, horizon_s]`` after entry for every entry in the hull of
+    ``entries`` (widened).
 
     Parameters
     ----------
@@ -246,11 +287,13 @@ def prove_bypass(scenario: Any, *, entries: Sequence[BypassEntry], horizon_s: fl
     margin_delta_m, margin_alpha_rad : float
         Widening of the hull [m], [rad].
     time_step : float or None
-        Flowpipe step [s]; default ``T/5``.
+        Flowpipe step [s]; default :func:`default_step` (``(T − 1e-9)/2``).
     splits : dict or None
         Split of the entry box (``{"alpha": 2}``) for :func:`analysis.reach.verdict.reach_proof`.
     samples, seed : int or None
         Recorded in the coverage (how the entries were drawn).
+    limit_m : float or None
+        The bound of ``|δ|`` to prove [m]; default ``d0`` (the loop keeps ``d0`` in its curvature either way).
     """
     from analysis.reach import safety_fragment
     from analysis.reach.verdict import reach_proof
@@ -260,6 +303,9 @@ def prove_bypass(scenario: Any, *, entries: Sequence[BypassEntry], horizon_s: fl
         raise ValueError("prove_bypass: no entries; give the measured entries of campaign_entries()")
     env, gains = scenario.envelopes, scenario.gains
     k, v, d0, period = gains.k_path, gains.v_coll_mps, env.d_zero_m, scenario.sampling_period_s
+    limit = d0 if limit_m is None else float(limit_m)
+    if not (math.isfinite(limit) and limit > 0.0):
+        raise ValueError(f"prove_bypass: limit_m = {limit_m!r}; expected a finite bound > 0 [m] (or None for d0)")
     box = _entry_box(entries, margin_delta_m, margin_alpha_rad)
     radii = (min(e.radius_m for e in entries), max(e.radius_m for e in entries))
     (d_lo, d_hi), (a_lo, a_hi) = box["delta_m"], box["alpha_rad"]
@@ -274,10 +320,10 @@ def prove_bypass(scenario: Any, *, entries: Sequence[BypassEntry], horizon_s: fl
     w1, w2 = _modal_box(box, basis)
     initial.update({"delta": w1, "alpha": w2, "delta_h": w1, "alpha_h": w2})
     (a, b) = basis[0]
-    requirement = safety_fragment(parse_tree(f"always[0, {horizon_s!r}] (abs({a!r} * delta + {b!r} * alpha) < {d0!r})"),
+    requirement = safety_fragment(parse_tree(f"always[0, {horizon_s!r}] (abs({a!r} * delta + {b!r} * alpha) < {limit!r})"),
                                   STATE_NAMES)
     system = sampled_bypass_system(k=k, v=v, period=period, basis=basis)
-    step = time_step or period / 5.0
+    step = time_step or default_step(period)
     start = time.perf_counter()
     # a period's jump may happen up to one step early in the flowpipe's times: bound the jumps accordingly
     proof, decision = reach_proof(system, requirement, initial, time_step=step,
@@ -288,8 +334,9 @@ def prove_bypass(scenario: Any, *, entries: Sequence[BypassEntry], horizon_s: fl
                        coverage={"claim": "measured", "entries": len(entries), "inside": inside,
                                  "samples": samples, "seed": seed},
                        horizon_s=float(horizon_s), status="proven" if proven else "not proven", margin_m=margin,
-                       delta_bound_m=(d0 - margin) if proven else math.nan, evidence=proof.evidence,
-                       seconds=time.perf_counter() - start)
+                       delta_bound_m=(limit - margin) if proven else math.nan, evidence=proof.evidence,
+                       time_step_s=step, segments=len(decision.result.segments) if decision.result else 0,
+                       jumps=len(decision.result.jumps) if decision.result else 0, seconds=time.perf_counter() - start)
 
 
 def bypass_reach(scenario: Any, *, samples: int = 40, seed: int = 0, time_step: float | None = None) -> BypassReach:
@@ -305,10 +352,11 @@ def bypass_reach(scenario: Any, *, samples: int = 40, seed: int = 0, time_step: 
     period = scenario.sampling_period_s
     finite = [e.duration_s for e in entries if math.isfinite(e.duration_s)]
     longest = max(finite) if finite else 10.0 * period
-    horizon = math.ceil(longest / period - 1e-9) * period
+    # whole periods, and never below the measured bypass (its duration is a difference of float instants)
+    horizon = max(math.ceil(longest / period - 1e-9) * period, longest)
     out = prove_bypass(scenario, entries=entries, horizon_s=horizon, time_step=time_step, samples=samples, seed=seed)
     coverage = {**out.coverage, "longest_bypass_s": longest, "unfinished_bypasses": len(entries) - len(finite)}
     return BypassReach(k=out.k, v_mps=out.v_mps, d_zero_m=out.d_zero_m, period_s=out.period_s, radius_m=out.radius_m,
                        entry_box=out.entry_box, coverage=coverage, horizon_s=out.horizon_s, status=out.status,
                        margin_m=out.margin_m, delta_bound_m=out.delta_bound_m, evidence=out.evidence,
-                       seconds=out.seconds)
+                       time_step_s=out.time_step_s, segments=out.segments, jumps=out.jumps, seconds=out.seconds)

@@ -9,6 +9,7 @@ automaton under test.  States are compared within ``1e-6`` (the integration is w
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -105,3 +106,99 @@ def test_campaign_entries_are_measured_states_at_the_switch():
         # the switch happens at the first sample after crossing d−: δ within one step of d− − d0
         assert d_minus - d0 - step - 1e-9 <= e.delta_m <= d_minus - d0 + 1e-9
         assert math.isfinite(e.alpha_rad) and e.duration_s > 0
+
+
+# --------------------------------------------------------------------------- the case study at its default settings
+
+def _rk4_held_loop(starts: np.ndarray, k: float, v: float, d0: float, period: float, horizon: float,
+                   sub: int = 50) -> np.ndarray:
+    """max |δ| over ``[0, horizon]`` of the held loop from each start ``(δ, α, R)``: classical RK4 with ``sub``
+    steps a period, vectorised over the starts, on :func:`visnav.model.path_error_rates` with ``ω`` from
+    :func:`visnav.model.path_following_omega` held over each period (independent of the automaton).
+
+    Step ``T / sub = 1 ms`` on rates of size ``v = 0.2`` m/s and curvature ~0.5: the local error is ~1e-15,
+    far below the 1e-4 m the assertions leave.
+    """
+    delta, alpha, radius = (starts[:, i].astype(float) for i in range(3))
+    h = period / sub
+    peak = np.abs(delta)
+
+    def rates(d, a, omega):
+        return model.path_error_rates(v, omega, a, 1.0 / (radius + d0 + d), 1.0, ops=np)
+
+    for _ in range(int(round(horizon / period))):
+        omega = model.path_following_omega(delta, alpha, 1.0 / (radius + d0 + delta), 1.0, v, k, ops=np)
+        for _ in range(sub):
+            k1 = rates(delta, alpha, omega)
+            k2 = rates(delta + h / 2 * k1[0], alpha + h / 2 * k1[1], omega)
+            k3 = rates(delta + h / 2 * k2[0], alpha + h / 2 * k2[1], omega)
+            k4 = rates(delta + h * k3[0], alpha + h * k3[1], omega)
+            delta = delta + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+            alpha = alpha + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+            peak = np.maximum(peak, np.abs(delta))
+    return peak
+
+
+def test_rk4_yardstick_agrees_with_the_scipy_held_loop():
+    scenario = load_scenario("paper")
+    k, v, d0, period = (scenario.gains.k_path, scenario.gains.v_coll_mps, scenario.envelopes.d_zero_m,
+                        scenario.sampling_period_s)
+    start = (-0.205, -0.79, 1.36)
+    fine = np.max(np.abs(_held_loop(*start, k, v, d0, period, 2.0)[1][:, 0]))
+    assert _rk4_held_loop(np.array([start]), k, v, d0, period, 2.0)[0] == pytest.approx(fine, abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def paper_bypass():
+    """The case study at its defaults (40 campaign draws, seed 0, the longest measured bypass): run once."""
+    from visnav.studies.path_following_reach import bypass_reach
+
+    scenario = load_scenario("paper")
+    return scenario, bypass_reach(scenario), campaign_entries(scenario, samples=40, seed=0)
+
+
+def test_the_paper_bypass_is_proven_re_checked_and_bounds_every_simulated_entry(paper_bypass):
+    scenario, out, entries = paper_bypass
+    assert out.status == "proven", out.evidence  # "proven" needs the flowpipe's decision and the re-check
+    assert "re-checked from the saved flowpipe" in out.evidence
+    assert out.coverage["inside"] == out.coverage["entries"] == len(entries) >= 30
+    assert out.horizon_s >= max(e.duration_s for e in entries if math.isfinite(e.duration_s))
+    assert out.delta_bound_m < out.d_zero_m
+    # in step with the samples: one jump a period over the window (T/5 took 790 jumps for 632 periods)
+    assert out.jumps == round(out.horizon_s / out.period_s)
+    # independent yardstick: the held loop by RK4 from every measured entry and every corner of the box
+    box = out.entry_box
+    corners = [(d, a, r) for d in box["delta_m"] for a in box["alpha_rad"] for r in out.radius_m]
+    starts = np.array([(e.delta_m, e.alpha_rad, e.radius_m) for e in entries] + corners)
+    reached = _rk4_held_loop(starts, out.k, out.v_mps, out.d_zero_m, out.period_s, out.horizon_s)
+    assert np.max(reached) <= out.delta_bound_m
+    # and the bound is not vacuous: within 0.05 m of what the simulated corners reach (measured: 0.2704 m
+    # reached, bound 0.3196 m, gap 0.049 m; at step T/5 the bound was 0.3117 m)
+    assert out.delta_bound_m - np.max(reached) < 0.05
+    # the entry box: short decimals holding the measured entries with the margins
+    assert box["delta_m"][0] <= min(e.delta_m for e in entries) - 0.005
+    assert box["alpha_rad"][1] >= max(e.alpha_rad for e in entries) + 0.05
+    # short decimals, each bound's float on the outer side of its decimal (the printed box is inside the proven one)
+    for lo, hi in box.values():
+        assert Fraction(lo) <= Fraction(f"{lo:.4f}") and Fraction(hi) >= Fraction(f"{hi:.4f}")
+        assert abs(lo - round(lo, 4)) <= 1e-16 and abs(hi - round(hi, 4)) <= 1e-16
+
+
+def test_a_limit_below_what_the_simulated_loop_reaches_is_not_proven(paper_bypass):
+    scenario, out, entries = paper_bypass
+    box = out.entry_box
+    corners = np.array([(d, a, r) for d in box["delta_m"] for a in box["alpha_rad"] for r in out.radius_m])
+    horizon = 3.0  # the largest |δ| is reached within the first 3 s (|δ| then decays)
+    reached = float(np.max(_rk4_held_loop(corners, out.k, out.v_mps, out.d_zero_m, out.period_s, horizon)))
+    tight = prove_bypass(scenario, entries=entries, horizon_s=horizon, limit_m=reached - 1e-3)
+    assert tight.status == "not proven" and math.isnan(tight.delta_bound_m)
+    # the same window with a limit the flowpipe can prove: the bound sits between the simulation and d0
+    loose = prove_bypass(scenario, entries=entries, horizon_s=horizon, limit_m=out.d_zero_m)
+    assert loose.status == "proven" and reached <= loose.delta_bound_m < out.d_zero_m
+
+
+def test_a_bad_limit_is_refused_by_name():
+    scenario = load_scenario("paper")
+    entry = BypassEntry(sample=0, obstacle="low", radius_m=1.4, delta_m=-0.2, alpha_rad=-0.5, duration_s=1.0)
+    with pytest.raises(ValueError, match="limit_m"):
+        prove_bypass(scenario, entries=(entry,), horizon_s=0.5, limit_m=-1.0)
