@@ -251,8 +251,11 @@ def _verification_figures(ver: dict[str, Any]) -> list[Block]:
     for r in ver["requirements"]:
         if r["figure"]:
             cx = r["counterexample"]
-            blocks.append(Block("figure", (r["figure"], f"Counterexample to {r['name']}: violated at t = "
-                                           f"{_fmt(cx['time'])} s (red) by {cx['atom'].strip()}")))
+            where = (f"violated at t = {_fmt(cx['time'])} s (red)" if cx.get("window") is None else
+                     f"never reached within [{_fmt(cx['window'][0])}, {_fmt(cx['window'][1])}] s; closest at t = "
+                     f"{_fmt(cx['time'])} s (red)")
+            blocks.append(Block("figure", (r["figure"], f"Counterexample to {r['name']}: {where} by "
+                                           f"{cx['atom'].strip()}")))
     if ver["robustness_figure"]:
         blocks.append(Block("figure", (ver["robustness_figure"], "Lowest robustness against the simulations "
                                        "(below 0: violated)")))
