@@ -30,7 +30,7 @@ import numpy as np
 from hybrid.errors import ParameterError
 
 from .affine import Halfspace, Polyhedron, condition_polyhedra
-from .zonotope import UNIT_ROUNDOFF, Zonotope, from_box, gamma, round_down, round_up, support_bounds, upper
+from .zonotope import UNIT_ROUNDOFF, Zonotope, from_box, gamma, magnitude, round_down, round_up, support_bounds, upper
 
 __all__ = [
     "FloatHalfspace",
@@ -202,46 +202,63 @@ def separation(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedron: Sequence
     return best
 
 
-def _dual_bound(z: Zonotope, direction: np.ndarray, halfspaces: Sequence[FloatHalfspace],
-                multipliers: np.ndarray) -> float:
-    """A rigorous upper bound of ``max direction·x`` over ``z ∩ {a_k·x <= b_k}`` from any multipliers ``λ >= 0``.
+def _dual_bounds(z: Zonotope, directions: np.ndarray, halfspaces: Sequence[FloatHalfspace],
+                 multipliers: np.ndarray) -> np.ndarray:
+    """Rigorous upper bounds of ``max e_d·x`` over ``z ∩ {a_k·x <= b_k}``, one per row ``e_d`` of ``directions``
+    (shape ``(p, n)``), from any multipliers ``λ_d >= 0`` (rows of ``multipliers``, shape ``(p, k)``); shape ``(p,)``.
 
     Weak duality: ``e·x <= (e − Σ λ_k a_k)·x + Σ λ_k b_k`` on the intersection, and the first term is
-    bounded by the support of ``z`` in the direction ``e − Σ λ_k a_k`` (computed with its rounding).
+    bounded by the support of ``z`` in the direction ``e − Σ λ_k a_k`` (computed with its rounding, as in
+    :func:`~analysis.reach.zonotope.support_bounds`, for all directions at once: every product is a float dot
+    product of the same length, so Higham's ``γ`` bounds hold row by row).
     """
     lam = np.maximum(np.asarray(multipliers, dtype=float), 0.0)
+    e = np.asarray(directions, dtype=float)
     normals = np.array([h.normal for h in halfspaces])
     residuals = np.array([h.residual for h in halfspaces])
     offsets = np.array([h.offset for h in halfspaces])
-    d = direction - normals.T @ lam
+    d = e - lam @ normals
     k = len(halfspaces) + 2
-    residual = upper(gamma(k) * (np.abs(direction) + np.abs(normals).T @ lam) + residuals.T @ lam, k + 2)
-    _, top = support_bounds(z, d, residual)
-    shift = float(lam @ offsets)
-    err = float(upper(gamma(k) * (lam @ np.abs(offsets)), k))
-    return float(round_up(round_up(top + shift + err + UNIT_ROUNDOFF * abs(top + shift))))
+    residual = upper(gamma(k) * (np.abs(e) + lam @ np.abs(normals)) + lam @ residuals, k + 2)
+    n = z.dimension
+    s = d @ z.center
+    spread = np.abs(d @ z.generators).sum(axis=1)
+    err = gamma(n) * (np.abs(d) @ (np.abs(z.center) + np.abs(z.generators).sum(axis=1))) + residual @ magnitude(z)
+    width = upper(spread + err + UNIT_ROUNDOFF * np.abs(s), z.order + n + 4)
+    top = round_up(round_up(s + width))
+    shift = lam @ offsets
+    err = upper(gamma(k) * (lam @ np.abs(offsets)), k)
+    return round_up(round_up(top + shift + err + UNIT_ROUNDOFF * np.abs(top + shift)))
 
 
 def _multipliers(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, sweeps: int = 4) -> np.ndarray:
-    """Multipliers ``λ >= 0`` nearly minimising the dual ``λ·β + Σ_i |c_i − (αᵀλ)_i|`` (float, a suggestion).
+    """Multipliers ``λ_d >= 0`` nearly minimising the dual ``λ·β + Σ_i |c_di − (αᵀλ)_i|`` (float, a suggestion),
+    one row per objective ``c_d`` (``c`` of shape ``(p, m)``, the result ``(p, k)``).
 
-    The dual of ``max c·ξ`` over ``ξ ∈ [-1, 1]^m``, ``α ξ <= β`` is convex and piecewise linear in ``λ``; each
-    coordinate is minimised exactly in turn (its minimum lies at 0 or at a breakpoint ``r_i / α_ji``).  One
-    row: exact.  Several: cyclic descent, which may stop above the optimum; any ``λ >= 0`` gives a valid bound.
+    The dual of ``max c_d·ξ`` over ``ξ ∈ [-1, 1]^m``, ``α ξ <= β`` is convex and piecewise linear in ``λ``; each
+    coordinate is minimised exactly in turn (its minimum lies at 0 or at a breakpoint ``r_i / α_ji``: every
+    candidate is evaluated, the first smallest taken; a breakpoint that is negative or not finite is replaced by
+    the candidate 0, which never changes the choice).  One row: exact.  Several: cyclic descent, which may stop
+    above the optimum; any ``λ >= 0`` gives a valid bound.  All objectives are minimised at once (vectorised).
     """
+    c = np.atleast_2d(np.asarray(c, dtype=float))
+    p = c.shape[0]
     k = alpha.shape[0]
-    lam = np.zeros(k)
+    lam = np.zeros((p, k))
     resid = c.copy()
+    rows = np.arange(p)
     for _ in range(sweeps if k > 1 else 1):
         for j in range(k):
             a = alpha[j]
-            r = resid + a * lam[j]
+            r = resid + a[None, :] * lam[:, j:j + 1]
             nz = a != 0.0
-            cands = np.concatenate([[0.0], r[nz] / a[nz]])
-            cands = cands[np.isfinite(cands) & (cands >= 0.0)]
-            values = cands * beta[j] + np.abs(r[None, :] - cands[:, None] * a[None, :]).sum(axis=1)
-            lam[j] = cands[int(np.argmin(values))]
-            resid = r - a * lam[j]
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                breaks = r[:, nz] / a[nz]
+            breaks = np.where(np.isfinite(breaks) & (breaks >= 0.0), breaks, 0.0)
+            cands = np.hstack([np.zeros((p, 1)), breaks])
+            values = cands * beta[j] + np.abs(r[:, None, :] - cands[:, :, None] * a[None, None, :]).sum(axis=2)
+            lam[:, j] = cands[rows, np.argmin(values, axis=1)]
+            resid = r - a[None, :] * lam[:, j:j + 1]
     return lam
 
 
@@ -250,7 +267,7 @@ def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequenc
     """A box containing ``z ∩ [lo, hi] ∩ {a_k·x <= b_k}``, tighter than :func:`clip_box` (``None``: empty).
 
     After :func:`clip_box`, each bound ``max/min x_i`` over ``z ∩ {halfspaces}`` is bounded by
-    :func:`_dual_bound` with multipliers from :func:`_multipliers` (exact coordinate descent on the dual of the
+    :func:`_dual_bounds` with multipliers from :func:`_multipliers` (exact coordinate descent on the dual of the
     linear program, cheaper than a solver call): the multipliers are only a suggestion, the bound is valid for
     any of them, so an inexact choice can only make it looser, never wrong.
     """
@@ -264,16 +281,11 @@ def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequenc
     alpha = normals @ g
     beta = offsets - normals @ z.center
     n = z.dimension
-    for i in range(n):
-        for sign in (1.0, -1.0):
-            e = np.zeros(n)
-            e[i] = sign
-            lam = _multipliers(sign * g[i], alpha, beta)
-            bound = _dual_bound(z, e, halfspaces, lam)
-            if sign > 0:
-                hi[i] = min(hi[i], bound)
-            else:
-                lo[i] = max(lo[i], -bound)
+    directions = np.vstack([np.eye(n), -np.eye(n)])  # +e_i (upper bounds), then -e_i (lower bounds)
+    lam = _multipliers(directions @ g, alpha, beta)
+    bounds = _dual_bounds(z, directions, halfspaces, lam)
+    hi = np.fmin(hi, bounds[:n])  # a NaN bound (never expected) leaves the clipped box as it is
+    lo = np.fmax(lo, -bounds[n:])
     if np.any(lo > hi):
         return None
     return lo, hi
