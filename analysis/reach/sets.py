@@ -81,18 +81,46 @@ def definitely_outside(z: Zonotope, h: FloatHalfspace) -> bool:
     return lo > h.offset
 
 
-def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]) -> int:
+@dataclass(frozen=True, slots=True, eq=False)
+class HalfspaceRows:
+    """The rows of a conjunction of :class:`FloatHalfspace` stacked once (for the per-segment tests).
+
+    Attributes
+    ----------
+    normals, residuals : ndarray, shape (k, n)
+    offsets : ndarray, shape (k,)
+    oblique : tuple of FloatHalfspace
+        The halfspaces with more than one non-zero coefficient.
+    """
+
+    normals: np.ndarray
+    residuals: np.ndarray
+    offsets: np.ndarray
+    oblique: tuple[FloatHalfspace, ...]
+
+
+def halfspace_rows(halfspaces: Sequence[FloatHalfspace]) -> HalfspaceRows:
+    """The :class:`HalfspaceRows` of a non-empty conjunction."""
+    return HalfspaceRows(normals=np.array([h.normal for h in halfspaces]),
+                         residuals=np.array([h.residual for h in halfspaces]),
+                         offsets=np.array([h.offset for h in halfspaces]),
+                         oblique=tuple(h for h in halfspaces if np.count_nonzero(h.normal) > 1))
+
+
+def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace],
+                 rows: HalfspaceRows | None = None) -> int:
     """Where the box ``[lo, hi]`` lies against the polyhedron: ``-1`` proven outside one halfspace,
     ``1`` proven inside every halfspace, ``0`` undecided (a cheap pre-test before the zonotope's).
 
     Per row, ``min/max a·x`` over the box are bounded as in :func:`clip_box` (the rounding of the sums
-    and the residual of a non-float normal accounted for), so ``-1`` and ``1`` are proven.
+    and the residual of a non-float normal accounted for), so ``-1`` and ``1`` are proven.  ``rows``: the
+    halfspaces already stacked (:func:`halfspace_rows`), to save the stacking on every call.
     """
     if not halfspaces:
         return 1
-    normals = np.array([h.normal for h in halfspaces])
-    residuals = np.array([h.residual for h in halfspaces])
-    offsets = np.array([h.offset for h in halfspaces])
+    if rows is None:
+        rows = halfspace_rows(halfspaces)
+    normals, residuals, offsets = rows.normals, rows.residuals, rows.offsets
     n = normals.shape[1]
     a_lo, a_hi = normals * lo, normals * hi
     mins = np.minimum(a_lo, a_hi).sum(axis=1)
@@ -248,6 +276,7 @@ def _multipliers(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, sweeps: int
     resid = c.copy()
     rows = np.arange(p)
     for _ in range(sweeps if k > 1 else 1):
+        before = lam.copy()
         for j in range(k):
             a = alpha[j]
             r = resid + a[None, :] * lam[:, j:j + 1]
@@ -259,6 +288,8 @@ def _multipliers(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, sweeps: int
             values = cands * beta[j] + np.abs(r[:, None, :] - cands[:, :, None] * a[None, None, :]).sum(axis=2)
             lam[:, j] = cands[rows, np.argmin(values, axis=1)]
             resid = r - a[None, :] * lam[:, j:j + 1]
+        if np.array_equal(lam, before):  # no multiplier moved in a whole sweep: the descent has settled
+            break
     return lam
 
 
