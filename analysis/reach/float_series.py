@@ -10,7 +10,8 @@ interval arithmetic*, BIT 39, 1999):
   ``Σ_{k<=K} P_k``, ``P_k = P_{k−1} (Mδ) / k``, each product enclosed as
   ``[Pc Mc ± (|Pc| Mr + Pr (|Mc| + Mr) + γ_n |Pc||Mc|)]`` and each sum with its rounding, plus the
   tail ``‖Mδ‖∞^{K+1}/(K+1)! / (1 − ‖Mδ‖∞/(K+2))`` on every entry;
-* ``D >= e^{|M|δ} − I − |M|δ`` and ``S >= Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!``: series of non-negative
+* ``D >= e^{|M|δ} − I − |M|δ`` (or the tighter ``F = Σ_{k>=2} c_k (|M|δ)^k/k!``, ``c_2 = 1/4``, which the
+  flowpipe uses) and ``S >= Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!``: series of non-negative
   matrices computed in floats and bounded above with :func:`analysis.reach.zonotope.upper`, plus
   their tails.
 
@@ -27,7 +28,7 @@ import math
 import numpy as np
 
 from .flowpipe import ModeDynamics
-from .series import MatrixEnclosure
+from .series import MatrixEnclosure, interpolation_coefficient
 from .zonotope import UNIT_ROUNDOFF, Zonotope, box_generators, gamma, upper
 
 __all__ = ["float_exp_enclosure", "float_bloating", "float_dynamics"]
@@ -84,8 +85,12 @@ def float_exp_enclosure(matrix: np.ndarray, step: float) -> MatrixEnclosure:
     return MatrixEnclosure(tc, upper(tr + _tail(norm, order), 2))
 
 
-def float_bloating(matrix: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
-    """Upper bounds of ``D = e^{|M|δ} − I − |M|δ`` and ``S = Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!`` (both ``>= 0``)."""
+def float_bloating(matrix: np.ndarray, step: float, *, corrected: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Upper bounds of ``D = e^{|M|δ} − I − |M|δ`` and ``S = Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!`` (both ``>= 0``).
+
+    ``corrected``: the first matrix is ``F = Σ_{k>=2} c_k (|M|δ)^k / k!`` instead, the tighter bound of the same
+    interpolation error (:func:`analysis.reach.series.interpolation_coefficient`; the tail keeps ``c_k <= 1``).
+    """
     p = np.abs(np.asarray(matrix, dtype=float))
     m = p.shape[0]
     q = upper(p * float(step), 1) + _TINY  # >= |M|δ entrywise
@@ -96,7 +101,8 @@ def float_bloating(matrix: np.ndarray, step: float) -> tuple[np.ndarray, np.ndar
     s = upper(q / 2.0, 1)
     for k in range(2, order + 1):
         power = upper(power @ q, 2 * m + 2) + _TINY
-        d = upper(d + power / math.factorial(k), 3) + _TINY
+        weight = interpolation_coefficient(k) if corrected else 1.0
+        d = upper(d + upper(power * weight, 1) / math.factorial(k), 3) + _TINY
         s = upper(s + power / math.factorial(k + 1), 3) + _TINY
     d = upper(d + _tail(norm, order), 2)
     s = upper((s + _tail(norm, order, 1)) * float(step), 3)
@@ -124,7 +130,7 @@ def float_dynamics(mode: str, a: np.ndarray, c: np.ndarray, scale: float, step: 
     aug[:n, :n] = a
     aug[:n, n] = c / scale
     phi = float_exp_enclosure(aug, step)
-    deviation, s_matrix = float_bloating(aug, step)
+    deviation, s_matrix = float_bloating(aug, step, corrected=True)
     r = np.asarray(input_radius, dtype=float)
     scaled = r * float(step)
     rounding = upper(UNIT_ROUNDOFF * np.abs(scaled), 1)

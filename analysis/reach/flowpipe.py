@@ -9,8 +9,9 @@ zero-centred zonotope ``B U₀`` (the centre of ``U`` is moved into ``c``, exact
 Algorithm (Girard, HSCC 2005, with the wrapping-free sum of Girard, Le Guernic and Maler, HSCC 2006):
 
 * first segment, over local time ``[0, δ]``:
-  ``Q₀ = CH(X, Φ X) ⊕ box(D |X|) ⊕ V`` with ``Φ = e^{A_aug δ}`` (an interval matrix,
-  :func:`analysis.reach.series.exp_enclosure`), the interpolation error bound ``D |X|``
+  ``Q₀ = CH(X, Φ X) ⊕ box(F |X|) ⊕ V`` with ``Φ = e^{A_aug δ}`` (an interval matrix,
+  :func:`analysis.reach.series.exp_enclosure`), the interpolation error bound ``F |X|``,
+  ``F = Σ_{k>=2} c_k (|A_aug|δ)^k/k!`` with ``c_k = max_τ (τ − τ^k)`` (``c_2 = 1/4``)
   (:func:`analysis.reach.series.bloating_matrices`) and the input zonotope
   ``V = δ B U₀ ⊕ box(S |B U₀|)``;
 * segment ``k``: ``R_k = Φ^k Q₀ ⊕ Σ_{j<k} Φ^j V``.  ``Φ^k Q₀`` is mapped step by step and never
@@ -61,7 +62,7 @@ class ModeDynamics:
     phi : MatrixEnclosure
         Contains ``e^{A_aug δ}``.
     deviation : ndarray, shape (n+1, n+1)
-        ``D >= 0`` (interpolation error of the first segment).
+        ``F >= 0``: ``|x(t) − ((1 − t/δ) x0 + (t/δ) Φ x0)| <= F |x0|`` for ``t ∈ [0, δ]`` (the first segment).
     input_step : Zonotope or None
         ``V``: every state change a full step of input can cause (zero centre); ``None`` without input.
     tracker : ErrorTracker or None
@@ -100,7 +101,7 @@ def mode_dynamics(mode: str, a: list[list[Fraction]], c: list[Fraction], step: f
     aug = [list(row) + [c[i]] for i, row in enumerate(a)] + [[Fraction(0)] * (n + 1)]
     delta = Fraction(step)
     phi = exp_enclosure(aug, delta)
-    deviation, s_matrix = bloating_matrices(aug, delta)
+    deviation, s_matrix = bloating_matrices(aug, delta, corrected=True)
     input_step = None
     if centred is not None:
         bc = np.array([[float(q) for q in row] for row in input_matrix])
