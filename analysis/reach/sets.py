@@ -264,33 +264,57 @@ def _multipliers(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, sweeps: int
     one row per objective ``c_d`` (``c`` of shape ``(p, m)``, the result ``(p, k)``).
 
     The dual of ``max c_d·ξ`` over ``ξ ∈ [-1, 1]^m``, ``α ξ <= β`` is convex and piecewise linear in ``λ``; each
-    coordinate is minimised exactly in turn (its minimum lies at 0 or at a breakpoint ``r_i / α_ji``: every
-    candidate is evaluated, the first smallest taken; a breakpoint that is negative or not finite is replaced by
-    the candidate 0, which never changes the choice).  One row: exact.  Several: cyclic descent, which may stop
-    above the optimum; any ``λ >= 0`` gives a valid bound.  All objectives are minimised at once (vectorised).
+    coordinate is minimised exactly in turn (:func:`_line_minimum`).  One row: exact.  Several: cyclic descent,
+    which may stop above the optimum; any ``λ >= 0`` gives a valid bound.  All objectives are minimised at once.
     """
     c = np.atleast_2d(np.asarray(c, dtype=float))
     p = c.shape[0]
     k = alpha.shape[0]
     lam = np.zeros((p, k))
     resid = c.copy()
-    rows = np.arange(p)
+    rows = np.arange(p)[:, None]
+    lines = []
+    for j in range(k):
+        # a row that every ξ satisfies (β_j >= ‖α_j‖₁) is redundant: λ_j = 0 loses nothing, and it is skipped
+        nz = np.nonzero(alpha[j])[0] if beta[j] < np.abs(alpha[j]).sum() else np.zeros(0, dtype=int)
+        lines.append((nz, alpha[j][nz], np.abs(alpha[j][nz])))
     for _ in range(sweeps if k > 1 else 1):
         before = lam.copy()
         for j in range(k):
-            a = alpha[j]
-            r = resid + a[None, :] * lam[:, j:j + 1]
-            nz = a != 0.0
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                breaks = r[:, nz] / a[nz]
-            breaks = np.where(np.isfinite(breaks) & (breaks >= 0.0), breaks, 0.0)
-            cands = np.hstack([np.zeros((p, 1)), breaks])
-            values = cands * beta[j] + np.abs(r[:, None, :] - cands[:, :, None] * a[None, None, :]).sum(axis=2)
-            lam[:, j] = cands[rows, np.argmin(values, axis=1)]
-            resid = r - a[None, :] * lam[:, j:j + 1]
+            nz, a_nz, w = lines[j]
+            if nz.size == 0:
+                continue  # λ_j = 0: the row does not depend on ξ, or it is redundant
+            old = lam[:, j].copy()
+            lam[:, j] = _line_minimum(resid[:, nz] + a_nz * old[:, None], a_nz, w, beta[j], rows)
+            resid[:, nz] += a_nz * (old - lam[:, j])[:, None]
         if np.array_equal(lam, before):  # no multiplier moved in a whole sweep: the descent has settled
             break
     return lam
+
+
+def _line_minimum(r: np.ndarray, a: np.ndarray, w: np.ndarray, beta: float, rows: np.ndarray) -> np.ndarray:
+    """Per row of ``r`` (shape ``(p, m)``), a minimiser over ``λ >= 0`` of ``λ β + Σ_i |r_i − λ a_i|``, shape ``(p,)``
+    (``a`` without zeros, ``w = |a|``, ``rows`` the column of row indices).
+
+    The function is convex and piecewise linear with breakpoints ``b_i = r_i / a_i``: its right slope at 0 is
+    ``β + Σ_{b_i <= 0} w_i − Σ_{b_i > 0} w_i`` and grows by ``2 w_i`` past each positive ``b_i``; the minimiser is 0
+    when that slope is ``>= 0``, else the first positive breakpoint (in increasing order, by sorting) where it becomes
+    ``>= 0``, else (unbounded below: the linear program is infeasible) the largest breakpoint.  A suggestion only
+    (floats; :func:`_dual_bounds` is valid for any ``λ >= 0``; a NaN there only loosens the box, see
+    :func:`tighten_box`).
+    """
+    b = r / a
+    positive = b > 0.0
+    key = np.where(positive, b, np.inf)
+    slope0 = beta + w.sum() - 2.0 * (positive @ w)
+    order = np.argsort(key, axis=1)
+    bs = key[rows, order]
+    finite = bs < np.inf
+    ok = (slope0[:, None] + 2.0 * np.cumsum(np.where(finite, w[order], 0.0), axis=1) >= 0.0) & finite
+    first = np.argmax(ok, axis=1)
+    flat = rows[:, 0]
+    lam = np.where(ok[flat, first], bs[flat, first], np.where(positive, b, 0.0).max(axis=1))
+    return np.where(slope0 >= 0.0, 0.0, lam)
 
 
 def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]
