@@ -136,7 +136,7 @@ def first_segment(dyn: ModeDynamics, start: Zonotope) -> Zonotope:
     parts = [mean_g, half_c.reshape(-1, 1), half_g, box_generators(error)]
     if dyn.input_step is not None:
         parts.append(dyn.input_step.generators)
-    return Zonotope(center=mean_c, generators=np.hstack(parts))
+    return Zonotope.of_arrays(mean_c, np.hstack(parts))
 
 
 def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotope]:
@@ -155,17 +155,17 @@ def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotop
     bound = tracker.start() if tracker is not None else None
     while True:
         if tracker is not None:
-            error = Zonotope(center=np.zeros(dim), generators=box_generators(tracker.box(bound)))
-        yield Zonotope(center=main.center,
-                       generators=np.hstack([main.generators, error.generators, input_sum.generators]))
+            error_box = tracker.box(bound)
+            error = Zonotope.of_arrays(np.zeros(dim), box_generators(error_box))
+        yield Zonotope.of_arrays(main.center, np.hstack([main.generators, error.generators, input_sum.generators]))
         main, e_main = linear_map(main, phi_c, phi_r)
         if tracker is not None:  # no wrapping: the errors' moduli in the eigenbasis (errorbound.py)
-            bound = tracker.step(bound, e_main)
+            bound = tracker.step(bound, e_main, error_box)
         else:
             error, e_error = linear_map(error, phi_c, phi_r)
             error = reduce_order(with_error(error, upper(e_main + e_error, 2)), ERROR_ORDER)
         if mapped_input is not None:
-            input_sum = reduce_order(Zonotope(center=input_sum.center, generators=np.hstack(
+            input_sum = reduce_order(Zonotope.of_arrays(input_sum.center, np.hstack(
                 [input_sum.generators, mapped_input.generators, input_error.generators])), order)
             mapped_input, e_in = linear_map(mapped_input, phi_c, phi_r)
             input_error, e_ie = linear_map(input_error, phi_c, phi_r)

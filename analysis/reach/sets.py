@@ -97,14 +97,19 @@ class HalfspaceRows:
     residuals: np.ndarray
     offsets: np.ndarray
     oblique: tuple[FloatHalfspace, ...]
+    abs_normals: np.ndarray
+    abs_offsets: np.ndarray
+    exact: bool  # every residual is zero (float normals)
 
 
 def halfspace_rows(halfspaces: Sequence[FloatHalfspace]) -> HalfspaceRows:
     """The :class:`HalfspaceRows` of a non-empty conjunction."""
-    return HalfspaceRows(normals=np.array([h.normal for h in halfspaces]),
-                         residuals=np.array([h.residual for h in halfspaces]),
-                         offsets=np.array([h.offset for h in halfspaces]),
-                         oblique=tuple(h for h in halfspaces if np.count_nonzero(h.normal) > 1))
+    normals = np.array([h.normal for h in halfspaces])
+    residuals = np.array([h.residual for h in halfspaces])
+    offsets = np.array([h.offset for h in halfspaces])
+    return HalfspaceRows(normals=normals, residuals=residuals, offsets=offsets,
+                         oblique=tuple(h for h in halfspaces if np.count_nonzero(h.normal) > 1),
+                         abs_normals=np.abs(normals), abs_offsets=np.abs(offsets), exact=not np.any(residuals))
 
 
 def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace],
@@ -120,14 +125,16 @@ def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfs
         return 1
     if rows is None:
         rows = halfspace_rows(halfspaces)
-    normals, residuals, offsets = rows.normals, rows.residuals, rows.offsets
+    normals, offsets = rows.normals, rows.offsets
     n = normals.shape[1]
     a_lo, a_hi = normals * lo, normals * hi
     mins = np.minimum(a_lo, a_hi).sum(axis=1)
     maxs = np.maximum(a_lo, a_hi).sum(axis=1)
     mag = np.maximum(np.abs(lo), np.abs(hi))
-    size = np.maximum(np.abs(a_lo), np.abs(a_hi)).sum(axis=1)
-    slack = upper(gamma(n + 2) * (size + np.abs(offsets)) + residuals @ mag, n + 4)
+    # max(|a lo|, |a hi|) = |a| max(|lo|, |hi|) exactly (rounding is monotone and symmetric)
+    size = (rows.abs_normals * mag).sum(axis=1)
+    spread = gamma(n + 2) * (size + rows.abs_offsets)
+    slack = upper(spread if rows.exact else spread + rows.residuals @ mag, n + 4)
     if np.any(mins - slack > offsets):
         return -1
     if np.all(maxs + slack < offsets):  # strict: a rounded sum equal to the offset proves nothing
