@@ -53,11 +53,13 @@ def _tail(norm: float, order: int, shift: int = 0) -> float:
     return float(upper(first / (1.0 - norm / (order + 2 + shift)), 3)) + _TINY
 
 
-def _product(pc: np.ndarray, pr: np.ndarray, mc: np.ndarray, mr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _product(pc: np.ndarray, pr: np.ndarray, mc: np.ndarray, mr: np.ndarray, abs_mc: np.ndarray,
+             wide_m: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
+    """``[pc ± pr] [mc ± mr]`` (``abs_mc = |mc|``, ``wide_m = |mc| + mr``, ``g = γ_n``: fixed over a series)."""
     n = mc.shape[0]
     center = pc @ mc
-    abs_mc = np.abs(mc)
-    radius = np.abs(pc) @ mr + pr @ (abs_mc + mr) + gamma(n) * (np.abs(pc) @ abs_mc)
+    abs_pc = np.abs(pc)
+    radius = abs_pc @ mr + pr @ wide_m + g * (abs_pc @ abs_mc)
     return center, upper(radius, 4 * n + 6) + _TINY
 
 
@@ -74,8 +76,10 @@ def float_exp_enclosure(matrix: np.ndarray, step: float) -> MatrixEnclosure:
     order = _terms(norm)
     pc, pr = np.eye(m), np.zeros((m, m))
     tc, tr = np.eye(m), np.zeros((m, m))
+    abs_mc = np.abs(mc)
+    wide_m, g = abs_mc + mr, gamma(m)
     for k in range(1, order + 1):
-        pc, pr = _product(pc, pr, mc, mr)
+        pc, pr = _product(pc, pr, mc, mr, abs_mc, wide_m, g)
         qc = pc / k
         pr = upper(pr / k + UNIT_ROUNDOFF * np.abs(qc), 2) + _TINY
         pc = qc
