@@ -129,7 +129,10 @@ def upper(x: np.ndarray | float, ops: int) -> np.ndarray:
     ``x / (1 - γ_ops) + ops·η``; ``x (1 + 4 (ops + 2) u) + (ops + 2)·2⁻¹⁰²¹`` exceeds it (the
     product itself rounds by at most one more ``u``).
     """
-    return np.asarray(x, dtype=float) * (1.0 + 4.0 * (ops + 2) * UNIT_ROUNDOFF) + (ops + 2) * _UNDERFLOW
+    factor, slack = 1.0 + 4.0 * (ops + 2) * UNIT_ROUNDOFF, (ops + 2) * _UNDERFLOW
+    if type(x) is np.ndarray and x.dtype == np.float64 or type(x) is np.float64:
+        return x * factor + slack  # the same operations as below, without the conversion (hot path)
+    return np.asarray(x, dtype=float) * factor + slack
 
 
 def round_down(x: np.ndarray) -> np.ndarray:
