@@ -32,7 +32,7 @@ import numpy as np
 
 from .zonotope import round_up, upper
 
-__all__ = ["MatrixEnclosure", "exp_enclosure", "bloating_matrices", "interpolation_coefficient", "MAX_NORM_STEP"]
+__all__ = ["MatrixEnclosure", "exp_enclosure", "bloating_matrices", "MAX_NORM_STEP"]
 
 MAX_NORM_STEP = 4.0
 """Largest ``‖A‖∞ δ`` accepted (a larger step makes the bloating useless and the series long)."""
