@@ -23,6 +23,7 @@ scipy's ``expm`` and ``D``, ``S`` with the exact rational ones of :mod:`analysis
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -89,6 +90,12 @@ def float_exp_enclosure(matrix: np.ndarray, step: float) -> MatrixEnclosure:
     return MatrixEnclosure(tc, upper(tr + _tail(norm, order), 2))
 
 
+@functools.lru_cache(maxsize=64)
+def _weight(k: int) -> float:
+    """A float ``>= c_k / k!`` (:func:`analysis.reach.series.interpolation_coefficient`; one rounding, bounded up)."""
+    return float(upper(interpolation_coefficient(k) / math.factorial(k), 1))
+
+
 def float_bloating(matrix: np.ndarray, step: float, *, corrected: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Upper bounds of ``D = e^{|M|δ} − I − |M|δ`` and ``S = Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!`` (both ``>= 0``).
 
@@ -105,8 +112,10 @@ def float_bloating(matrix: np.ndarray, step: float, *, corrected: bool = False) 
     s = upper(q / 2.0, 1)
     for k in range(2, order + 1):
         power = upper(power @ q, 2 * m + 2) + _TINY
-        weight = interpolation_coefficient(k) if corrected else 1.0
-        d = upper(d + upper(power * weight, 1) / math.factorial(k), 3) + _TINY
+        if corrected:  # power·w_k (one rounding) plus the sum (one): within upper's 3
+            d = upper(d + power * _weight(k), 3) + _TINY
+        else:
+            d = upper(d + power / math.factorial(k), 3) + _TINY
         s = upper(s + power / math.factorial(k + 1), 3) + _TINY
     d = upper(d + _tail(norm, order), 2)
     s = upper((s + _tail(norm, order, 1)) * float(step), 3)
