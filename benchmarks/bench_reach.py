@@ -8,11 +8,11 @@ Per instance (``reach_instances.py``): our verdict (``safe`` when the flowpipe i
 holds on every segment, :func:`analysis.reach.verdict.decide`, under SpaceEx's may-semantics, as in ARCH-COMP;
 ``unknown`` otherwise, with the reason), the median wall time over ``--repeats`` runs of
 :func:`analysis.reach.reach` (one core, model reading included), the largest box width of the last stored
-segment, the margin (the requirement's smallest slack over the flowpipe), Hylaa's verdict and time and the ratio (ours / Hylaa's), the verdicts published for CORA and JuliaReach
-(ARCH-COMP AFF reports, different machines), and the soundness benchmark (``reach_soundness.py``): executor runs
-inside the flowpipe, planted sets never proven.  Rows of ``benchmarks/reach_nln.py`` (nonlinear instances, another
-module, decided by its ``run_instance``: ``reach_proof`` with its splits and the re-check; ``safe`` only when both
-hold) are added when that file exists.  ``--json`` prints one JSON document (deterministic but for the times).
+segment, the margin (the requirement's smallest slack over the flowpipe), Hylaa's verdict and time and the ratio
+(ours / Hylaa's), the verdicts published for CORA and JuliaReach (ARCH-COMP AFF reports, different machines),
+and the soundness benchmark (``reach_soundness.py``): executor runs inside the flowpipe, planted sets never proven.
+Rows of ``benchmarks/reach_nln.py`` (nonlinear instances, another module, decided by its ``run_instance``:
+``reach_proof`` with its splits and the re-check; ``safe`` only when both hold) are added when that file exists.  ``--json`` prints one JSON document (deterministic but for the times).
 """
 
 from __future__ import annotations

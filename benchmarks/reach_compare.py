@@ -72,7 +72,8 @@ def _child(tree: str, name: str, repeats: int, peers: bool) -> dict[str, Any]:
     env = dict(os.environ)
     paths = [tree] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and ".peers" in p]
     env["PYTHONPATH"] = os.pathsep.join(paths)
-    args = [sys.executable, str(Path(__file__).resolve()), "--child", tree, name, str(repeats)] + (["--peers"] if peers else [])
+    args = [sys.executable, str(Path(__file__).resolve()), "--child", tree, name, str(repeats)]
+    args += ["--peers"] if peers else []
     done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=3600)
     if done.returncode != 0:
         return {"verdict": "error", "error": done.stderr[-500:]}
@@ -110,13 +111,15 @@ def main(argv: list[str] | None = None) -> int:
         h = a.get("hylaa") or {}
         ratio = a["wall"] / h["seconds"] if h.get("verdict") and h.get("seconds") else None
         load = os.getloadavg()[0]
-        print(f"{name:<15} {b['verdict'] + '/' + a['verdict']:<13} {_fmt(b.get('wall')) + ' / ' + _fmt(a.get('wall')):<15} "
+        print(f"{name:<15} {b['verdict'] + '/' + a['verdict']:<13} "
+              f"{_fmt(b.get('wall')) + ' / ' + _fmt(a.get('wall')):<15} "
               f"{_fmt(b.get('cpu')) + ' / ' + _fmt(a.get('cpu')):<15} "
               f"{_fmt(b.get('width')) + ' / ' + _fmt(a.get('width')):<17} "
               f"{_fmt(b.get('margin'), '.4g') + ' / ' + _fmt(a.get('margin'), '.4g'):<19} {_fmt(h.get('seconds')):>8} "
               f"{_fmt(ratio, '.2f'):>6}  {load:.1f}", flush=True)
         if name in NLN:
-            print(f"{'':<15} with re-check: wall {_fmt(b.get('with_recheck_wall'))} / {_fmt(a.get('with_recheck_wall'))} s, "
+            print(f"{'':<15} with re-check: wall {_fmt(b.get('with_recheck_wall'))} / "
+                  f"{_fmt(a.get('with_recheck_wall'))} s, "
                   f"cpu {_fmt(b.get('with_recheck_cpu'))} / {_fmt(a.get('with_recheck_cpu'))} s", flush=True)
     return 0
 
