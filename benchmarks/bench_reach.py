@@ -12,7 +12,8 @@ segment, the margin (the requirement's smallest slack over the flowpipe), Hylaa'
 (ours / Hylaa's), the verdicts published for CORA and JuliaReach (ARCH-COMP AFF reports, different machines),
 and the soundness benchmark (``reach_soundness.py``): executor runs inside the flowpipe, planted sets never proven.
 Rows of ``benchmarks/reach_nln.py`` (nonlinear instances, another module, decided by its ``run_instance``:
-``reach_proof`` with its splits and the re-check; ``safe`` only when both hold) are added when that file exists.  ``--json`` prints one JSON document (deterministic but for the times).
+``reach_proof`` with its splits and the re-check; ``safe`` only when both hold) are added when that file exists.
+``--json`` prints one JSON document (deterministic but for the times).
 """
 
 from __future__ import annotations
