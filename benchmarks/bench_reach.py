@@ -8,11 +8,12 @@ Per instance (``reach_instances.py``): our verdict (``safe`` when the flowpipe i
 holds on every segment, :func:`analysis.reach.verdict.decide`, under SpaceEx's may-semantics, as in ARCH-COMP;
 ``unknown`` otherwise, with the reason), the median wall time over ``--repeats`` runs of
 :func:`analysis.reach.reach` (one core, model reading included), the largest box width of the last stored
-segment, Hylaa's verdict and time and the ratio (ours / Hylaa's), the verdicts published for CORA and JuliaReach
-(ARCH-COMP AFF reports, different machines), and the soundness benchmark (``reach_soundness.py``): executor runs
-inside the flowpipe, planted sets never proven.  Rows of ``benchmarks/reach_nln.py`` (nonlinear instances, another
-module, decided by its ``run_instance``: ``reach_proof`` with its splits and the re-check; ``safe`` only when both
-hold) are added when that file exists.  ``--json`` prints one JSON document (deterministic but for the times).
+segment, the margin (the requirement's smallest slack over the flowpipe), Hylaa's verdict and time and the ratio
+(ours / Hylaa's), the verdicts published for CORA and JuliaReach (ARCH-COMP AFF reports, different machines),
+and the soundness benchmark (``reach_soundness.py``): executor runs inside the flowpipe, planted sets never proven.
+Rows of ``benchmarks/reach_nln.py`` (nonlinear instances, another module, decided by its ``run_instance``:
+``reach_proof`` with its splits and the re-check; ``safe`` only when both hold) are added when that file exists.
+``--json`` prints one JSON document (deterministic but for the times).
 """
 
 from __future__ import annotations
@@ -133,7 +134,8 @@ def _fmt(v: Any, spec: str = ".3g") -> str:
 
 def table(doc: dict[str, Any]) -> str:
     """The printed table."""
-    head = (f"{'instance':<15} {'ours':<8} {'time s':>8} {'width':>9} {'hylaa':<7} {'time s':>8} {'ratio':>6}  "
+    head = (f"{'instance':<15} {'ours':<8} {'time s':>8} {'width':>9} {'margin':>9} {'hylaa':<7} {'time s':>8} "
+            f"{'ratio':>6}  "
             f"{'published (CORA / JuliaReach; ARCH-COMP19 AFF, different machine)':<40} {'soundness'}")
     lines = [head, "-" * len(head)]
     for row in doc["rows"]:
@@ -151,6 +153,7 @@ def table(doc: dict[str, Any]) -> str:
         if sims:
             sound += f"; {sims['runs']} runs, {sims['outside']}/{sims['points']} points outside"
         lines.append(f"{row['name']:<15} {o['verdict']:<8} {_fmt(o['seconds']):>8} {_fmt(o.get('width')):>9} "
+                     f"{_fmt(o.get('margin'), '.4g'):>9} "
                      f"{str(h.get('verdict') or '-'):<7} {_fmt(h.get('seconds')):>8} "
                      f"{_fmt(row.get('ratio'), '.2f'):>6}  "
                      f"{pub or '(not an ARCH-COMP instance: closed form)':<40} {sound}")

@@ -36,7 +36,8 @@ from .model import AffineHybridModel, AffineTransition, affine_model
 from .nonlinear import smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
 from .series import MAX_NORM_STEP
-from .sets import UnsafeSet, box_position, clip_box, definitely_outside, polyhedra_to_float, tighten_box
+from .sets import (UnsafeSet, box_position, clip_box, definitely_outside, halfspace_rows, polyhedra_to_float,
+                   tighten_box)
 from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_order, round_down, round_up, with_error
 
 __all__ = ["ReachError", "ModeInput", "reach"]
@@ -365,10 +366,10 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     (one entry per cluster of segments meeting the guard, see ``jump_cluster``)."""
     mode = run.model.modes[work.mode]
     n = len(run.model.state_names)
-    guards = [(t.name, polyhedra_to_float(t.guard)) for t in run.model.outgoing(work.mode)]
-    invariant = polyhedra_to_float(mode.invariant)
+    guards = [(t.name, _rows(polyhedra_to_float(t.guard))) for t in run.model.outgoing(work.mode)]
+    invariant = _rows(polyhedra_to_float(mode.invariant))
     # a jump from a state reached by flowing: that state is in the guard and (closed) in the invariant
-    flowed_guards = [(name, tuple(g + i for g in polys for i in invariant)) for name, polys in guards]
+    flowed_guards = [(name, _rows(tuple(g + i for g, _ in polys for i, _ in invariant))) for name, polys in guards]
     collected: dict[str, list[Any]] = {}
     lo, hi = interval_hull(work.start)
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
@@ -377,14 +378,12 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     step = _step(run, work.mode)  # the mode's step, affine or smooth (``mode_time_steps``)
     pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)
     for k, segment in enumerate(_mode_segments(run, work, step)):
-        t_lo = float(round_down(round_down(work.t_lo + k * step)))
-        t_hi = float(round_up(round_up(work.t_hi + (k + 1) * step)))
-        stop = _stop_reason(run, work, k, segment, n, t_lo)
+        t_lo = math.nextafter(math.nextafter(work.t_lo + k * step, -math.inf), -math.inf)
+        t_hi = math.nextafter(math.nextafter(work.t_hi + (k + 1) * step, math.inf), math.inf)
+        stop, z, lo, hi = _stop_reason(run, work, k, segment, n, t_lo)
         if stop is not None:
             run.terminations.append(stop)
             break
-        z = segment.project(n)
-        lo, hi = interval_hull(z)
         box = _clip_union(z, lo, hi, invariant)
         if box is None:
             run.terminations.append(Termination(
@@ -443,56 +442,66 @@ def _mode_segments(run: _Run, work: _Work, step: float) -> Any:
     return segments(dyn, _augment(work.start, scale), run.order)
 
 
-def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int,
-                 t_lo: float) -> Termination | None:
+def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int, t_lo: float
+                 ) -> tuple[Termination | None, Any, Any, Any]:
+    """Why the flowpipe stops at segment ``k`` (or ``None``), with the segment's projection and its box (once)."""
     where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
     if work.t_lo + k * _step(run, work.mode) > run.horizon:
         return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
-                                                    f"{work.mode!r}", **where)
+                                                    f"{work.mode!r}", **where), None, None, None
     if isinstance(segment, str):
         return Termination(reason="blow_up", detail=(
             f"inconclusive: the over-approximation blew up at t = {t_lo:.6g} s in mode {work.mode!r} ({segment})"),
-            **where)
+            **where), None, None, None
     if not segment.is_finite():
         return Termination(reason="not_finite", detail=f"inconclusive: a NaN or inf appeared at t = {t_lo:.6g} s "
-                                                       f"in mode {work.mode!r}", **where)
-    lo, hi = interval_hull(segment.project(n))
+                                                       f"in mode {work.mode!r}", **where), None, None, None
+    z = segment.project(n)
+    lo, hi = interval_hull(z)
     radius = float(np.max(hi - lo)) / 2 if n else 0.0
     if not math.isfinite(radius) or radius > run.size_limit:
         return Termination(reason="blow_up", detail=(
             f"inconclusive: the over-approximation blew up at t = {t_lo:.6g} s in mode {work.mode!r} "
-            f"(box radius {radius:.3g} > size_limit {run.size_limit:g})"), **where)
+            f"(box radius {radius:.3g} > size_limit {run.size_limit:g})"), **where), z, lo, hi
     if len(run.segments) >= run.max_segments or run.stored[0] >= MAX_STORED_NUMBERS:
         return Termination(reason="segment_limit", detail=(
             f"inconclusive: {len(run.segments)} segments ({run.stored[0]} numbers) stored by t = {t_lo:.6g} s in "
             f"mode {work.mode!r}, the limit (max_segments = {run.max_segments}, {MAX_STORED_NUMBERS} numbers); "
-            "raise max_segments or time_step, or shorten the horizon"), **where)
-    return None
+            "raise max_segments or time_step, or shorten the horizon"), **where), z, lo, hi
+    return None, z, lo, hi
 
 
-def _clip_union(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedra: Sequence[Sequence[Any]],
+def _rows(polyhedra: Sequence[Sequence[Any]]) -> tuple[tuple[Any, Any], ...]:
+    """Each polyhedron with its stacked rows (:func:`~analysis.reach.sets.halfspace_rows`; ``None`` when empty)."""
+    return tuple((tuple(p), halfspace_rows(p) if p else None) for p in polyhedra)
+
+
+def _clip_union(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedra: Sequence[tuple[Any, Any]],
                 tight: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
     """The box hull of ``z ∩ [lo, hi]`` clipped to each polyhedron that ``z`` may meet; ``None`` if it meets none.
 
-    ``tight``: bound each polyhedron's part by linear programs with rigorous dual bounds
-    (:func:`~analysis.reach.sets.tighten_box`) rather than by interval propagation on the box.
+    ``polyhedra``: pairs (halfspaces, their stacked rows) from :func:`_rows`.  ``tight``: bound each
+    polyhedron's part by linear programs with rigorous dual bounds (:func:`~analysis.reach.sets.tighten_box`)
+    rather than by interval propagation on the box.
     """
     boxes = []
-    for poly in polyhedra:
-        position = box_position(lo, hi, poly)  # the box holds z: a cheap proven pre-test
+    for poly, rows in polyhedra:
+        position = box_position(lo, hi, poly, rows)  # the box holds z: a cheap proven pre-test
         if position < 0:
             continue
         if position > 0:
             boxes.append((lo, hi))  # inside every halfspace: clipping would change nothing
             continue
         # a row with one non-zero coefficient is decided as tightly by clip_box on the box (the hull of z)
-        if any(definitely_outside(z, h) for h in poly if np.count_nonzero(h.normal) > 1):
+        if any(definitely_outside(z, h) for h in rows.oblique):
             continue
         clipped = tighten_box(z, lo, hi, poly) if tight else clip_box(lo, hi, poly)
         if clipped is not None:
             boxes.append(clipped)
     if not boxes:
         return None
+    if len(boxes) == 1:
+        return boxes[0]
     return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
 

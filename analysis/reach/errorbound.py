@@ -86,13 +86,17 @@ class ErrorTracker:
         out[self.free] = r[self.rest.size:]
         return out
 
-    def step(self, r: np.ndarray, error: np.ndarray) -> np.ndarray:
-        """``r`` after one map by ``Φ`` and the addition of a new error box ``[-error, error]`` (augmented)."""
+    def step(self, r: np.ndarray, error: np.ndarray, box: np.ndarray | None = None) -> np.ndarray:
+        """``r`` after one map by ``Φ`` and the addition of a new error box ``[-error, error]`` (augmented).
+
+        ``box``: :meth:`box` of the same ``r`` when the caller has it (its ``R`` part is reused, not recomputed).
+        """
         m = self.rest.size
         rr, rf = r[:m], r[m:]
         peak = float(rr.max()) if m else 0.0
+        back = self._back(r) if box is None else box[self.rest]
         new_r = self.n_rr @ rr + self.coupling * peak + self.n_rf @ rf + self.w_abs @ error[self.rest]
-        new_f = self.n_ff @ rf + self.n_fr @ self._back(r) + error[self.free]
+        new_f = self.n_ff @ rf + self.n_fr @ back + error[self.free]
         return upper(np.concatenate([new_r, new_f]), 2 * r.size + 6)
 
 

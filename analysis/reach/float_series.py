@@ -10,7 +10,8 @@ interval arithmetic*, BIT 39, 1999):
   ``Σ_{k<=K} P_k``, ``P_k = P_{k−1} (Mδ) / k``, each product enclosed as
   ``[Pc Mc ± (|Pc| Mr + Pr (|Mc| + Mr) + γ_n |Pc||Mc|)]`` and each sum with its rounding, plus the
   tail ``‖Mδ‖∞^{K+1}/(K+1)! / (1 − ‖Mδ‖∞/(K+2))`` on every entry;
-* ``D >= e^{|M|δ} − I − |M|δ`` and ``S >= Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!``: series of non-negative
+* ``D >= e^{|M|δ} − I − |M|δ`` (or the tighter ``F = Σ_{k>=2} c_k (|M|δ)^k/k!``, ``c_2 = 1/4``, which the
+  flowpipe uses) and ``S >= Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!``: series of non-negative
   matrices computed in floats and bounded above with :func:`analysis.reach.zonotope.upper`, plus
   their tails.
 
@@ -22,12 +23,13 @@ scipy's ``expm`` and ``D``, ``S`` with the exact rational ones of :mod:`analysis
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from .flowpipe import ModeDynamics
-from .series import MatrixEnclosure
+from .series import MatrixEnclosure, interpolation_coefficient
 from .zonotope import UNIT_ROUNDOFF, Zonotope, box_generators, gamma, upper
 
 __all__ = ["float_exp_enclosure", "float_bloating", "float_dynamics"]
@@ -52,11 +54,13 @@ def _tail(norm: float, order: int, shift: int = 0) -> float:
     return float(upper(first / (1.0 - norm / (order + 2 + shift)), 3)) + _TINY
 
 
-def _product(pc: np.ndarray, pr: np.ndarray, mc: np.ndarray, mr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _product(pc: np.ndarray, pr: np.ndarray, mc: np.ndarray, mr: np.ndarray, abs_mc: np.ndarray,
+             wide_m: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
+    """``[pc ± pr] [mc ± mr]`` (``abs_mc = |mc|``, ``wide_m = |mc| + mr``, ``g = γ_n``: fixed over a series)."""
     n = mc.shape[0]
     center = pc @ mc
-    abs_mc = np.abs(mc)
-    radius = np.abs(pc) @ mr + pr @ (abs_mc + mr) + gamma(n) * (np.abs(pc) @ abs_mc)
+    abs_pc = np.abs(pc)
+    radius = abs_pc @ mr + pr @ wide_m + g * (abs_pc @ abs_mc)
     return center, upper(radius, 4 * n + 6) + _TINY
 
 
@@ -73,8 +77,10 @@ def float_exp_enclosure(matrix: np.ndarray, step: float) -> MatrixEnclosure:
     order = _terms(norm)
     pc, pr = np.eye(m), np.zeros((m, m))
     tc, tr = np.eye(m), np.zeros((m, m))
+    abs_mc = np.abs(mc)
+    wide_m, g = abs_mc + mr, gamma(m)
     for k in range(1, order + 1):
-        pc, pr = _product(pc, pr, mc, mr)
+        pc, pr = _product(pc, pr, mc, mr, abs_mc, wide_m, g)
         qc = pc / k
         pr = upper(pr / k + UNIT_ROUNDOFF * np.abs(qc), 2) + _TINY
         pc = qc
@@ -84,8 +90,18 @@ def float_exp_enclosure(matrix: np.ndarray, step: float) -> MatrixEnclosure:
     return MatrixEnclosure(tc, upper(tr + _tail(norm, order), 2))
 
 
-def float_bloating(matrix: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
-    """Upper bounds of ``D = e^{|M|δ} − I − |M|δ`` and ``S = Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!`` (both ``>= 0``)."""
+@functools.lru_cache(maxsize=64)
+def _weight(k: int) -> float:
+    """A float ``>= c_k / k!`` (:func:`analysis.reach.series.interpolation_coefficient`; one rounding, bounded up)."""
+    return float(upper(interpolation_coefficient(k) / math.factorial(k), 1))
+
+
+def float_bloating(matrix: np.ndarray, step: float, *, corrected: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Upper bounds of ``D = e^{|M|δ} − I − |M|δ`` and ``S = Σ_{k>=1} |M|^k δ^{k+1}/(k+1)!`` (both ``>= 0``).
+
+    ``corrected``: the first matrix is ``F = Σ_{k>=2} c_k (|M|δ)^k / k!`` instead, the tighter bound of the same
+    interpolation error (:func:`analysis.reach.series.interpolation_coefficient`; the tail keeps ``c_k <= 1``).
+    """
     p = np.abs(np.asarray(matrix, dtype=float))
     m = p.shape[0]
     q = upper(p * float(step), 1) + _TINY  # >= |M|δ entrywise
@@ -96,7 +112,10 @@ def float_bloating(matrix: np.ndarray, step: float) -> tuple[np.ndarray, np.ndar
     s = upper(q / 2.0, 1)
     for k in range(2, order + 1):
         power = upper(power @ q, 2 * m + 2) + _TINY
-        d = upper(d + power / math.factorial(k), 3) + _TINY
+        if corrected:  # power·w_k (one rounding) plus the sum (one): within upper's 3
+            d = upper(d + power * _weight(k), 3) + _TINY
+        else:
+            d = upper(d + power / math.factorial(k), 3) + _TINY
         s = upper(s + power / math.factorial(k + 1), 3) + _TINY
     d = upper(d + _tail(norm, order), 2)
     s = upper((s + _tail(norm, order, 1)) * float(step), 3)
@@ -124,7 +143,7 @@ def float_dynamics(mode: str, a: np.ndarray, c: np.ndarray, scale: float, step: 
     aug[:n, :n] = a
     aug[:n, n] = c / scale
     phi = float_exp_enclosure(aug, step)
-    deviation, s_matrix = float_bloating(aug, step)
+    deviation, s_matrix = float_bloating(aug, step, corrected=True)
     r = np.asarray(input_radius, dtype=float)
     scaled = r * float(step)
     rounding = upper(UNIT_ROUNDOFF * np.abs(scaled), 1)

@@ -9,8 +9,9 @@ zero-centred zonotope ``B U₀`` (the centre of ``U`` is moved into ``c``, exact
 Algorithm (Girard, HSCC 2005, with the wrapping-free sum of Girard, Le Guernic and Maler, HSCC 2006):
 
 * first segment, over local time ``[0, δ]``:
-  ``Q₀ = CH(X, Φ X) ⊕ box(D |X|) ⊕ V`` with ``Φ = e^{A_aug δ}`` (an interval matrix,
-  :func:`analysis.reach.series.exp_enclosure`), the interpolation error bound ``D |X|``
+  ``Q₀ = CH(X, Φ X) ⊕ box(F |X|) ⊕ V`` with ``Φ = e^{A_aug δ}`` (an interval matrix,
+  :func:`analysis.reach.series.exp_enclosure`), the interpolation error bound ``F |X|``,
+  ``F = Σ_{k>=2} c_k (|A_aug|δ)^k/k!`` with ``c_k = max_τ (τ − τ^k)`` (``c_2 = 1/4``)
   (:func:`analysis.reach.series.bloating_matrices`) and the input zonotope
   ``V = δ B U₀ ⊕ box(S |B U₀|)``;
 * segment ``k``: ``R_k = Φ^k Q₀ ⊕ Σ_{j<k} Φ^j V``.  ``Φ^k Q₀`` is mapped step by step and never
@@ -61,7 +62,7 @@ class ModeDynamics:
     phi : MatrixEnclosure
         Contains ``e^{A_aug δ}``.
     deviation : ndarray, shape (n+1, n+1)
-        ``D >= 0`` (interpolation error of the first segment).
+        ``F >= 0``: ``|x(t) − ((1 − t/δ) x0 + (t/δ) Φ x0)| <= F |x0|`` for ``t ∈ [0, δ]`` (the first segment).
     input_step : Zonotope or None
         ``V``: every state change a full step of input can cause (zero centre); ``None`` without input.
     tracker : ErrorTracker or None
@@ -100,7 +101,7 @@ def mode_dynamics(mode: str, a: list[list[Fraction]], c: list[Fraction], step: f
     aug = [list(row) + [c[i]] for i, row in enumerate(a)] + [[Fraction(0)] * (n + 1)]
     delta = Fraction(step)
     phi = exp_enclosure(aug, delta)
-    deviation, s_matrix = bloating_matrices(aug, delta)
+    deviation, s_matrix = bloating_matrices(aug, delta, corrected=True)
     input_step = None
     if centred is not None:
         bc = np.array([[float(q) for q in row] for row in input_matrix])
@@ -135,7 +136,7 @@ def first_segment(dyn: ModeDynamics, start: Zonotope) -> Zonotope:
     parts = [mean_g, half_c.reshape(-1, 1), half_g, box_generators(error)]
     if dyn.input_step is not None:
         parts.append(dyn.input_step.generators)
-    return Zonotope(center=mean_c, generators=np.hstack(parts))
+    return Zonotope.of_arrays(mean_c, np.hstack(parts))
 
 
 def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotope]:
@@ -154,17 +155,17 @@ def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotop
     bound = tracker.start() if tracker is not None else None
     while True:
         if tracker is not None:
-            error = Zonotope(center=np.zeros(dim), generators=box_generators(tracker.box(bound)))
-        yield Zonotope(center=main.center,
-                       generators=np.hstack([main.generators, error.generators, input_sum.generators]))
+            error_box = tracker.box(bound)
+            error = Zonotope.of_arrays(np.zeros(dim), box_generators(error_box))
+        yield Zonotope.of_arrays(main.center, np.hstack([main.generators, error.generators, input_sum.generators]))
         main, e_main = linear_map(main, phi_c, phi_r)
         if tracker is not None:  # no wrapping: the errors' moduli in the eigenbasis (errorbound.py)
-            bound = tracker.step(bound, e_main)
+            bound = tracker.step(bound, e_main, error_box)
         else:
             error, e_error = linear_map(error, phi_c, phi_r)
             error = reduce_order(with_error(error, upper(e_main + e_error, 2)), ERROR_ORDER)
         if mapped_input is not None:
-            input_sum = reduce_order(Zonotope(center=input_sum.center, generators=np.hstack(
+            input_sum = reduce_order(Zonotope.of_arrays(input_sum.center, np.hstack(
                 [input_sum.generators, mapped_input.generators, input_error.generators])), order)
             mapped_input, e_in = linear_map(mapped_input, phi_c, phi_r)
             input_error, e_ie = linear_map(input_error, phi_c, phi_r)

@@ -36,6 +36,7 @@ reported, not refined.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 
@@ -66,6 +67,13 @@ MAX_ITERATIONS = 12
 
 QUADRATIC_GENERATORS = 40
 """The tube is reduced to about this many generators before its quadratic form is bounded."""
+
+WIDE_FLOOR = 1e-3
+"""A set is *wide* (linearised with the midpoint of ``Df`` over it) when the Jacobian's spread over it exceeds the
+norm of ``Df(x*)`` and this floor (per unit of the state's time scale)."""
+
+MEAN_VALUE_PIECES = 16
+"""At most this many pieces of the box in the mean-value remainder of a wide set (:func:`_mean_value`)."""
 
 _GROW = 1.5
 """Factor by which the remainder box's radius is enlarged after a failed iteration."""
@@ -105,6 +113,7 @@ class _Evaluator:
                     self.j_const[i, j] = float(entry.value)
                 else:
                     self.j_vary.append((i, j))
+        self.curvature: np.ndarray | None = None
         self.h_const = np.zeros((self.n,) * 3)
         self.h_vary = []
         for i in range(self.n):
@@ -123,10 +132,19 @@ class _Evaluator:
         bounds = self.box(x, x)
         shared: dict = {}  # subtrees common to the entries enclosed once (the same numbers)
         f = np.array([enclose(e, bounds, shared=shared) for e in self.flow.components])
+        j_lo, j_hi = self.jacobian(x, x, shared=shared)
+        return f[:, 0], f[:, 1], j_lo, j_hi
+
+    def jacobian(self, lo: np.ndarray, hi: np.ndarray, shared: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Enclosures of every ``∂f_i/∂x_j`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n).
+
+        ``shared``: a memo of subtree enclosures over this same box (see :func:`hybrid.symbolic.enclose`)."""
+        bounds = self.box(lo, hi)
+        shared = {} if shared is None else shared
         j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
         for i, j in self.j_vary:
             j_lo[i, j], j_hi[i, j] = enclose(self.flow.jacobian[i][j], bounds, shared=shared)
-        return f[:, 0], f[:, 1], j_lo, j_hi
+        return j_lo, j_hi
 
     def hessian(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Enclosures of every ``∂²f_i/∂x_j∂x_k`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n, n)."""
@@ -136,6 +154,7 @@ class _Evaluator:
         for i, j, k in self.h_vary:
             h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds, shared=shared)
             h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
+        self.curvature = np.maximum(np.abs(h_lo), np.abs(h_hi))  # the latest |H| (a hint for _linearise)
         return h_lo, h_hi
 
     def quadratic(self, d_lo: np.ndarray, d_hi: np.ndarray, h_lo: np.ndarray, h_hi: np.ndarray
@@ -190,10 +209,12 @@ def remainder_box(ev: _Evaluator, xstar: np.ndarray, lin: tuple[np.ndarray, ...]
     """An enclosure of ``L(x) = f(x) − A x − c`` over the box ``[lo, hi]`` (which must hold ``x*``).
 
     ``lin = (A, c, const_lo, const_hi, jrad)``: the float ``A``, ``c``; an enclosure of
-    ``(f(x*) − f̃) + (f̃ − A x* − c)``; a bound of ``|Df(x*) − A|``.  With ``tube`` (a zonotope holding the
-    states, inside the box), the quadratic term is also bounded on the zonotope and the tighter bound kept.
+    ``(f(x*) − f̃) + (f̃ − A x* − c)``; a bound of ``|Df(x*) − A|``.  Two enclosures, both valid, are
+    intersected: the Taylor form ``(Df(x*) − A) d + ½ dᵀ H(ξ) d`` (``d = x − x*``; with ``tube``, a zonotope
+    holding the states inside the box, the quadratic term is also bounded on the zonotope and the tighter
+    bound kept), and the mean-value form ``(Df(ξ) − A) d`` with ``Df`` enclosed over the box.
     """
-    _, _, k_lo, k_hi, jrad = lin
+    a, _, k_lo, k_hi, jrad, wide = lin
     d_lo, d_hi = _down(lo - xstar), _up(hi - xstar)
     mag = np.maximum(np.abs(d_lo), np.abs(d_hi))
     first = upper(jrad @ mag, ev.n + 1)
@@ -207,25 +228,87 @@ def remainder_box(ev: _Evaluator, xstar: np.ndarray, lin: tuple[np.ndarray, ...]
         gens = np.hstack([tube.generators, offset.reshape(-1, 1), np.diag(slack)])
         z_lo, z_hi = _quadratic_zonotope(gens, h_lo, h_hi)
         q_lo, q_hi = np.maximum(q_lo, z_lo), np.minimum(q_hi, z_hi)
-    return _down(_down(k_lo + q_lo) - first), _up(_up(k_hi + q_hi) + first)
+    t_lo, t_hi = _down(q_lo - first), _up(q_hi + first)
+    if wide:
+        m_lo, m_hi = _mean_value(ev, a, xstar, lo, hi)
+        t_lo, t_hi = np.maximum(t_lo, m_lo), np.minimum(t_hi, m_hi)
+    return _down(k_lo + t_lo), _up(k_hi + t_hi)
 
 
-def _linearise(ev: _Evaluator, center: np.ndarray, step: float) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
-    """``x*`` and ``(A, c, const_lo, const_hi, jrad)`` (see :func:`remainder_box`)."""
+def _mean_value(ev: _Evaluator, a: np.ndarray, xstar: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """An enclosure of ``f(x) − f(x*) − A (x − x*)`` over ``x ∈ [lo, hi]`` (outward rounded, shape (n,)).
+
+    The box is cut into ``k`` equal pieces along every coordinate (``kⁿ <= MEAN_VALUE_PIECES``).  On a piece ``P``
+    with midpoint ``m``: ``f(x) − f(x*) − A(x − x*) = [f(m) − f(x*) − A(m − x*)] + (Df(ξ) − A)(x − m)`` with ``ξ``
+    on the segment from ``m`` to ``x``, in ``P`` (the mean value theorem, one ``ξ`` per row); the bracket is
+    enclosed at the points, the rest by ``Df`` enclosed over ``P``.  The union over the pieces is returned: on a
+    wide set the pieces follow the curvature that one interval Jacobian over the whole box misses.
+    """
     n = ev.n
+    k = max(1, int(math.floor(MEAN_VALUE_PIECES ** (1.0 / n) + 1e-9)))
+    f_star = np.array([enclose(e, ev.box(xstar, xstar)) for e in ev.flow.components])
+    cuts = [np.linspace(lo[i], hi[i], k + 1) for i in range(n)]
+    out_lo, out_hi = np.full(n, np.inf), np.full(n, -np.inf)
+    for index in itertools.product(range(k), repeat=n):
+        p_lo = np.array([cuts[i][j] if j > 0 else lo[i] for i, j in enumerate(index)])
+        p_hi = np.array([cuts[i][j + 1] if j + 1 < k else hi[i] for i, j in enumerate(index)])
+        m = 0.5 * p_lo + 0.5 * p_hi
+        f_m = np.array([enclose(e, ev.box(m, m)) for e in ev.flow.components])
+        # A (m − x*): m − x* in [g_lo, g_hi] (the float midpoint within g_hi − g_lo of it), the product rounded
+        g_lo, g_hi = _down(m - xstar), _up(m - xstar)
+        dm = np.maximum(np.abs(g_lo), np.abs(g_hi))
+        am = a @ (0.5 * g_lo + 0.5 * g_hi)
+        am_rad = upper(np.abs(a) @ (g_hi - g_lo) + gamma(n + 2) * (np.abs(a) @ dm) + 1e-300, n + 4)
+        b_lo = _down(_down(_down(f_m[:, 0] - f_star[:, 1]) - am) - am_rad)
+        b_hi = _up(_up(_up(f_m[:, 1] - f_star[:, 0]) - am) + am_rad)
+        j_lo, j_hi = ev.jacobian(p_lo, p_hi)
+        e_lo, e_hi = _down(j_lo - a), _up(j_hi - a)
+        d_lo, d_hi = _down(p_lo - m), _up(p_hi - m)
+        q_lo, q_hi = _mul(e_lo, e_hi, np.broadcast_to(d_lo, (n, n)), np.broadcast_to(d_hi, (n, n)))
+        for j in range(n):  # each addition rounded outward
+            b_lo, b_hi = _down(b_lo + q_lo[:, j]), _up(b_hi + q_hi[:, j])
+        out_lo, out_hi = np.minimum(out_lo, b_lo), np.maximum(out_hi, b_hi)
+    return out_lo, out_hi
+
+
+def _linearise(ev: _Evaluator, start: Zonotope, step: float) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """``x*`` and ``(A, c, const_lo, const_hi, jrad)`` (see :func:`remainder_box`).
+
+    ``A`` is the midpoint of ``Df`` enclosed over the start set's box moved to ``x*``: the slope of the flow
+    across the set, not only at ``x*`` (for a thin set the two agree; for a wide one, e.g. ``ẋ = −x³`` around
+    0, ``Df(x*)`` can miss the contraction of the set's edges and the remainder, an input to the affine
+    step, then outgrows it).  Any float ``A`` is sound: the remainder is enclosed for the ``A`` used.
+    """
+    n = ev.n
+    center = start.center
     fc = np.array([f(center, {}) for f in ev.f_float], dtype=float)
     xstar = center + fc * (0.5 * step) if np.all(np.isfinite(fc)) else center.copy()
     f_lo, f_hi, j_lo, j_hi = ev.point_enclosures(xstar)
     ftil = 0.5 * f_lo + 0.5 * f_hi
     a = 0.5 * j_lo + 0.5 * j_hi
-    jrad = upper(np.maximum(a - j_lo, j_hi - a), 1)
+    wide = False
+    radius = np.abs(start.generators).sum(axis=1)
+    # the previous step's |H| (over a box near this one) bounds the spread roughly: a set clearly thin by it (with a
+    # factor 2 of room) skips the enclosure over the box; any A is sound, this only saves time
+    hint = ev.curvature
+    thin = hint is not None and bool(np.all(np.isfinite(hint))) and \
+        2.0 * float(np.max((hint @ radius).sum(axis=1))) <= max(float(np.max(np.abs(a).sum(axis=1))), WIDE_FLOOR)
+    if ev.j_vary and not thin:
+        s_lo, s_hi = ev.jacobian(xstar - radius, xstar + radius)
+        spread = 0.5 * s_hi - 0.5 * s_lo
+        wide = bool(np.all(np.isfinite(spread))
+                    and np.max(spread.sum(axis=1)) > max(np.max(np.abs(a).sum(axis=1)), WIDE_FLOOR))
+        if wide:
+            a = 0.5 * s_lo + 0.5 * s_hi
+    jrad = upper(np.maximum(np.maximum(a - j_lo, j_hi - a), 0.0), 1)
     ax = a @ xstar
     c = ftil - ax
     # |f̃ − A x* − c| <= γ_{n+1}(|f̃| + |A||x*|) + u|c| (the dot product, then the subtraction)
     cerr = upper(gamma(n + 2) * (np.abs(ftil) + np.abs(a) @ np.abs(xstar) + np.abs(c)), n + 4)
     k_lo = _down(_down(f_lo - ftil) - cerr)
     k_hi = _up(_up(f_hi - ftil) + cerr)
-    return xstar, (a, c, k_lo, k_hi, jrad)
+    return xstar, (a, c, k_lo, k_hi, jrad, wide)
 
 
 def _tube(mode: str, lin: tuple[np.ndarray, ...], u_lo: np.ndarray, u_hi: np.ndarray, start: Zonotope,
@@ -248,7 +331,7 @@ def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: in
               guess: tuple[np.ndarray, np.ndarray] | None) -> tuple[Zonotope, Zonotope, tuple[np.ndarray, np.ndarray]] | str:
     """(tube, next set, the remainder found) of one step, or the reason it failed."""
     n = ev.n
-    xstar, lin = _linearise(ev, start.center, step)
+    xstar, lin = _linearise(ev, start, step)
     if not (np.all(np.isfinite(xstar)) and all(np.all(np.isfinite(v)) for v in lin)):
         return "the linearisation is not finite"
     norm = float(np.max(np.abs(lin[0]).sum(axis=1)))

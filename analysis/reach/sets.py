@@ -30,7 +30,7 @@ import numpy as np
 from hybrid.errors import ParameterError
 
 from .affine import Halfspace, Polyhedron, condition_polyhedra
-from .zonotope import UNIT_ROUNDOFF, Zonotope, from_box, gamma, round_down, round_up, support_bounds, upper
+from .zonotope import UNIT_ROUNDOFF, Zonotope, from_box, gamma, magnitude, round_down, round_up, support_bounds, upper
 
 __all__ = [
     "FloatHalfspace",
@@ -81,25 +81,60 @@ def definitely_outside(z: Zonotope, h: FloatHalfspace) -> bool:
     return lo > h.offset
 
 
-def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]) -> int:
+@dataclass(frozen=True, slots=True, eq=False)
+class HalfspaceRows:
+    """The rows of a conjunction of :class:`FloatHalfspace` stacked once (for the per-segment tests).
+
+    Attributes
+    ----------
+    normals, residuals : ndarray, shape (k, n)
+    offsets : ndarray, shape (k,)
+    oblique : tuple of FloatHalfspace
+        The halfspaces with more than one non-zero coefficient.
+    """
+
+    normals: np.ndarray
+    residuals: np.ndarray
+    offsets: np.ndarray
+    oblique: tuple[FloatHalfspace, ...]
+    abs_normals: np.ndarray
+    abs_offsets: np.ndarray
+    exact: bool  # every residual is zero (float normals)
+
+
+def halfspace_rows(halfspaces: Sequence[FloatHalfspace]) -> HalfspaceRows:
+    """The :class:`HalfspaceRows` of a non-empty conjunction."""
+    normals = np.array([h.normal for h in halfspaces])
+    residuals = np.array([h.residual for h in halfspaces])
+    offsets = np.array([h.offset for h in halfspaces])
+    return HalfspaceRows(normals=normals, residuals=residuals, offsets=offsets,
+                         oblique=tuple(h for h in halfspaces if np.count_nonzero(h.normal) > 1),
+                         abs_normals=np.abs(normals), abs_offsets=np.abs(offsets), exact=not np.any(residuals))
+
+
+def box_position(lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace],
+                 rows: HalfspaceRows | None = None) -> int:
     """Where the box ``[lo, hi]`` lies against the polyhedron: ``-1`` proven outside one halfspace,
     ``1`` proven inside every halfspace, ``0`` undecided (a cheap pre-test before the zonotope's).
 
     Per row, ``min/max a·x`` over the box are bounded as in :func:`clip_box` (the rounding of the sums
-    and the residual of a non-float normal accounted for), so ``-1`` and ``1`` are proven.
+    and the residual of a non-float normal accounted for), so ``-1`` and ``1`` are proven.  ``rows``: the
+    halfspaces already stacked (:func:`halfspace_rows`), to save the stacking on every call.
     """
     if not halfspaces:
         return 1
-    normals = np.array([h.normal for h in halfspaces])
-    residuals = np.array([h.residual for h in halfspaces])
-    offsets = np.array([h.offset for h in halfspaces])
+    if rows is None:
+        rows = halfspace_rows(halfspaces)
+    normals, offsets = rows.normals, rows.offsets
     n = normals.shape[1]
     a_lo, a_hi = normals * lo, normals * hi
     mins = np.minimum(a_lo, a_hi).sum(axis=1)
     maxs = np.maximum(a_lo, a_hi).sum(axis=1)
     mag = np.maximum(np.abs(lo), np.abs(hi))
-    size = np.maximum(np.abs(a_lo), np.abs(a_hi)).sum(axis=1)
-    slack = upper(gamma(n + 2) * (size + np.abs(offsets)) + residuals @ mag, n + 4)
+    # max(|a lo|, |a hi|) = |a| max(|lo|, |hi|) exactly (rounding is monotone and symmetric)
+    size = (rows.abs_normals * mag).sum(axis=1)
+    spread = gamma(n + 2) * (size + rows.abs_offsets)
+    slack = upper(spread if rows.exact else spread + rows.residuals @ mag, n + 4)
     if np.any(mins - slack > offsets):
         return -1
     if np.all(maxs + slack < offsets):  # strict: a rounded sum equal to the offset proves nothing
@@ -202,47 +237,91 @@ def separation(z: Zonotope, lo: np.ndarray, hi: np.ndarray, polyhedron: Sequence
     return best
 
 
-def _dual_bound(z: Zonotope, direction: np.ndarray, halfspaces: Sequence[FloatHalfspace],
-                multipliers: np.ndarray) -> float:
-    """A rigorous upper bound of ``max direction·x`` over ``z ∩ {a_k·x <= b_k}`` from any multipliers ``λ >= 0``.
+def _dual_bounds(z: Zonotope, directions: np.ndarray, halfspaces: Sequence[FloatHalfspace],
+                 multipliers: np.ndarray) -> np.ndarray:
+    """Rigorous upper bounds of ``max e_d·x`` over ``z ∩ {a_k·x <= b_k}``, one per row ``e_d`` of ``directions``
+    (shape ``(p, n)``), from any multipliers ``λ_d >= 0`` (rows of ``multipliers``, shape ``(p, k)``); shape ``(p,)``.
 
     Weak duality: ``e·x <= (e − Σ λ_k a_k)·x + Σ λ_k b_k`` on the intersection, and the first term is
-    bounded by the support of ``z`` in the direction ``e − Σ λ_k a_k`` (computed with its rounding).
+    bounded by the support of ``z`` in the direction ``e − Σ λ_k a_k`` (computed with its rounding, as in
+    :func:`~analysis.reach.zonotope.support_bounds`, for all directions at once: every product is a float dot
+    product of the same length, so Higham's ``γ`` bounds hold row by row).
     """
     lam = np.maximum(np.asarray(multipliers, dtype=float), 0.0)
+    e = np.asarray(directions, dtype=float)
     normals = np.array([h.normal for h in halfspaces])
     residuals = np.array([h.residual for h in halfspaces])
     offsets = np.array([h.offset for h in halfspaces])
-    d = direction - normals.T @ lam
+    d = e - lam @ normals
     k = len(halfspaces) + 2
-    residual = upper(gamma(k) * (np.abs(direction) + np.abs(normals).T @ lam) + residuals.T @ lam, k + 2)
-    _, top = support_bounds(z, d, residual)
-    shift = float(lam @ offsets)
-    err = float(upper(gamma(k) * (lam @ np.abs(offsets)), k))
-    return float(round_up(round_up(top + shift + err + UNIT_ROUNDOFF * abs(top + shift))))
+    residual = upper(gamma(k) * (np.abs(e) + lam @ np.abs(normals)) + lam @ residuals, k + 2)
+    n = z.dimension
+    s = d @ z.center
+    spread = np.abs(d @ z.generators).sum(axis=1)
+    err = gamma(n) * (np.abs(d) @ (np.abs(z.center) + np.abs(z.generators).sum(axis=1))) + residual @ magnitude(z)
+    width = upper(spread + err + UNIT_ROUNDOFF * np.abs(s), z.order + n + 4)
+    top = round_up(round_up(s + width))
+    shift = lam @ offsets
+    err = upper(gamma(k) * (lam @ np.abs(offsets)), k)
+    return round_up(round_up(top + shift + err + UNIT_ROUNDOFF * np.abs(top + shift)))
 
 
 def _multipliers(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, sweeps: int = 4) -> np.ndarray:
-    """Multipliers ``λ >= 0`` nearly minimising the dual ``λ·β + Σ_i |c_i − (αᵀλ)_i|`` (float, a suggestion).
+    """Multipliers ``λ_d >= 0`` nearly minimising the dual ``λ·β + Σ_i |c_di − (αᵀλ)_i|`` (float, a suggestion),
+    one row per objective ``c_d`` (``c`` of shape ``(p, m)``, the result ``(p, k)``).
 
-    The dual of ``max c·ξ`` over ``ξ ∈ [-1, 1]^m``, ``α ξ <= β`` is convex and piecewise linear in ``λ``; each
-    coordinate is minimised exactly in turn (its minimum lies at 0 or at a breakpoint ``r_i / α_ji``).  One
-    row: exact.  Several: cyclic descent, which may stop above the optimum; any ``λ >= 0`` gives a valid bound.
+    The dual of ``max c_d·ξ`` over ``ξ ∈ [-1, 1]^m``, ``α ξ <= β`` is convex and piecewise linear in ``λ``; each
+    coordinate is minimised exactly in turn (:func:`_line_minimum`).  One row: exact.  Several: cyclic descent,
+    which may stop above the optimum; any ``λ >= 0`` gives a valid bound.  All objectives are minimised at once.
     """
+    c = np.atleast_2d(np.asarray(c, dtype=float))
+    p = c.shape[0]
     k = alpha.shape[0]
-    lam = np.zeros(k)
+    lam = np.zeros((p, k))
     resid = c.copy()
+    rows = np.arange(p)[:, None]
+    lines = []
+    for j in range(k):
+        # a row that every ξ satisfies (β_j >= ‖α_j‖₁) is redundant: λ_j = 0 loses nothing, and it is skipped
+        nz = np.nonzero(alpha[j])[0] if beta[j] < np.abs(alpha[j]).sum() else np.zeros(0, dtype=int)
+        lines.append((nz, alpha[j][nz], np.abs(alpha[j][nz])))
     for _ in range(sweeps if k > 1 else 1):
+        before = lam.copy()
         for j in range(k):
-            a = alpha[j]
-            r = resid + a * lam[j]
-            nz = a != 0.0
-            cands = np.concatenate([[0.0], r[nz] / a[nz]])
-            cands = cands[np.isfinite(cands) & (cands >= 0.0)]
-            values = cands * beta[j] + np.abs(r[None, :] - cands[:, None] * a[None, :]).sum(axis=1)
-            lam[j] = cands[int(np.argmin(values))]
-            resid = r - a * lam[j]
+            nz, a_nz, w = lines[j]
+            if nz.size == 0:
+                continue  # λ_j = 0: the row does not depend on ξ, or it is redundant
+            old = lam[:, j].copy()
+            lam[:, j] = _line_minimum(resid[:, nz] + a_nz * old[:, None], a_nz, w, beta[j], rows)
+            resid[:, nz] += a_nz * (old - lam[:, j])[:, None]
+        if np.array_equal(lam, before):  # no multiplier moved in a whole sweep: the descent has settled
+            break
     return lam
+
+
+def _line_minimum(r: np.ndarray, a: np.ndarray, w: np.ndarray, beta: float, rows: np.ndarray) -> np.ndarray:
+    """Per row of ``r`` (shape ``(p, m)``), a minimiser over ``λ >= 0`` of ``λ β + Σ_i |r_i − λ a_i|``, shape ``(p,)``
+    (``a`` without zeros, ``w = |a|``, ``rows`` the column of row indices).
+
+    The function is convex and piecewise linear with breakpoints ``b_i = r_i / a_i``: its right slope at 0 is
+    ``β + Σ_{b_i <= 0} w_i − Σ_{b_i > 0} w_i`` and grows by ``2 w_i`` past each positive ``b_i``; the minimiser is 0
+    when that slope is ``>= 0``, else the first positive breakpoint (in increasing order, by sorting) where it becomes
+    ``>= 0``, else (unbounded below: the linear program is infeasible) the largest breakpoint.  A suggestion only
+    (floats; :func:`_dual_bounds` is valid for any ``λ >= 0``; a NaN there only loosens the box, see
+    :func:`tighten_box`).
+    """
+    b = r / a
+    positive = b > 0.0
+    key = np.where(positive, b, np.inf)
+    slope0 = beta + w.sum() - 2.0 * (positive @ w)
+    order = np.argsort(key, axis=1)
+    bs = key[rows, order]
+    finite = bs < np.inf
+    ok = (slope0[:, None] + 2.0 * np.cumsum(np.where(finite, w[order], 0.0), axis=1) >= 0.0) & finite
+    first = np.argmax(ok, axis=1)
+    flat = rows[:, 0]
+    lam = np.where(ok[flat, first], bs[flat, first], np.where(positive, b, 0.0).max(axis=1))
+    return np.where(slope0 >= 0.0, 0.0, lam)
 
 
 def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequence[FloatHalfspace]
@@ -250,7 +329,7 @@ def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequenc
     """A box containing ``z ∩ [lo, hi] ∩ {a_k·x <= b_k}``, tighter than :func:`clip_box` (``None``: empty).
 
     After :func:`clip_box`, each bound ``max/min x_i`` over ``z ∩ {halfspaces}`` is bounded by
-    :func:`_dual_bound` with multipliers from :func:`_multipliers` (exact coordinate descent on the dual of the
+    :func:`_dual_bounds` with multipliers from :func:`_multipliers` (exact coordinate descent on the dual of the
     linear program, cheaper than a solver call): the multipliers are only a suggestion, the bound is valid for
     any of them, so an inexact choice can only make it looser, never wrong.
     """
@@ -264,16 +343,11 @@ def tighten_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray, halfspaces: Sequenc
     alpha = normals @ g
     beta = offsets - normals @ z.center
     n = z.dimension
-    for i in range(n):
-        for sign in (1.0, -1.0):
-            e = np.zeros(n)
-            e[i] = sign
-            lam = _multipliers(sign * g[i], alpha, beta)
-            bound = _dual_bound(z, e, halfspaces, lam)
-            if sign > 0:
-                hi[i] = min(hi[i], bound)
-            else:
-                lo[i] = max(lo[i], -bound)
+    directions = np.vstack([np.eye(n), -np.eye(n)])  # +e_i (upper bounds), then -e_i (lower bounds)
+    lam = _multipliers(directions @ g, alpha, beta)
+    bounds = _dual_bounds(z, directions, halfspaces, lam)
+    hi = np.fmin(hi, bounds[:n])  # a NaN bound (never expected) leaves the clipped box as it is
+    lo = np.fmax(lo, -bounds[n:])
     if np.any(lo > hi):
         return None
     return lo, hi

@@ -86,6 +86,17 @@ class Zonotope:
         object.__setattr__(self, "center", c)
         object.__setattr__(self, "generators", g)
 
+    @classmethod
+    def of_arrays(cls, center: np.ndarray, generators: np.ndarray) -> Zonotope:
+        """The zonotope of float64 arrays of shapes ``(n,)`` and ``(n, m)`` that the caller has just computed and
+        will not write again: no copy and no check (the hot loops; the arrays are made read-only in place)."""
+        z = object.__new__(cls)
+        center.setflags(write=False)
+        generators.setflags(write=False)
+        object.__setattr__(z, "center", center)
+        object.__setattr__(z, "generators", generators)
+        return z
+
     @property
     def dimension(self) -> int:
         """``n``."""
@@ -102,7 +113,7 @@ class Zonotope:
 
     def project(self, k: int) -> Zonotope:
         """The first ``k`` coordinates (an exact projection)."""
-        return Zonotope(center=self.center[:k], generators=self.generators[:k])
+        return Zonotope.of_arrays(self.center[:k], self.generators[:k])
 
 
 def gamma(k: int) -> float:
@@ -118,7 +129,10 @@ def upper(x: np.ndarray | float, ops: int) -> np.ndarray:
     ``x / (1 - γ_ops) + ops·η``; ``x (1 + 4 (ops + 2) u) + (ops + 2)·2⁻¹⁰²¹`` exceeds it (the
     product itself rounds by at most one more ``u``).
     """
-    return np.asarray(x, dtype=float) * (1.0 + 4.0 * (ops + 2) * UNIT_ROUNDOFF) + (ops + 2) * _UNDERFLOW
+    factor, slack = 1.0 + 4.0 * (ops + 2) * UNIT_ROUNDOFF, (ops + 2) * _UNDERFLOW
+    if type(x) is np.ndarray and x.dtype == np.float64 or type(x) is np.float64:
+        return x * factor + slack  # the same operations as below, without the conversion (hot path)
+    return np.asarray(x, dtype=float) * factor + slack
 
 
 def round_down(x: np.ndarray) -> np.ndarray:
@@ -155,14 +169,14 @@ def linear_map(z: Zonotope, mc: np.ndarray, mr: np.ndarray | None = None) -> tup
     bound = gamma(n) * (np.abs(mc) @ mag)
     if mr is not None:
         bound = bound + np.asarray(mr, dtype=float) @ mag
-    return Zonotope(center=center, generators=gens), upper(bound, 2 * n + 3)
+    return Zonotope.of_arrays(center, gens), upper(bound, 2 * n + 3)
 
 
 def minkowski_sum(a: Zonotope, b: Zonotope) -> tuple[Zonotope, np.ndarray]:
     """``a ⊕ b``: the centers added (rounded: error ``<= 2u |sum|``), the generators concatenated (exact)."""
     center = a.center + b.center
     error = upper(2.0 * UNIT_ROUNDOFF * np.abs(center), 2)
-    return Zonotope(center=center, generators=np.hstack([a.generators, b.generators])), error
+    return Zonotope.of_arrays(center, np.hstack([a.generators, b.generators])), error
 
 
 def box_generators(error: np.ndarray) -> np.ndarray:
@@ -176,7 +190,7 @@ def box_generators(error: np.ndarray) -> np.ndarray:
 
 def with_error(z: Zonotope, error: np.ndarray) -> Zonotope:
     """``z ⊕ [-error, error]`` (exact: the box becomes generators)."""
-    return Zonotope(center=z.center, generators=np.hstack([z.generators, box_generators(error)]))
+    return Zonotope.of_arrays(z.center, np.hstack([z.generators, box_generators(error)]))
 
 
 def from_box(lo: np.ndarray, hi: np.ndarray) -> Zonotope:
@@ -211,7 +225,7 @@ def reduce_order(z: Zonotope, order: int) -> Zonotope:
     boxed = ranking[: m - limit + n]
     kept = np.sort(ranking[m - limit + n:])
     box = upper(absg[:, boxed].sum(axis=1), boxed.size)
-    return Zonotope(center=z.center, generators=np.hstack([g[:, kept], box_generators(box)]))
+    return Zonotope.of_arrays(z.center, np.hstack([g[:, kept], box_generators(box)]))
 
 
 def support_bounds(z: Zonotope, normal: np.ndarray, residual: np.ndarray | None = None) -> tuple[float, float]:
