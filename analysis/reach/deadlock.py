@@ -14,7 +14,16 @@ the invariant lies in an outgoing guard:
   the one equality, :func:`_in_on_face`).
 
 A flowing state that leaves the invariant does so through a face point that it reaches while flowing, so that
-point is in a flowed box and in the face part: every exit is covered.  The check is sufficient, not necessary
+point is in a flowed box and in the face part: every exit is covered.
+
+*The horizon.*  A run that reaches a face at a time ``>= H`` (``H`` at or after the requirement window's end) is
+complete over the window: the run is over, no guard needs to be enabled there.  Times are read through a *clock*
+(:func:`clock_offsets`): a state ``x_i`` with ``ẋ_i = 1`` exactly in the mode (a zero row of ``A``, ``c_i = 1``,
+no input on it).  Along a flowpipe ``x_i(τ) − τ = d`` is constant, with ``d <= x_i^entry_hi − τ_entry_lo`` over
+its entry box and entry times; a state reached at a time ``τ < H`` has ``x_i = τ + d < H + d_hi``.  So a face part
+whose ``x_i >= H + d_hi`` everywhere (:func:`reached_late`) holds no state reached before ``H`` and is skipped.
+The building's clock face ``t <= 20``, reached exactly at the 20 s horizon, is no deadlock; the same face reached
+before the horizon still is.  The check is sufficient, not necessary
 (a face part covered only by a union of guards fails it).  A whole-face test (the closed outside of the row lies
 in one guard: the earlier check) accepts a row at once.
 """
@@ -26,7 +35,7 @@ from fractions import Fraction
 from typing import Any
 
 __all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row", "bounded_on",
-           "image_covered", "entry_uncovered"]
+           "image_covered", "entry_uncovered", "clock_offsets", "reached_late"]
 
 Box = list[tuple[Fraction, Fraction]]
 
@@ -138,8 +147,31 @@ def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow 
     return out
 
 
+def clock_offsets(model: Any, mode: str, entry: Box, t_lo: Fraction, inputs: Any = None) -> dict[int, Fraction]:
+    """``{i: d_hi}`` for each clock ``x_i`` of ``mode`` (``ẋ_i = 1`` exactly, no input on it): ``x_i − τ <= d_hi``
+    along a flowpipe entered in ``entry`` (a box holding the entry set) at times ``>= t_lo`` (see the module)."""
+    m = model.modes[mode]
+    if getattr(m, "smooth", None) is not None or m.a is None:
+        return {}
+    out = {}
+    for i, (row, c) in enumerate(zip(m.a, m.c)):
+        if c != 1 or any(row):
+            continue
+        if inputs is not None and any(inputs[0][i]):
+            continue
+        out[i] = entry[i][1] - t_lo
+    return out
+
+
+def reached_late(face: Box, offsets: dict[int, Fraction], horizon: Fraction) -> bool:
+    """Whether every state of ``face`` is reached at a time ``>= horizon`` by the clocks ``offsets``
+    (:func:`clock_offsets`): ``x_i >= horizon + d_hi`` on the whole box for one clock ``x_i``."""
+    return any(face[i][0] >= horizon + d for i, d in offsets.items())
+
+
 def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[Sequence[Any]], Box | None] | None]],
-                   where: Callable[[int], str] | None = None, inputs: Any = None) -> str | None:
+                   where: Callable[[int], str] | None = None, inputs: Any = None,
+                   late: Callable[[int, Box], bool] | None = None) -> str | None:
     """``None`` when every face part of the boxes lies in a guard of ``mode`` (see the module); else the message.
 
     Parameters
@@ -153,6 +185,9 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
         The mode's bounded input (exact), for the flow's direction (:func:`outward_row`).
     where : callable or None
         ``where(i)`` names the ``i``-th box in the message.
+    late : callable or None
+        ``late(i, face)`` true when every state of the ``i``-th box's face part is reached at or after the horizon
+        (:func:`reached_late`): such a part needs no guard (the run is over).
     """
     invariant = model.modes[mode].invariant
     if len(invariant) == 1 and not invariant[0].halfspaces:
@@ -177,6 +212,8 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
                 tight = narrow(face_rows)
                 face = None if tight is None else _meet(face, tight)
             if face is None or any(_in_on_face(face, poly, h) for poly in guards):
+                continue
+            if late is not None and late(i, face):
                 continue
             place = f" ({where(i)})" if where is not None else ""
             return (f"mode {mode!r}: where the flow may leave the invariant ({h.text or 'a face'}){place}, the states "

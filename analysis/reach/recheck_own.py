@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered, open_rows
+from .deadlock import clip_exact, clock_offsets, entry_uncovered, face_uncovered, image_covered, open_rows, reached_late
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
@@ -433,6 +433,7 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     enc, step, terms = _enclosure(run, mode)
     invariant = model.modes[mode].invariant
     faces = open_rows(model, mode)
+    entry = work.box if work.box is not None else _fbox(lo, hi)  # holds the entry set (clock offsets)
     ratio = max(1, round(run.steps[mode] / step))
     limit = None if run.cluster is None else run.cluster * ratio
     clusters: dict[str, list[Any]] = {}
@@ -462,8 +463,10 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
         _decide(run, mode, clo, chi, piece, t_lo, t_hi, f"{where} step {k}")
         if any(_maybe_above(r, clo, chi) for r in faces):
             spec = run.inputs.get(mode)
+            given = None if spec is None else (spec.matrix, spec.low, spec.high)
             why = face_uncovered(model, mode, [(_fbox(clo, chi), lambda rows, z=piece: _contract(z, rows))],
-                                 inputs=None if spec is None else (spec.matrix, spec.low, spec.high))
+                                 inputs=given, late=lambda _, face: reached_late(
+                                     face, clock_offsets(model, mode, entry, work.t_lo, given), run.end))
             if why:
                 raise OwnFailure(f"deadlock: {where} step {k} (t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s): {why}")
         for t in model.outgoing(mode):

@@ -34,7 +34,7 @@ from analysis.verify.verification import Proof
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
-from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered
+from .deadlock import clip_exact, clock_offsets, entry_uncovered, face_uncovered, image_covered, reached_late
 from .recheck import recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
@@ -115,15 +115,13 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
     checked on it rather than on the saved segment's box (which rounding makes a little wider).
     """
     if model is not None:
-        flowed: dict[str, list[Any]] = {}
-        for seg in result.segments:
-            if not seg.entry:
-                flowed.setdefault(seg.mode, []).append(
-                    ([(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)], None))
         given = {mode: ([[Fraction(v) for v in row] for row in b], [Fraction(v) for v in lo], [Fraction(v) for v in hi])
                  for mode, b, lo, hi in result.inputs}
+        flowed, offsets = _flowed(result, model, given, initial)
+        end = Fraction(fragment.end)
         for mode, parts in flowed.items():  # every state leaving an invariant is on a face within a flowed box
-            why = face_uncovered(model, mode, parts, inputs=given.get(mode))
+            why = face_uncovered(model, mode, parts, inputs=given.get(mode),
+                                 late=lambda i, face, m=mode: reached_late(face, offsets[m][i], end))
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
         for mode, box, pre in _entries(result, model, initial):
@@ -150,6 +148,27 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
         if slack is not None:
             margin = min(margin, slack)
     return True, margin, f"holds on all {len(result.segments)} segments"
+
+
+def _flowed(result: ReachResult, model: Any, given: Mapping[str, Any],
+            initial: Mapping[str, tuple[float, float]] | None
+            ) -> tuple[dict[str, list[Any]], dict[str, list[dict[int, Fraction]]]]:
+    """The flowed boxes per mode (exact) and, for each, the clock offsets of its flowpipe
+    (:func:`analysis.reach.deadlock.clock_offsets`; a flowpipe's segments follow its entry segment; the first
+    entry read on the exact initial box when given, as in :func:`_entries`)."""
+    flowed: dict[str, list[Any]] = {}
+    offsets: dict[str, list[dict[int, Fraction]]] = {}
+    current: dict[int, Fraction] = {}
+    for k, seg in enumerate(result.segments):
+        box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+        if seg.entry:
+            if k == 0 and initial is not None and seg.jumps == 0:
+                box = [(Fraction(float(initial[s][0])), Fraction(float(initial[s][1]))) for s in result.state_names]
+            current = clock_offsets(model, seg.mode, box, Fraction(float(seg.t_lo)), given.get(seg.mode))
+            continue
+        flowed.setdefault(seg.mode, []).append((box, None))
+        offsets.setdefault(seg.mode, []).append(current)
+    return flowed, offsets
 
 
 def _entries(result: ReachResult, model: Any, initial: Mapping[str, tuple[float, float]] | None) -> list[Any]:

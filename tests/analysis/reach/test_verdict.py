@@ -329,3 +329,36 @@ def test_a_deadlock_of_some_states_before_the_horizon_proves_nothing():
     # far from the face, nothing can deadlock: proven
     far, _ = reach_proof(deadlock().system, _fragment("always[0, 0.5] (x < 5)", ("x",)), {"x": (0.0, 0.4)})
     assert far.proven
+
+
+def test_a_face_reached_only_at_the_horizon_is_no_deadlock():
+    from hybrid.examples import deadlock
+
+    # x' = 1 (x is a clock), invariant x <= 1, no enabled guard: from x0 = 0 the face x = 1 is reached at
+    # exactly t = 1. Over the window [0, 1] the run is complete (it ends at the horizon): proven, re-checked
+    at_end, decision = reach_proof(deadlock().system, _fragment("always[0, 1] (x < 5)", ("x",)), {"x": (0.0, 0.0)})
+    assert at_end.proven, (decision.reason, at_end.evidence)
+    # the same face reached before the window's end (t = 1 < 1.5) is still a possible deadlock
+    before, decision = reach_proof(deadlock().system, _fragment("always[0, 1.5] (x < 5)", ("x",)), {"x": (0.0, 0.0)})
+    assert not before.holds and "deadlock" in decision.reason
+    # x0 in [0, 0.1]: some runs reach x = 1 at t = 0.9 < 1, inside the window: a possible deadlock
+    some, decision = reach_proof(deadlock().system, _fragment("always[0, 1] (x < 5)", ("x",)), {"x": (0.0, 0.1)})
+    assert not some.holds and "deadlock" in decision.reason
+
+
+def test_reached_late_is_exact_at_the_horizon():
+    from fractions import Fraction as F
+
+    from analysis.reach.model import affine_model
+    from analysis.reach.deadlock import clock_offsets, reached_late
+    from hybrid.examples import deadlock
+
+    model = affine_model(deadlock().system)
+    # entered at t in [0.25, ...] with x in [0, 0.5]: x − τ <= 0.5 − 0.25 = 0.25 (exact)
+    offsets = clock_offsets(model, "run", [(F(0), F(1, 2))], F(1, 4))
+    assert offsets == {0: F(1, 4)}
+    face = [(F(1), F(1))]
+    assert reached_late(face, offsets, F(3, 4))                          # x = 1 >= 3/4 + 1/4: at or after 3/4
+    assert not reached_late(face, offsets, F(3, 4) + F(1, 2**60))        # a hair later horizon: maybe before
+    # with an input on the clock's row it is no clock
+    assert clock_offsets(model, "run", [(F(0), F(1, 2))], F(0), ([[F(1)]], [F(0)], [F(1)])) == {}
