@@ -31,6 +31,7 @@ import numpy as np
 
 from analysis.verify.verification import Proof
 
+from .autostep import AUTO_NORM_STEPS, auto_options
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
@@ -238,8 +239,41 @@ def scaled_fragment(fragment: SafetyFragment, scale: Fraction) -> SafetyFragment
 
 def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
                  mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None,
-                 engine: Mapping[str, Any] | None = None) -> tuple[ReachDecision, Any, float]:
-    """One start mode: the flowpipe, the producer's decision, the re-check (or None) and its seconds."""
+                 engine: Mapping[str, Any] | None = None, kappas: Sequence[float] = ()
+                 ) -> tuple[ReachDecision, Any, float]:
+    """One start mode: the flowpipe, the producer's decision, the re-check (or None) and its seconds.  With
+    ``kappas``, the steps of fast modes are chosen from the dynamics (:mod:`analysis.reach.autostep`), one choice
+    after the other until one is proven and re-checked."""
+    if not kappas:
+        return _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
+    try:
+        model = affine_model(system, nonlinear=True)
+    except Exception:  # noqa: BLE001 - the attempt raises the same error where its callers expect it
+        return _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
+    end = max(fragment.end, 1e-9)
+    tried: list[dict[str, Any]] = []
+    outcome = None
+    for kappa in kappas:
+        options = auto_options(model, end, min(step, end), dict(engine or {}), kappa, MAX_SEGMENTS)
+        if options is None or options in tried:
+            continue
+        tried.append(options)
+        outcome = _attempt(system, fragment, initial, mode, step, jumps, cache, options)
+        chosen = {k: v for k, v in options.get("mode_time_steps", {}).items() if k not in (engine or {}).get(
+            "mode_time_steps", {})}
+        if chosen:
+            text = ", ".join(f"{k!r} {v:.4g} s" for k, v in sorted(chosen.items()))
+            outcome = (replace(outcome[0], reason=f"{outcome[0].reason} (steps chosen from the dynamics, "
+                                                  f"‖A‖·step <= {kappa:g}: {text})"), *outcome[1:])
+        if outcome[0].holds and outcome[1] is not None and outcome[1].passed:
+            break
+    return outcome if outcome is not None else _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
+
+
+def _attempt(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
+             mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None,
+             engine: Mapping[str, Any] | None = None) -> tuple[ReachDecision, Any, float]:
+    """One flowpipe with these options, the producer's decision, the re-check (or None) and its seconds."""
     end = max(fragment.end, 1e-9)
     start = time.perf_counter()
     extra = dict(engine or {})
@@ -314,7 +348,8 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     step = default_time_step(end) if time_step is None else time_step * float(scale)
     begin = [(m, {k: (lo, hi) for k, lo, hi in b}) for m, b in starts] if starts else [(initial_mode, dict(initial))]
     modes = [m for m, _ in begin]
-    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache, engine)) for m, b in begin]
+    kappas = AUTO_NORM_STEPS if time_step is None and "mode_time_steps" not in engine else AUTO_NORM_STEPS[:1]
+    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache, engine, kappas)) for m, b in begin]
     bad = next((r for r in runs if not r[1].holds), None)
     holds = bad is None
     chosen = bad if bad is not None else min(runs, key=lambda r: r[1].margin)

@@ -221,9 +221,11 @@ def test_the_recheck_imports_no_set_code_of_the_engine():
                 todo.append(node.module.split(".")[-1])
     # smooth: the reading of nonlinear flows (no set code); recheck_smooth: the re-check's own nonlinear step;
     # recheck_inputs: the re-check's own bound of bounded inputs; recheck_schedule, recheck_own, recheck_sets,
-    # recheck_interval: the own-set re-check of affine flowpipes; deadlock: the exact face check (boxes)
+    # recheck_interval: the own-set re-check of affine flowpipes; recheck_modal: its own modal error bound;
+    # deadlock: the exact face check (boxes)
     assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth",
-                    "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "deadlock"}, seen
+                    "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "recheck_modal",
+                    "deadlock"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
