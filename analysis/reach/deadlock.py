@@ -54,16 +54,15 @@ class FaceRow:
 def clip_exact(box: Box, rows: Sequence[Any]) -> Box | None:
     """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty."""
     out = list(box)
+    sparse = [(h, [(i, ai) for i, ai in enumerate(h.normal) if ai]) for h in rows]  # zero terms change nothing
     for _ in range(2):
-        for h in rows:
-            a, b = h.normal, h.offset
-            mins = [min(ai * lo, ai * hi) for ai, (lo, hi) in zip(a, out)]
-            total = sum(mins, Fraction(0))
+        for h, terms in sparse:
+            b = h.offset
+            mins = {i: min(ai * out[i][0], ai * out[i][1]) for i, ai in terms}
+            total = sum(mins.values(), Fraction(0))
             if total > b:
                 return None
-            for i, ai in enumerate(a):
-                if ai == 0:
-                    continue
+            for i, ai in terms:
                 room = (b - (total - mins[i])) / ai
                 lo, hi = out[i]
                 out[i] = (lo, min(hi, room)) if ai > 0 else (max(lo, room), hi)
@@ -109,16 +108,25 @@ def _whole_face_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
     return lam >= 0 and all(gi == -lam * ai for gi, ai in zip(g, a)) and -lam * b <= e
 
 
-def open_rows(model: Any, mode: str) -> list[Any]:
-    """The rows of a one-polyhedron invariant whose whole closed outside no single guard polyhedron holds (the
-    rows :func:`face_uncovered` must look at); every row of a disjunctive invariant."""
+def open_rows(model: Any, mode: str, inputs: Any = None) -> list[Any]:
+    """The rows of a one-polyhedron invariant whose whole closed outside no single guard polyhedron holds and
+    through which a flow may leave (the rows :func:`face_uncovered` must look at; a row ``a·x <= b`` with
+    ``a·ẋ <= 0`` for every state and input, e.g. the bounds of a constant, is left out: ``a·x`` never increases,
+    :func:`outward_row`); every row of a disjunctive invariant.  ``inputs`` as in :func:`outward_row`."""
     invariant = model.modes[mode].invariant
     rows = [h for poly in invariant for h in poly.halfspaces]
     if len(invariant) != 1:
         return rows
     guards = [poly for t in model.outgoing(mode) for poly in t.guard]
-    return [h for h in rows if not any(all(_whole_face_in(h.normal, h.offset, g) for g in poly.halfspaces)
-                                       for poly in guards)]
+    out = []
+    for h in rows:
+        if any(all(_whole_face_in(h.normal, h.offset, g) for g in poly.halfspaces) for poly in guards):
+            continue
+        row = outward_row(model, mode, h, inputs)
+        if row is not None and not any(row.normal) and row.offset < 0:
+            continue  # never increases: nothing leaves through this face
+        out.append(h)
+    return out
 
 
 def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow | None:
@@ -196,7 +204,7 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
         return f"mode {mode!r}: a disjunctive invariant (deadlock freedom at its exits is not checked)"
     rows = list(invariant[0].halfspaces)
     guards = [poly for t in model.outgoing(mode) for poly in t.guard]
-    remaining = open_rows(model, mode)
+    remaining = open_rows(model, mode, inputs)
     if not remaining:
         return None
     outward = {id(h): outward_row(model, mode, h, inputs) for h in remaining}

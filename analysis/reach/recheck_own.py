@@ -434,7 +434,9 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     lo, hi, out = _enter(run, work, where)
     enc, step, terms = _enclosure(run, mode)
     invariant = model.modes[mode].invariant
-    faces = open_rows(model, mode)
+    spec = run.inputs.get(mode)
+    given = None if spec is None else (spec.matrix, spec.low, spec.high)
+    faces = open_rows(model, mode, given)
     entry = work.box if work.box is not None else _fbox(lo, hi)  # holds the entry set (clock offsets)
     ratio = max(1, round(run.steps[mode] / step))
     limit = None if run.cluster is None else run.cluster * ratio
@@ -469,8 +471,6 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
         run.pieces += 1
         _decide(run, mode, clo, chi, piece, t_lo, t_hi, f"{where} step {k}")
         if any(_maybe_above(r, clo, chi) for r in faces):
-            spec = run.inputs.get(mode)
-            given = None if spec is None else (spec.matrix, spec.low, spec.high)
             why = face_uncovered(model, mode, [(_fbox(clo, chi), lambda rows, z=piece: _contract(z, rows))],
                                  inputs=given, late=lambda _, face: reached_late(
                                      face, clock_offsets(model, mode, entry, work.t_lo, given), run.end))
@@ -542,10 +542,17 @@ def _clip_invariant(invariant: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[np.
         active = [r for r in poly.halfspaces if _maybe_above(r, lo, hi)]
         if not active:
             return lo, hi
-        got = clip_exact(_fbox(lo, hi), active)
+        # only the coordinates the active rows read are clipped (clip_exact reads no other): exact there
+        support = sorted({i for r in active for i, v in enumerate(r.normal) if v})
+        box: list[Any] = [None] * lo.size
+        for i in support:
+            box[i] = (Fraction(float(lo[i])), Fraction(float(hi[i])))
+        got = clip_exact(box, active)
         if got is None:
             continue
-        glo, ghi = _round_box(got)
+        slo, shi = _round_box([got[i] for i in support])
+        glo, ghi = lo.copy(), hi.copy()
+        glo[support], ghi[support] = slo, shi
         found = (glo, ghi) if found is None else (np.minimum(found[0], glo), np.maximum(found[1], ghi))
     return found
 
