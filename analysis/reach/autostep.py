@@ -9,7 +9,9 @@ precision of a sound flowpipe, never its soundness, so a verdict may choose it: 
 re-check it.  A choice needing more than :data:`AUTO_MAX_STEPS` steps in one flowpipe is not tried (time), and a
 run of more than half the verdict's segment bound stores merged segments (``merge_segments``, about
 :data:`AUTO_STORED` stored boxes per flowpipe).  Modes given in ``mode_time_steps`` by the caller keep their steps;
-nonlinear modes keep theirs (their linearisation names the step to lower).
+nonlinear modes keep theirs (their linearisation names the step to lower).  With the whole ladder (no step options
+given), steps chosen for some mode and transitions in the model, a last choice adds ``jump_cluster`` (:data:`AUTO_JUMP_CLUSTER`) to the finest
+steps unless the caller gave one.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["AUTO_NORM_STEPS", "AUTO_MAX_STEPS", "AUTO_STORED", "mode_norms", "auto_options"]
+__all__ = ["AUTO_NORM_STEPS", "AUTO_MAX_STEPS", "AUTO_STORED", "AUTO_JUMP_CLUSTER", "mode_norms", "auto_options",
+           "auto_choices"]
 
 AUTO_NORM_STEPS = (3.9, 0.4)
 """The bounds ``κ`` of ``‖A_aug‖∞ δ`` tried in turn (below the series' 4; then a step ten times finer)."""
@@ -26,6 +29,10 @@ AUTO_MAX_STEPS = 100_000
 """A choice whose smallest step needs more steps than this over the window is not tried."""
 AUTO_STORED = 2_000
 """About this many stored segments per flowpipe when a run is merged."""
+AUTO_JUMP_CLUSTER = 25
+"""The last choice of a model with transitions (no step options given): the jump sets cut into runs of at most
+this many steps (``jump_cluster``), so a long stretch of guard-meeting steps does not start one flowpipe over its
+whole time interval (the spacecraft SRA02's passive mode)."""
 
 
 def mode_norms(model: Any) -> dict[str, float]:
@@ -70,4 +77,20 @@ def auto_options(model: Any, end: float, step: float, engine: Mapping[str, Any],
         out["mode_time_steps"] = steps
     if "merge_segments" not in engine and count > segment_bound // 2:
         out["merge_segments"] = math.ceil(count / AUTO_STORED)
+    return out
+
+
+def auto_choices(model: Any, end: float, step: float, engine: Mapping[str, Any], kappas: tuple[float, ...],
+                 segment_bound: int) -> list[tuple[float, dict[str, Any]]]:
+    """The choices ``(κ, options)`` to try in turn (see the module), without repeats."""
+    out: list[tuple[float, dict[str, Any]]] = []
+    for kappa in kappas:
+        options = auto_options(model, end, step, engine, kappa, segment_bound)
+        if options is not None and all(options != o for _, o in out):
+            out.append((kappa, options))
+    given = dict(engine.get("mode_time_steps") or {})
+    chosen = bool(out) and any(m not in given for m in out[-1][1].get("mode_time_steps", {}))
+    if len(kappas) > 1 and chosen and "jump_cluster" not in engine and getattr(model, "transitions", ()):
+        kappa, last = out[-1]
+        out.append((kappa, {**last, "jump_cluster": AUTO_JUMP_CLUSTER}))
     return out

@@ -31,7 +31,7 @@ import numpy as np
 
 from analysis.verify.verification import Proof
 
-from .autostep import AUTO_NORM_STEPS, auto_options
+from .autostep import AUTO_NORM_STEPS, auto_choices
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
@@ -251,20 +251,17 @@ def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tu
     except Exception:  # noqa: BLE001 - the attempt raises the same error where its callers expect it
         return _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
     end = max(fragment.end, 1e-9)
-    tried: list[dict[str, Any]] = []
     outcome = None
-    for kappa in kappas:
-        options = auto_options(model, end, min(step, end), dict(engine or {}), kappa, MAX_SEGMENTS)
-        if options is None or options in tried:
-            continue
-        tried.append(options)
+    for kappa, options in auto_choices(model, end, min(step, end), dict(engine or {}), tuple(kappas), MAX_SEGMENTS):
         outcome = _attempt(system, fragment, initial, mode, step, jumps, cache, options)
         chosen = {k: v for k, v in options.get("mode_time_steps", {}).items() if k not in (engine or {}).get(
             "mode_time_steps", {})}
         if chosen:
             text = ", ".join(f"{k!r} {v:.4g} s" for k, v in sorted(chosen.items()))
+            cut = f", jump_cluster {options['jump_cluster']}" if "jump_cluster" not in (engine or {}) and \
+                "jump_cluster" in options else ""
             outcome = (replace(outcome[0], reason=f"{outcome[0].reason} (steps chosen from the dynamics, "
-                                                  f"‖A‖·step <= {kappa:g}: {text})"), *outcome[1:])
+                                                  f"‖A‖·step <= {kappa:g}: {text}{cut})"), *outcome[1:])
         if outcome[0].holds and outcome[1] is not None and outcome[1].passed:
             break
     return outcome if outcome is not None else _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
