@@ -52,7 +52,9 @@ class FaceRow:
 
 
 def clip_exact(box: Box, rows: Sequence[Any]) -> Box | None:
-    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty."""
+    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty.
+    Only the coordinates the rows read (non-zero coefficients) are read and changed; the others are returned as
+    given (a caller may leave them ``None``)."""
     out = list(box)
     sparse = [(h, [(i, ai) for i, ai in enumerate(h.normal) if ai]) for h in rows]  # zero terms change nothing
     for _ in range(2):
