@@ -364,3 +364,21 @@ def test_reached_late_is_exact_at_the_horizon():
     assert not reached_late(face, offsets, F(3, 4) + F(1, 2**60))        # a hair later horizon: maybe before
     # with an input on the clock's row it is no clock
     assert clock_offsets(model, "run", [(F(0), F(1, 2))], F(0), ([[F(1)]], [F(0)], [F(1)])) == {}
+
+
+def test_a_fast_mode_gets_its_step_from_the_dynamics():
+    # x' = -5000 (x - 1), ‖A_aug‖ ≈ 5001: a step of 0.001 s has ‖A‖·step ≈ 5 > 4 and used to be refused. Closed
+    # form x(t) = 1 − (1 − x0) e^{−5000 t} <= 1: the true slack of x <= 1.01 is 0.01
+    v = coordinates("x")
+    automaton = HybridAutomaton(name="fast", modes=(Mode(name="run", invariant=v.x <= 10.0),), transitions=(),
+                                variables=("x",), initial_mode="run")
+    system = HybridSystem(automaton=automaton, state_names=("x",), flows={"run": flow_map(-5000.0 * v.x + 5000.0)})
+    fragment = _fragment("always[0, 0.2] (x <= 1.01)", ("x",))
+    proof, decision = reach_proof(system, fragment, {"x": (0.0, 0.5)})
+    # the first choice (‖A‖·step <= 3.9) is too coarse for the first segment; the second (<= 0.4) proves it
+    assert proof.proven, proof.evidence
+    assert "steps chosen from the dynamics, ‖A‖·step <= 0.4" in proof.evidence
+    assert 0 < proof.margin <= 0.01
+    # a step given by the user: only the first choice (the run is no longer refused), which proves nothing here
+    coarse, _ = reach_proof(system, fragment, {"x": (0.0, 0.5)}, time_step=0.001)
+    assert not coarse.holds and "‖A‖·step <= 3.9" in coarse.evidence
