@@ -10,8 +10,8 @@ re-check it.  A choice needing more than :data:`AUTO_MAX_STEPS` steps in one flo
 run of more than half the verdict's segment bound stores merged segments (``merge_segments``, about
 :data:`AUTO_STORED` stored boxes per flowpipe).  Modes given in ``mode_time_steps`` by the caller keep their steps;
 nonlinear modes keep theirs (their linearisation names the step to lower).  With the whole ladder (no step options
-given), steps chosen for some mode and transitions in the model, a last choice adds ``jump_cluster`` (:data:`AUTO_JUMP_CLUSTER`) to the finest
-steps unless the caller gave one.
+given), steps chosen for some mode and transitions in the model, a last choice adds ``jump_cluster``
+(:data:`AUTO_JUMP_CLUSTER`) to the finest steps unless the caller gave one.
 """
 
 from __future__ import annotations
