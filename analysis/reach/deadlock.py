@@ -14,7 +14,16 @@ the invariant lies in an outgoing guard:
   the one equality, :func:`_in_on_face`).
 
 A flowing state that leaves the invariant does so through a face point that it reaches while flowing, so that
-point is in a flowed box and in the face part: every exit is covered.  The check is sufficient, not necessary
+point is in a flowed box and in the face part: every exit is covered.
+
+*The horizon.*  A run that reaches a face at a time ``>= H`` (``H`` at or after the requirement window's end) is
+complete over the window: the run is over, no guard needs to be enabled there.  Times are read through a *clock*
+(:func:`clock_offsets`): a state ``x_i`` with ``ẋ_i = 1`` exactly in the mode (a zero row of ``A``, ``c_i = 1``,
+no input on it).  Along a flowpipe ``x_i(τ) − τ = d`` is constant, with ``d <= x_i^entry_hi − τ_entry_lo`` over
+its entry box and entry times; a state reached at a time ``τ < H`` has ``x_i = τ + d < H + d_hi``.  So a face part
+whose ``x_i >= H + d_hi`` everywhere (:func:`reached_late`) holds no state reached before ``H`` and is skipped.
+The building's clock face ``t <= 20``, reached exactly at the 20 s horizon, is no deadlock; the same face reached
+before the horizon still is.  The check is sufficient, not necessary
 (a face part covered only by a union of guards fails it).  A whole-face test (the closed outside of the row lies
 in one guard: the earlier check) accepts a row at once.
 """
@@ -26,7 +35,7 @@ from fractions import Fraction
 from typing import Any
 
 __all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row", "bounded_on",
-           "image_covered", "entry_uncovered"]
+           "image_covered", "entry_uncovered", "clock_offsets", "reached_late"]
 
 Box = list[tuple[Fraction, Fraction]]
 
@@ -43,18 +52,19 @@ class FaceRow:
 
 
 def clip_exact(box: Box, rows: Sequence[Any]) -> Box | None:
-    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty."""
+    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty.
+    Only the coordinates the rows read (non-zero coefficients) are read and changed; the others are returned as
+    given (a caller may leave them ``None``)."""
     out = list(box)
+    sparse = [(h, [(i, ai) for i, ai in enumerate(h.normal) if ai]) for h in rows]  # zero terms change nothing
     for _ in range(2):
-        for h in rows:
-            a, b = h.normal, h.offset
-            mins = [min(ai * lo, ai * hi) for ai, (lo, hi) in zip(a, out)]
-            total = sum(mins, Fraction(0))
+        for h, terms in sparse:
+            b = h.offset
+            mins = {i: min(ai * out[i][0], ai * out[i][1]) for i, ai in terms}
+            total = sum(mins.values(), Fraction(0))
             if total > b:
                 return None
-            for i, ai in enumerate(a):
-                if ai == 0:
-                    continue
+            for i, ai in terms:
                 room = (b - (total - mins[i])) / ai
                 lo, hi = out[i]
                 out[i] = (lo, min(hi, room)) if ai > 0 else (max(lo, room), hi)
@@ -100,16 +110,25 @@ def _whole_face_in(a: Sequence[Fraction], b: Fraction, row: Any) -> bool:
     return lam >= 0 and all(gi == -lam * ai for gi, ai in zip(g, a)) and -lam * b <= e
 
 
-def open_rows(model: Any, mode: str) -> list[Any]:
-    """The rows of a one-polyhedron invariant whose whole closed outside no single guard polyhedron holds (the
-    rows :func:`face_uncovered` must look at); every row of a disjunctive invariant."""
+def open_rows(model: Any, mode: str, inputs: Any = None) -> list[Any]:
+    """The rows of a one-polyhedron invariant whose whole closed outside no single guard polyhedron holds and
+    through which a flow may leave (the rows :func:`face_uncovered` must look at; a row ``a·x <= b`` with
+    ``a·ẋ <= 0`` for every state and input, e.g. the bounds of a constant, is left out: ``a·x`` never increases,
+    :func:`outward_row`); every row of a disjunctive invariant.  ``inputs`` as in :func:`outward_row`."""
     invariant = model.modes[mode].invariant
     rows = [h for poly in invariant for h in poly.halfspaces]
     if len(invariant) != 1:
         return rows
     guards = [poly for t in model.outgoing(mode) for poly in t.guard]
-    return [h for h in rows if not any(all(_whole_face_in(h.normal, h.offset, g) for g in poly.halfspaces)
-                                       for poly in guards)]
+    out = []
+    for h in rows:
+        if any(all(_whole_face_in(h.normal, h.offset, g) for g in poly.halfspaces) for poly in guards):
+            continue
+        row = outward_row(model, mode, h, inputs)
+        if row is not None and not any(row.normal) and row.offset < 0:
+            continue  # never increases: nothing leaves through this face
+        out.append(h)
+    return out
 
 
 def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow | None:
@@ -138,8 +157,31 @@ def outward_row(model: Any, mode: str, row: Any, inputs: Any = None) -> FaceRow 
     return out
 
 
+def clock_offsets(model: Any, mode: str, entry: Box, t_lo: Fraction, inputs: Any = None) -> dict[int, Fraction]:
+    """``{i: d_hi}`` for each clock ``x_i`` of ``mode`` (``ẋ_i = 1`` exactly, no input on it): ``x_i − τ <= d_hi``
+    along a flowpipe entered in ``entry`` (a box holding the entry set) at times ``>= t_lo`` (see the module)."""
+    m = model.modes[mode]
+    if getattr(m, "smooth", None) is not None or m.a is None:
+        return {}
+    out = {}
+    for i, (row, c) in enumerate(zip(m.a, m.c)):
+        if c != 1 or any(row):
+            continue
+        if inputs is not None and any(inputs[0][i]):
+            continue
+        out[i] = entry[i][1] - t_lo
+    return out
+
+
+def reached_late(face: Box, offsets: dict[int, Fraction], horizon: Fraction) -> bool:
+    """Whether every state of ``face`` is reached at a time ``>= horizon`` by the clocks ``offsets``
+    (:func:`clock_offsets`): ``x_i >= horizon + d_hi`` on the whole box for one clock ``x_i``."""
+    return any(face[i][0] >= horizon + d for i, d in offsets.items())
+
+
 def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[Sequence[Any]], Box | None] | None]],
-                   where: Callable[[int], str] | None = None, inputs: Any = None) -> str | None:
+                   where: Callable[[int], str] | None = None, inputs: Any = None,
+                   late: Callable[[int, Box], bool] | None = None) -> str | None:
     """``None`` when every face part of the boxes lies in a guard of ``mode`` (see the module); else the message.
 
     Parameters
@@ -153,6 +195,9 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
         The mode's bounded input (exact), for the flow's direction (:func:`outward_row`).
     where : callable or None
         ``where(i)`` names the ``i``-th box in the message.
+    late : callable or None
+        ``late(i, face)`` true when every state of the ``i``-th box's face part is reached at or after the horizon
+        (:func:`reached_late`): such a part needs no guard (the run is over).
     """
     invariant = model.modes[mode].invariant
     if len(invariant) == 1 and not invariant[0].halfspaces:
@@ -161,7 +206,7 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
         return f"mode {mode!r}: a disjunctive invariant (deadlock freedom at its exits is not checked)"
     rows = list(invariant[0].halfspaces)
     guards = [poly for t in model.outgoing(mode) for poly in t.guard]
-    remaining = open_rows(model, mode)
+    remaining = open_rows(model, mode, inputs)
     if not remaining:
         return None
     outward = {id(h): outward_row(model, mode, h, inputs) for h in remaining}
@@ -177,6 +222,8 @@ def face_uncovered(model: Any, mode: str, parts: Iterable[tuple[Box, Callable[[S
                 tight = narrow(face_rows)
                 face = None if tight is None else _meet(face, tight)
             if face is None or any(_in_on_face(face, poly, h) for poly in guards):
+                continue
+            if late is not None and late(i, face):
                 continue
             place = f" ({where(i)})" if where is not None else ""
             return (f"mode {mode!r}: where the flow may leave the invariant ({h.text or 'a face'}){place}, the states "

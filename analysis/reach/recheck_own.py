@@ -42,10 +42,11 @@ from typing import Any
 
 import numpy as np
 
-from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered, open_rows
+from .deadlock import clip_exact, clock_offsets, entry_uncovered, face_uncovered, image_covered, open_rows, reached_late
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
+from .recheck_modal import ModalTracker, modal_tracker
 from .recheck_sets import FZ, exact_image, tube
 
 __all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS", "INPUT_SPLIT"]
@@ -97,6 +98,7 @@ class _Run:
     inputs: Mapping[str, InputSet]
     end: Fraction
     encl: dict[tuple[str, float], Any] = field(default_factory=dict)
+    modal: dict[tuple[str, float], ModalTracker | None] = field(default_factory=dict)
     margin: Fraction | None = None
     pieces: int = 0
     jumps: int = 0
@@ -432,18 +434,26 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     lo, hi, out = _enter(run, work, where)
     enc, step, terms = _enclosure(run, mode)
     invariant = model.modes[mode].invariant
-    faces = open_rows(model, mode)
+    spec = run.inputs.get(mode)
+    given = None if spec is None else (spec.matrix, spec.low, spec.high)
+    faces = open_rows(model, mode, given)
+    entry = work.box if work.box is not None else _fbox(lo, hi)  # holds the entry set (clock offsets)
     ratio = max(1, round(run.steps[mode] / step))
     limit = None if run.cluster is None else run.cluster * ratio
     clusters: dict[str, list[Any]] = {}
     h, s_gens, s_box = work.start, np.zeros((lo.size, 0)), np.zeros(lo.size)
     p = None if terms is None else terms[0]
+    key = (mode, step)
+    if key not in run.modal:
+        run.modal[key] = modal_tracker(enc.phi[0])
+    tracker = run.modal[key]
+    r = None if tracker is None else tracker.coordinates(h.err)
     k = 0
     fstep = Fraction(step)
     while work.t_lo + k * fstep <= run.end:
         carried = FZ(center=np.zeros(lo.size), gens=s_gens, err=s_box)
         z0 = h.plus(carried) if terms is not None else h
-        h1 = h.mapped(enc.phi, enc.shift)
+        h1, r = _advance(h, enc, tracker, r)
         z1 = h1.plus(carried.mapped(enc.phi, None)) if terms is not None else h1
         piece = tube(z0, z1, enc)
         if terms is not None:
@@ -461,9 +471,9 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
         run.pieces += 1
         _decide(run, mode, clo, chi, piece, t_lo, t_hi, f"{where} step {k}")
         if any(_maybe_above(r, clo, chi) for r in faces):
-            spec = run.inputs.get(mode)
             why = face_uncovered(model, mode, [(_fbox(clo, chi), lambda rows, z=piece: _contract(z, rows))],
-                                 inputs=None if spec is None else (spec.matrix, spec.low, spec.high))
+                                 inputs=given, late=lambda _, face: reached_late(
+                                     face, clock_offsets(model, mode, entry, work.t_lo, given), run.end))
             if why:
                 raise OwnFailure(f"deadlock: {where} step {k} (t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s): {why}")
         for t in model.outgoing(mode):
@@ -481,6 +491,18 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     for t in model.outgoing(mode):
         _cluster(run, clusters, t, None, -1, Fraction(0), Fraction(0), 0, work.depth, where, out, flush=True)
     return out
+
+
+def _advance(h: FZ, enc: ExpEnclosure, tracker: ModalTracker | None, r: np.ndarray | None
+             ) -> tuple[FZ, np.ndarray | None]:
+    """``Φ h + v`` with its error bounded both as a box (``|Φm| |ε| + f``) and, with a tracker, in the modal
+    basis (:mod:`analysis.reach.recheck_modal`): two bounds of the same error, the smaller kept."""
+    if tracker is None or r is None:
+        return h.mapped(enc.phi, enc.shift), None
+    fresh = h.mapped(enc.phi, enc.shift, carry=False)
+    boxed = add_up(fresh.err, nn_up(np.abs(enc.phi[0]), h.err))
+    r1 = tracker.advance(r, fresh.err)
+    return FZ(center=fresh.center, gens=fresh.gens, err=np.minimum(boxed, tracker.box(r1))), r1
 
 
 def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None, k: int, t_lo: Fraction,
@@ -520,10 +542,17 @@ def _clip_invariant(invariant: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[np.
         active = [r for r in poly.halfspaces if _maybe_above(r, lo, hi)]
         if not active:
             return lo, hi
-        got = clip_exact(_fbox(lo, hi), active)
+        # only the coordinates the active rows read are clipped (clip_exact reads no other): exact there
+        support = sorted({i for r in active for i, v in enumerate(r.normal) if v})
+        box: list[Any] = [None] * lo.size
+        for i in support:
+            box[i] = (Fraction(float(lo[i])), Fraction(float(hi[i])))
+        got = clip_exact(box, active)
         if got is None:
             continue
-        glo, ghi = _round_box(got)
+        slo, shi = _round_box([got[i] for i in support])
+        glo, ghi = lo.copy(), hi.copy()
+        glo[support], ghi[support] = slo, shi
         found = (glo, ghi) if found is None else (np.minimum(found[0], glo), np.maximum(found[1], ghi))
     return found
 

@@ -57,11 +57,16 @@ class FZ:
         r = self.radius()
         return down(self.center - r), up(self.center + r)
 
-    def mapped(self, phi: tuple[np.ndarray, np.ndarray], shift: tuple[np.ndarray, np.ndarray] | None) -> "FZ":
-        """``[Φm ± Φr] Z + shift`` (see the module); ``shift`` ``None``: zero."""
+    def mapped(self, phi: tuple[np.ndarray, np.ndarray], shift: tuple[np.ndarray, np.ndarray] | None,
+               carry: bool = True) -> "FZ":
+        """``[Φm ± Φr] Z + shift`` (see the module); ``shift`` ``None``: zero.  ``carry=False`` leaves the mapped error
+        ``Φm ε`` out of the error box, which then holds only the step's fresh error ``f`` (``ε' = Φm ε + f``,
+        bounded elsewhere: :mod:`analysis.reach.recheck_modal`)."""
         pm, pr = phi
         c, rc = point_product(pm, self.center)
-        err = add_up(rc, nn_up(np.abs(pm), self.err), nn_up(pr, self.magnitude()))
+        err = add_up(rc, nn_up(pr, self.magnitude()))
+        if carry:
+            err = add_up(err, nn_up(np.abs(pm), self.err))
         if shift is not None:
             c2 = c + shift[0]
             err = add_up(err, shift[1], up(np.abs(c2) * (2 * U)), TINY)

@@ -31,10 +31,11 @@ import numpy as np
 
 from analysis.verify.verification import Proof
 
+from .autostep import AUTO_NORM_STEPS, auto_choices
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
-from .deadlock import clip_exact, entry_uncovered, face_uncovered, image_covered
+from .deadlock import clip_exact, clock_offsets, entry_uncovered, face_uncovered, image_covered, reached_late
 from .recheck import recheck_flowpipe
 from .result import ReachResult, ReachSegment
 from .zonotope import from_box, round_down, support_bounds
@@ -115,15 +116,13 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
     checked on it rather than on the saved segment's box (which rounding makes a little wider).
     """
     if model is not None:
-        flowed: dict[str, list[Any]] = {}
-        for seg in result.segments:
-            if not seg.entry:
-                flowed.setdefault(seg.mode, []).append(
-                    ([(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)], None))
         given = {mode: ([[Fraction(v) for v in row] for row in b], [Fraction(v) for v in lo], [Fraction(v) for v in hi])
                  for mode, b, lo, hi in result.inputs}
+        flowed, offsets = _flowed(result, model, given, initial)
+        end = Fraction(fragment.end)
         for mode, parts in flowed.items():  # every state leaving an invariant is on a face within a flowed box
-            why = face_uncovered(model, mode, parts, inputs=given.get(mode))
+            why = face_uncovered(model, mode, parts, inputs=given.get(mode),
+                                 late=lambda i, face, m=mode: reached_late(face, offsets[m][i], end))
             if why:
                 return False, math.nan, f"not decided by reachability: {why}"
         for mode, box, pre in _entries(result, model, initial):
@@ -150,6 +149,27 @@ def decide(result: ReachResult, fragment: SafetyFragment, model: Any = None,
         if slack is not None:
             margin = min(margin, slack)
     return True, margin, f"holds on all {len(result.segments)} segments"
+
+
+def _flowed(result: ReachResult, model: Any, given: Mapping[str, Any],
+            initial: Mapping[str, tuple[float, float]] | None
+            ) -> tuple[dict[str, list[Any]], dict[str, list[dict[int, Fraction]]]]:
+    """The flowed boxes per mode (exact) and, for each, the clock offsets of its flowpipe
+    (:func:`analysis.reach.deadlock.clock_offsets`; a flowpipe's segments follow its entry segment; the first
+    entry read on the exact initial box when given, as in :func:`_entries`)."""
+    flowed: dict[str, list[Any]] = {}
+    offsets: dict[str, list[dict[int, Fraction]]] = {}
+    current: dict[int, Fraction] = {}
+    for k, seg in enumerate(result.segments):
+        box = [(Fraction(float(lo)), Fraction(float(hi))) for lo, hi in zip(seg.lo, seg.hi)]
+        if seg.entry:
+            if k == 0 and initial is not None and seg.jumps == 0:
+                box = [(Fraction(float(initial[s][0])), Fraction(float(initial[s][1]))) for s in result.state_names]
+            current = clock_offsets(model, seg.mode, box, Fraction(float(seg.t_lo)), given.get(seg.mode))
+            continue
+        flowed.setdefault(seg.mode, []).append((box, None))
+        offsets.setdefault(seg.mode, []).append(current)
+    return flowed, offsets
 
 
 def _entries(result: ReachResult, model: Any, initial: Mapping[str, tuple[float, float]] | None) -> list[Any]:
@@ -219,8 +239,38 @@ def scaled_fragment(fragment: SafetyFragment, scale: Fraction) -> SafetyFragment
 
 def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
                  mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None,
-                 engine: Mapping[str, Any] | None = None) -> tuple[ReachDecision, Any, float]:
-    """One start mode: the flowpipe, the producer's decision, the re-check (or None) and its seconds."""
+                 engine: Mapping[str, Any] | None = None, kappas: Sequence[float] = ()
+                 ) -> tuple[ReachDecision, Any, float]:
+    """One start mode: the flowpipe, the producer's decision, the re-check (or None) and its seconds.  With
+    ``kappas``, the steps of fast modes are chosen from the dynamics (:mod:`analysis.reach.autostep`), one choice
+    after the other until one is proven and re-checked."""
+    if not kappas:
+        return _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
+    try:
+        model = affine_model(system, nonlinear=True)
+    except Exception:  # noqa: BLE001 - the attempt raises the same error where its callers expect it
+        return _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
+    end = max(fragment.end, 1e-9)
+    outcome = None
+    for kappa, options in auto_choices(model, end, min(step, end), dict(engine or {}), tuple(kappas), MAX_SEGMENTS):
+        outcome = _attempt(system, fragment, initial, mode, step, jumps, cache, options)
+        chosen = {k: v for k, v in options.get("mode_time_steps", {}).items() if k not in (engine or {}).get(
+            "mode_time_steps", {})}
+        if chosen:
+            text = ", ".join(f"{k!r} {v:.4g} s" for k, v in sorted(chosen.items()))
+            cut = f", jump_cluster {options['jump_cluster']}" if "jump_cluster" not in (engine or {}) and \
+                "jump_cluster" in options else ""
+            outcome = (replace(outcome[0], reason=f"{outcome[0].reason} (steps chosen from the dynamics, "
+                                                  f"‖A‖·step <= {kappa:g}: {text}{cut})"), *outcome[1:])
+        if outcome[0].holds and outcome[1] is not None and outcome[1].passed:
+            break
+    return outcome if outcome is not None else _attempt(system, fragment, initial, mode, step, jumps, cache, engine)
+
+
+def _attempt(system: Any, fragment: SafetyFragment, initial: Mapping[str, tuple[float, float]],
+             mode: str | None, step: float, jumps: int, cache: dict[Any, ReachResult] | None,
+             engine: Mapping[str, Any] | None = None) -> tuple[ReachDecision, Any, float]:
+    """One flowpipe with these options, the producer's decision, the re-check (or None) and its seconds."""
     end = max(fragment.end, 1e-9)
     start = time.perf_counter()
     extra = dict(engine or {})
@@ -295,7 +345,8 @@ def reach_proof(system: Any, fragment: SafetyFragment, initial: Mapping[str, tup
     step = default_time_step(end) if time_step is None else time_step * float(scale)
     begin = [(m, {k: (lo, hi) for k, lo, hi in b}) for m, b in starts] if starts else [(initial_mode, dict(initial))]
     modes = [m for m, _ in begin]
-    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache, engine)) for m, b in begin]
+    kappas = AUTO_NORM_STEPS if time_step is None and "mode_time_steps" not in engine else AUTO_NORM_STEPS[:1]
+    runs = [(m, *_decide_mode(system, fragment, b, m, step, jumps, cache, engine, kappas)) for m, b in begin]
     bad = next((r for r in runs if not r[1].holds), None)
     holds = bad is None
     chosen = bad if bad is not None else min(runs, key=lambda r: r[1].margin)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import pytest
@@ -56,7 +58,11 @@ def test_the_building_problem_and_its_published_verdict():
     names = {p.name: (p.low, p.high) for p in problem.parameters}
     assert names["x1_0"] == (0.0002, 0.00025) and names["model.u1_0"] == (0.8, 1.0) and "x11_0" not in names
     assert problem.requirements[0].formula == "always[0, 20.0] not (x25 >= 0.0051)"
-    # ARCH-COMP 2017 AFF: BLDC01-BDS01 safe (x25 <= 0.0051 over 20 s); the runs peak near 0.0035..0.0039
+    # ARCH-COMP 2017 AFF: BLDC01-BDS01 safe (x25 <= 0.0051 over 20 s); the runs peak near 0.0035..0.0039.
+    # The search alone here: the reachability proof takes minutes (proven and re-checked, a heavy test of
+    # tests/analysis/test_spaceex_verdicts.py)
+    assert set(problem.proofs) == {"safe"}
+    problem = dataclasses.replace(problem, proofs={})
     result = assert_verified(problem, budget=2)
     assert result.verdict == "not_falsified"
     assert 0.0051 - 0.0040 <= result.requirement("safe").robustness <= 0.0051 - 0.0030

@@ -163,3 +163,33 @@ def test_the_spacecraft_is_proven_through_verify_with_the_recheck(name):
     own = float(proof.evidence.split("exact margin ")[1].split()[0])
     # the margin is in the units of the atoms (speed, line of sight); both margins are positive lower bounds
     assert proof.margin > 0 and own > 0
+
+
+def test_the_spacecraft_steps_are_chosen_from_its_matrices():
+    from analysis.reach.autostep import AUTO_NORM_STEPS, auto_options, mode_norms
+    from analysis.reach.verdict import MAX_SEGMENTS
+    from analysis.spaceex import spaceex_problem
+
+    proof = spaceex_problem(VISNAV / "SRNA01.xml", VISNAV / "SRNA01.cfg").proofs["safe"]
+    model = affine_model(proof.system)
+    norms = mode_norms(model)
+    for mode, norm in norms.items():  # the row sums of the XML's matrices (numpy), plus the constant's column
+        a = np.array([[float(v) for v in row] for row in model.modes[mode].a])
+        assert norm == pytest.approx(float(np.max(np.sum(np.abs(a), axis=1))) + 1, rel=1e-12)
+    first = auto_options(model, 300.0, 0.3, {}, AUTO_NORM_STEPS[0], MAX_SEGMENTS)
+    assert set(first["mode_time_steps"]) == {"P3"}  # only the fast attempt mode is refused at 0.3 min
+    second = auto_options(model, 300.0, 0.3, {}, AUTO_NORM_STEPS[1], MAX_SEGMENTS)
+    for mode, step in second["mode_time_steps"].items():
+        assert step * norms[mode] <= AUTO_NORM_STEPS[1] * (1 + 1e-12)
+    # a step given by the caller wins
+    given = auto_options(model, 300.0, 0.3, {"mode_time_steps": {"P3": 0.02}}, AUTO_NORM_STEPS[1], MAX_SEGMENTS)
+    assert given["mode_time_steps"]["P3"] == 0.02
+
+
+@pytest.mark.skipif(not HEAVY, reason="about 75 s: set VISNAV_REACH_HEAVY=1 (docs/reachability.md has the figures)")
+def test_the_spacecraft_is_proven_with_default_options():
+    from analysis.spaceex import spaceex_problem
+
+    proof = spaceex_problem(VISNAV / "SRNA01.xml", VISNAV / "SRNA01.cfg").proofs["safe"]()
+    assert proof.proven and proof.rechecked, proof.evidence
+    assert "steps chosen from the dynamics" in proof.evidence

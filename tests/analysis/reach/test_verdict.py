@@ -221,12 +221,12 @@ def test_the_recheck_imports_no_set_code_of_the_engine():
                 todo.append(node.module.split(".")[-1])
     # smooth: the reading of nonlinear flows (no set code); recheck_smooth: the re-check's own nonlinear step;
     # recheck_inputs: the re-check's own bound of bounded inputs; recheck_schedule, recheck_own, recheck_sets,
-    # recheck_interval: the own-set re-check of affine flowpipes; deadlock: the exact face check (boxes);
-    # interval_tape: the re-check's own vectorised interval evaluation (analysis.interval's arithmetic, no code of
-    # the producer)
+    # recheck_interval: the own-set re-check of affine flowpipes; recheck_modal: its own modal error bound;
+    # deadlock: the exact face check (boxes); interval_tape: the re-check's own vectorised interval evaluation
+    # (analysis.interval's arithmetic, no code of the producer)
     assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth",
-                    "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "deadlock",
-                    "interval_tape"}, seen
+                    "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "recheck_modal",
+                    "deadlock", "interval_tape"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
@@ -332,3 +332,54 @@ def test_a_deadlock_of_some_states_before_the_horizon_proves_nothing():
     # far from the face, nothing can deadlock: proven
     far, _ = reach_proof(deadlock().system, _fragment("always[0, 0.5] (x < 5)", ("x",)), {"x": (0.0, 0.4)})
     assert far.proven
+
+
+def test_a_face_reached_only_at_the_horizon_is_no_deadlock():
+    from hybrid.examples import deadlock
+
+    # x' = 1 (x is a clock), invariant x <= 1, no enabled guard: from x0 = 0 the face x = 1 is reached at
+    # exactly t = 1. Over the window [0, 1] the run is complete (it ends at the horizon): proven, re-checked
+    at_end, decision = reach_proof(deadlock().system, _fragment("always[0, 1] (x < 5)", ("x",)), {"x": (0.0, 0.0)})
+    assert at_end.proven, (decision.reason, at_end.evidence)
+    # the same face reached before the window's end (t = 1 < 1.5) is still a possible deadlock
+    before, decision = reach_proof(deadlock().system, _fragment("always[0, 1.5] (x < 5)", ("x",)), {"x": (0.0, 0.0)})
+    assert not before.holds and "deadlock" in decision.reason
+    # x0 in [0, 0.1]: some runs reach x = 1 at t = 0.9 < 1, inside the window: a possible deadlock
+    some, decision = reach_proof(deadlock().system, _fragment("always[0, 1] (x < 5)", ("x",)), {"x": (0.0, 0.1)})
+    assert not some.holds and "deadlock" in decision.reason
+
+
+def test_reached_late_is_exact_at_the_horizon():
+    from fractions import Fraction as F
+
+    from analysis.reach.model import affine_model
+    from analysis.reach.deadlock import clock_offsets, reached_late
+    from hybrid.examples import deadlock
+
+    model = affine_model(deadlock().system)
+    # entered at t in [0.25, ...] with x in [0, 0.5]: x − τ <= 0.5 − 0.25 = 0.25 (exact)
+    offsets = clock_offsets(model, "run", [(F(0), F(1, 2))], F(1, 4))
+    assert offsets == {0: F(1, 4)}
+    face = [(F(1), F(1))]
+    assert reached_late(face, offsets, F(3, 4))                          # x = 1 >= 3/4 + 1/4: at or after 3/4
+    assert not reached_late(face, offsets, F(3, 4) + F(1, 2**60))        # a hair later horizon: maybe before
+    # with an input on the clock's row it is no clock
+    assert clock_offsets(model, "run", [(F(0), F(1, 2))], F(0), ([[F(1)]], [F(0)], [F(1)])) == {}
+
+
+def test_a_fast_mode_gets_its_step_from_the_dynamics():
+    # x' = -5000 (x - 1), ‖A_aug‖ ≈ 5001: a step of 0.001 s has ‖A‖·step ≈ 5 > 4 and used to be refused. Closed
+    # form x(t) = 1 − (1 − x0) e^{−5000 t} <= 1: the true slack of x <= 1.01 is 0.01
+    v = coordinates("x")
+    automaton = HybridAutomaton(name="fast", modes=(Mode(name="run", invariant=v.x <= 10.0),), transitions=(),
+                                variables=("x",), initial_mode="run")
+    system = HybridSystem(automaton=automaton, state_names=("x",), flows={"run": flow_map(-5000.0 * v.x + 5000.0)})
+    fragment = _fragment("always[0, 0.2] (x <= 1.01)", ("x",))
+    proof, decision = reach_proof(system, fragment, {"x": (0.0, 0.5)})
+    # the first choice (‖A‖·step <= 3.9) is too coarse for the first segment; the second (<= 0.4) proves it
+    assert proof.proven, proof.evidence
+    assert "steps chosen from the dynamics, ‖A‖·step <= 0.4" in proof.evidence
+    assert 0 < proof.margin <= 0.01
+    # a step given by the user: only the first choice (the run is no longer refused), which proves nothing here
+    coarse, _ = reach_proof(system, fragment, {"x": (0.0, 0.5)}, time_step=0.001)
+    assert not coarse.holds and "‖A‖·step <= 3.9" in coarse.evidence
