@@ -36,7 +36,7 @@ import numpy as np
 
 from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
-__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "focus", "central_gradient", "guided_search",
+__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "face_moves", "focus", "central_gradient", "guided_search",
            "whitebox_search", "simulations_to_violation"]
 
 START_SHARE = 0.25
@@ -49,6 +49,11 @@ _SIGMA0 = 0.3
 """Initial step of the local search, in unit coordinates."""
 _SIGMA_MIN = 2e-3
 """A local search whose step fell below this restarts from a new space-filling point."""
+_FACES = 2
+"""Face moves (:func:`face_moves`) per chunk of ``guided``'s local search."""
+_FIRST_GROUPS = 2
+"""``guided`` starts its local search after ``_FIRST_GROUPS * (k + 1)`` groups of the space-filling start (then
+alternates a chunk of local search and a group)."""
 _FD_STEP = 2e-3
 """Step of the central differences in unit coordinates."""
 
@@ -148,6 +153,43 @@ def surrogate_minimum(xs: np.ndarray, ys: np.ndarray, low: np.ndarray | None = N
     return out
 
 
+def face_moves(xs: np.ndarray, ys: np.ndarray, x: np.ndarray, low: np.ndarray | None = None,
+               high: np.ndarray | None = None) -> list[np.ndarray]:
+    """Moves of one coordinate of ``x`` (shape ``(k,)``) to a face of the box ``[low, high]`` (default
+    ``[-1, 1]^k``), or halfway to it, in the direction in which a linear model of ``ys`` (shape ``(n,)``) at
+    ``xs`` (shape ``(n, k)``) descends; the largest predicted descent first.
+
+    The model is the least-squares plane (minimum-norm slope, mean removed) through the ``4k + 2`` points
+    nearest ``x`` in the max norm.  Many violations sit on faces of the box (a throttle at its maximum, a
+    brake at zero): a local search whose step is isotropic reaches a face late, a coordinate move reaches it at
+    once.  Empty with fewer than two points or a flat model.
+    """
+    n, k = xs.shape
+    if n < 2 or k == 0:
+        return []
+    low = -np.ones(k) if low is None else low
+    high = np.ones(k) if high is None else high
+    near = np.argsort(np.max(np.abs(xs - x), axis=1), kind="stable")[:4 * k + 2]
+    xn, yn = xs[near], ys[near]
+    g, *_ = np.linalg.lstsq(xn - xn.mean(axis=0), yn - yn.mean(), rcond=None)
+    if not np.all(np.isfinite(g)):
+        return []
+    scale = float(np.max(np.abs(g), initial=0.0))
+    moves = []
+    for i in range(k):
+        if abs(g[i]) <= 1e-9 * scale or scale == 0.0:
+            continue
+        room = (low[i] if g[i] > 0 else high[i]) - x[i]
+        if abs(room) < 1e-9:
+            continue
+        for share in (1.0, 0.5):
+            y = x.copy()
+            y[i] = x[i] + share * room
+            moves.append((float(g[i] * share * room), i, y))
+    moves.sort(key=lambda m: (m[0], m[1]))
+    return [m[2] for m in moves]
+
+
 @dataclass
 class _Book:
     """Per-requirement state of the allocation: lowest robustness at its last choice, the local search."""
@@ -229,9 +271,10 @@ def _start(search: Search, seed: int, falsified: dict, count: int, how: str) -> 
 
 
 def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, falsified: dict, chunk: int,
-              restart: np.ndarray) -> bool:
-    """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first.  Returns whether
-    the step collapsed and ``restart`` was taken as the new centre."""
+              restart: np.ndarray, faces: int = 0) -> bool:
+    """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first, then up to ``faces``
+    moves of one coordinate to a face of the box (:func:`face_moves`).  Returns whether the step collapsed and
+    ``restart`` was taken as the new centre."""
     k = search.problem.dimension
     if book.center is None:
         best = search.lowest(r)
@@ -241,6 +284,9 @@ def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, fal
     xs, ys = _data(search, r, x, 2.0 * book.sigma)
     proposal = surrogate_minimum(xs, ys, np.maximum(x - 2 * book.sigma, -1.0), np.minimum(x + 2 * book.sigma, 1.0))
     candidates = [proposal] if proposal is not None else []
+    if faces:
+        moves = [m for m in face_moves(*_data(search, r), x) if unit_key(tuple(float(v) for v in m)) not in search.seen]
+        candidates.extend(moves[:faces])
     for _ in range(chunk):
         candidates.append(x + book.sigma * rng.standard_normal(k))
     for y in candidates:
@@ -290,6 +336,44 @@ def _allocate(search: Search, seed: int, falsified: dict, step: str, skip: int) 
                 return
 
 
+def _group(search: Search, point: np.ndarray, falsified: dict, books: dict[int, _Book], how: str) -> None:
+    """One group of the space-filling start: the vertex of ``point``'s orthant, two surrogate steps, the point."""
+    _try(search, np.where(point >= 0.0, 1.0, -1.0), "start", falsified, how)
+    _surrogate_step(search, falsified, books, how)
+    _surrogate_step(search, falsified, books, how)
+    if _open(search, falsified):
+        _try(search, point, "start", falsified, how)
+
+
+def _interleave(search: Search, seed: int, falsified: dict, design: np.ndarray, first: int, count: int) -> None:
+    """After ``first`` groups of the start: chunks of local search on the requirement :func:`focus` picks, each
+    followed by the next group of the start until ``count`` groups are done; a collapsed local search restarts
+    from the next point of ``design``."""
+    k = search.problem.dimension
+    books = {r: _Book() for r in range(len(search.problem.requirements))}
+    start_books = {r: _Book() for r in range(len(search.problem.requirements))}
+    rng = np.random.default_rng([int(seed), 7002])
+    cursor, chunk, restarts = first, max(2, k), 0
+    while _open(search, falsified) and search.used < search.budget:
+        r = focus(search, _open(search, falsified), books)
+        _, ys = _data(search, r)
+        books[r].last_best = float(ys.min()) if ys.size else math.inf
+        before = search.used
+        restart = design[cursor % len(design)]
+        collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart, faces=_FACES)
+        stuck = search.used == before and not collapsed  # nothing new to simulate near this centre
+        if stuck:
+            books[r].center, books[r].sigma = tuple(float(v) for v in restart), _SIGMA0
+        if collapsed or stuck:
+            cursor, restarts = cursor + 1, restarts + 1
+            _try(search, restart, "start", falsified, "space-filling restart")
+            if restarts > 4 * len(design):
+                return
+        if cursor < count and _open(search, falsified):
+            _group(search, design[cursor], falsified, start_books, "space-filling start")
+            cursor += 1
+
+
 def guided_search(search: Search, seed: int, falsified: dict) -> None:
     """The ``guided`` method after the nominal point (module docstring); fills ``falsified``
     (requirement index -> (unit point, how found)).  Stops at the budget or when every requirement is
@@ -298,9 +382,15 @@ def guided_search(search: Search, seed: int, falsified: dict) -> None:
     if k == 0 or not _open(search, falsified):
         return
     count = max(2 * k + 2, round(START_SHARE * search.budget / 2))
+    first = min(count, _FIRST_GROUPS * (k + 1))
+    design = space_filling(k, count + 64, seed)
+    books = {r: _Book() for r in range(len(search.problem.requirements))}
     try:
-        used = _start(search, seed, falsified, count, "space-filling start")
-        _allocate(search, seed, falsified, "es", used)
+        for i in range(first):
+            if not _open(search, falsified):
+                return
+            _group(search, design[i], falsified, books, "space-filling start")
+        _interleave(search, seed, falsified, design, first, count)
     except BudgetExhausted:
         pass
 

@@ -105,37 +105,67 @@ def follower(mode: str, y: float, v: float, s: float, keeping_sign: float) -> tu
     return y - v * (1.0 - decay), v * decay
 
 
-def _advance(state: list[tuple[float, float]], modes: list[str], u: float, b: float, s: float,
-             sign: float) -> list[tuple[float, float]]:
-    first = lead(state[0][0], state[0][1], u, b, s)
-    return [first] + [follower(modes[i], state[i][0], state[i][1], s, sign) for i in range(1, CARS)]
+_CHASING, _KEEPING, _BRAKING = 0, 1, 2
+_GUARD_TABLE = tuple(tuple((kind == "le", threshold, MODES.index(target)) for kind, threshold, target in _GUARDS[m])
+                     for m in MODES)
+"""``_GUARDS`` by mode index: ``(is d <= c, c, next mode index)``."""
 
 
-def _fires(kind: str, gap: float, threshold: float) -> bool:
-    return gap <= threshold if kind == "le" else gap >= threshold
+def _advance(ys: list[float], vs: list[float], modes: list[int], u: float, b: float, s: float,
+             sign: float) -> tuple[list[float], list[float]]:
+    """Positions and speeds of the five cars after ``s`` seconds in their modes (closed forms of :func:`lead`
+    and :func:`follower`, written out: this is the simulation's inner loop)."""
+    x = b * s
+    p1, p2 = _phi1(x), _phi2(x)
+    ny = [ys[0] + vs[0] * s * p1 - u * s * s * p2]
+    nv = [vs[0] * math.exp(-x) - u * s * p1]
+    decay = None
+    for i in range(1, CARS):
+        mode, y, v = modes[i], ys[i], vs[i]
+        if mode == _CHASING:
+            ny.append(y - v * s - s * s / 2)
+            nv.append(v + s)
+        elif mode == _KEEPING:
+            ny.append(y + sign * v * s)
+            nv.append(v)
+        else:
+            if decay is None:
+                decay = math.exp(-s)
+            ny.append(y - v * (1.0 - decay))
+            nv.append(v * decay)
+    return ny, nv
 
 
-def _switch(state: list[tuple[float, float]], modes: list[str]) -> bool:
+def _position(j: int, ys: list[float], vs: list[float], modes: list[int], u: float, b: float, s: float,
+              sign: float) -> float:
+    """Position of car ``j`` after ``s`` seconds (as :func:`_advance`)."""
+    y, v = ys[j], vs[j]
+    if j == 0:
+        x = b * s
+        return y + v * s * _phi1(x) - u * s * s * _phi2(x)
+    mode = modes[j]
+    if mode == _CHASING:
+        return y - v * s - s * s / 2
+    if mode == _KEEPING:
+        return y + sign * v * s
+    return y - v * (1.0 - math.exp(-s))
+
+
+def _switch(ys: list[float], modes: list[int]) -> bool:
     """Take every enabled transition (in car order, chains at one instant allowed); whether any was taken."""
     taken = False
     for _ in range(3):  # no guard of a mode's successor is enabled by the same gap twice: chains have length <= 2
         changed = False
         for i in range(1, CARS):
-            gap = state[i][0] - state[i - 1][0]
-            for kind, threshold, target in _GUARDS[modes[i]]:
-                if _fires(kind, gap, threshold):
+            gap = ys[i] - ys[i - 1]
+            for le, threshold, target in _GUARD_TABLE[modes[i]]:
+                if (gap <= threshold) if le else (gap >= threshold):
                     modes[i], changed = target, True
                     break
         taken |= changed
         if not changed:
             break
     return taken
-
-
-def _gap(state, modes, u, b, i, s, sign) -> float:
-    """``y_i - y_{i-1}`` after ``s`` seconds in the current modes."""
-    ahead = lead(*state[0], u, b, s) if i == 1 else follower(modes[i - 1], *state[i - 1], s, sign)
-    return follower(modes[i], *state[i], s, sign)[0] - ahead[0]
 
 
 def _crossing(g, lo: float, hi: float, g_lo: float, g_hi: float) -> float:
@@ -163,22 +193,24 @@ def _crossing(g, lo: float, hi: float, g_lo: float, g_hi: float) -> float:
     return hi
 
 
-def _first_event(state, modes, u, b, h, sign, end) -> float | None:
-    """The earliest guard crossing in ``(0, h]`` seen at the step's end state ``end``, located on the closed form.
+def _first_event(ys, vs, modes, u, b, h, sign, end_ys) -> float | None:
+    """The earliest guard crossing in ``(0, h]`` seen at the step's end positions ``end_ys``, located on the
+    closed form.
 
     A guard ``d <= c`` is the root of ``c - d``, ``d >= c`` of ``d - c``: negative before, non-negative at the end.
     ``None`` when no guard holds at the end.
     """
     best = None
     for i in range(1, CARS):
-        gap_end = end[i][0] - end[i - 1][0]
-        for kind, threshold, _ in _GUARDS[modes[i]]:
-            if not _fires(kind, gap_end, threshold):
+        gap_end = end_ys[i] - end_ys[i - 1]
+        for le, threshold, _ in _GUARD_TABLE[modes[i]]:
+            if not ((gap_end <= threshold) if le else (gap_end >= threshold)):
                 continue
-            sense = 1.0 if kind == "ge" else -1.0
+            sense = -1.0 if le else 1.0
 
             def g(s, i=i, threshold=threshold, sense=sense):
-                return sense * (_gap(state, modes, u, b, i, s, sign) - threshold)
+                gap = _position(i, ys, vs, modes, u, b, s, sign) - _position(i - 1, ys, vs, modes, u, b, s, sign)
+                return sense * (gap - threshold)
 
             tau = _crossing(g, 0.0, h, g(0.0), sense * (gap_end - threshold))
             best = tau if best is None else min(best, tau)
@@ -198,29 +230,30 @@ def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HO
     grid = np.unique(np.round(np.concatenate((np.arange(0.0, horizon + 1e-9, SAMPLE), throttle.starts,
                                               brake.starts, [horizon])), 9))
     grid = grid[grid <= horizon]
-    state = [(10.0 * i, 0.0) for i in range(CARS)]
-    modes = ["lead"] + ["keeping"] * (CARS - 1)
-    times, states, mode_log = [0.0], [list(state)], [tuple(modes[1:])]
-    us, bs = throttle.at(grid[:-1]).tolist(), brake.at(grid[:-1]).tolist()
-    for k in range(grid.size - 1):
-        t, end, u, b = float(grid[k]), float(grid[k + 1]), us[k], bs[k]
+    ys, vs = [10.0 * i for i in range(CARS)], [0.0] * CARS
+    modes = [-1] + [_KEEPING] * (CARS - 1)
+    times, rows, mode_log = [0.0], [ys + vs], [tuple(modes[1:])]
+    sign = float(keeping_sign)
+    points, us, bs = grid.tolist(), throttle.at(grid[:-1]).tolist(), brake.at(grid[:-1]).tolist()
+    for k in range(len(points) - 1):
+        t, end, u, b = points[k], points[k + 1], us[k], bs[k]
         while t < end:
-            reached = _advance(state, modes, u, b, end - t, keeping_sign)
-            tau = _first_event(state, modes, u, b, end - t, keeping_sign, reached)
+            reached_y, reached_v = _advance(ys, vs, modes, u, b, end - t, sign)
+            tau = _first_event(ys, vs, modes, u, b, end - t, sign, reached_y)
             if tau is None or t + tau >= end:
-                state, t = reached, end
+                ys, vs, t = reached_y, reached_v, end
             else:
-                state, t = _advance(state, modes, u, b, tau, keeping_sign), t + tau
-            _switch(state, modes)
+                (ys, vs), t = _advance(ys, vs, modes, u, b, tau, sign), t + tau
+            _switch(ys, modes)
             if t > times[-1]:
-                times.append(t), states.append(list(state)), mode_log.append(tuple(modes[1:]))
+                times.append(t), rows.append(ys + vs), mode_log.append(tuple(modes[1:]))
             else:  # an event at the sample's time: the sample shows the modes after it
-                states[-1], mode_log[-1] = list(state), tuple(modes[1:])
-    arr = np.asarray(states)
+                rows[-1], mode_log[-1] = ys + vs, tuple(modes[1:])
+    arr = np.asarray(rows)
     out = {"time": np.asarray(times)}
     for i in range(CARS):
-        out[f"y{i + 1}"], out[f"v{i + 1}"] = arr[:, i, 0], arr[:, i, 1]
-    out["modes"] = tuple(mode_log)
+        out[f"y{i + 1}"], out[f"v{i + 1}"] = arr[:, i], arr[:, CARS + i]
+    out["modes"] = tuple(tuple(MODES[m] for m in row) for row in mode_log)
     return out
 
 
