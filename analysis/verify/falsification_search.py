@@ -36,7 +36,7 @@ import numpy as np
 
 from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
-__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "face_moves", "focus", "central_gradient", "guided_search",
+__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "physical_vertex", "focus", "central_gradient", "guided_search",
            "whitebox_search", "simulations_to_violation"]
 
 START_SHARE = 0.25
@@ -49,8 +49,8 @@ _SIGMA0 = 0.3
 """Initial step of the local search, in unit coordinates."""
 _SIGMA_MIN = 2e-3
 """A local search whose step fell below this restarts from a new space-filling point."""
-_FACES = 2
-"""Face moves (:func:`face_moves`) per chunk of ``guided``'s local search."""
+_FACE_SHARE = 0.5
+"""Coordinate moves per chunk of ``guided``'s local search, per coordinate of the box (at least 2)."""
 _FIRST_GROUPS = 2
 """``guided`` starts its local search after ``_FIRST_GROUPS * (k + 1)`` groups of the space-filling start (then
 alternates a chunk of local search and a group)."""
@@ -153,43 +153,6 @@ def surrogate_minimum(xs: np.ndarray, ys: np.ndarray, low: np.ndarray | None = N
     return out
 
 
-def face_moves(xs: np.ndarray, ys: np.ndarray, x: np.ndarray, low: np.ndarray | None = None,
-               high: np.ndarray | None = None) -> list[np.ndarray]:
-    """Moves of one coordinate of ``x`` (shape ``(k,)``) to a face of the box ``[low, high]`` (default
-    ``[-1, 1]^k``), or halfway to it, in the direction in which a linear model of ``ys`` (shape ``(n,)``) at
-    ``xs`` (shape ``(n, k)``) descends; the largest predicted descent first.
-
-    The model is the least-squares plane (minimum-norm slope, mean removed) through the ``4k + 2`` points
-    nearest ``x`` in the max norm.  Many violations sit on faces of the box (a throttle at its maximum, a
-    brake at zero): a local search whose step is isotropic reaches a face late, a coordinate move reaches it at
-    once.  Empty with fewer than two points or a flat model.
-    """
-    n, k = xs.shape
-    if n < 2 or k == 0:
-        return []
-    low = -np.ones(k) if low is None else low
-    high = np.ones(k) if high is None else high
-    near = np.argsort(np.max(np.abs(xs - x), axis=1), kind="stable")[:4 * k + 2]
-    xn, yn = xs[near], ys[near]
-    g, *_ = np.linalg.lstsq(xn - xn.mean(axis=0), yn - yn.mean(), rcond=None)
-    if not np.all(np.isfinite(g)):
-        return []
-    scale = float(np.max(np.abs(g), initial=0.0))
-    moves = []
-    for i in range(k):
-        if abs(g[i]) <= 1e-9 * scale or scale == 0.0:
-            continue
-        room = (low[i] if g[i] > 0 else high[i]) - x[i]
-        if abs(room) < 1e-9:
-            continue
-        for share in (1.0, 0.5):
-            y = x.copy()
-            y[i] = x[i] + share * room
-            moves.append((float(g[i] * share * room), i, y))
-    moves.sort(key=lambda m: (m[0], m[1]))
-    return [m[2] for m in moves]
-
-
 @dataclass
 class _Book:
     """Per-requirement state of the allocation: lowest robustness at its last choice, the local search."""
@@ -198,6 +161,11 @@ class _Book:
     center: tuple[float, ...] | None = None
     sigma: float = _SIGMA0
     fails: int = 0
+    deltas: np.ndarray | None = None
+    directions: np.ndarray | None = None
+    flipped: np.ndarray | None = None
+    cursor: int = 0
+    fold: np.ndarray | None = None
 
 
 def focus(search: Search, open_: Sequence[int], books: dict[int, _Book]) -> int:
@@ -270,6 +238,72 @@ def _start(search: Search, seed: int, falsified: dict, count: int, how: str) -> 
     return used
 
 
+def _coordinates(search: Search, r: int, book: _Book, x: np.ndarray, count: int) -> list[int]:
+    """The next ``count`` coordinates of the compass search (round robin over those whose step is not spent).
+
+    Each coordinate has its own step (first 2: the whole box, so the move ends on a face) and direction
+    (first where the linear model of :func:`face_moves` descends); a failed move turns the direction, a
+    failure both ways halves the step."""
+    k = x.size
+    if book.deltas is None:
+        xs, ys = _data(search, r)
+        near = np.argsort(np.max(np.abs(xs - x), axis=1), kind="stable")[:4 * k + 2] if len(xs) else []
+        book.fold = folded(search.problem)
+        g = np.zeros(k)
+        if len(near) >= 2:
+            zs = np.where(book.fold, np.abs(xs[near]), xs[near])  # a folded coordinate's value grows with |u|
+            g, *_ = np.linalg.lstsq(zs - zs.mean(axis=0), ys[near] - ys[near].mean(), rcond=None)
+        book.deltas, book.flipped = np.full(k, 2.0), np.zeros(k, dtype=bool)
+        book.directions = np.where(np.isfinite(g) & (g > 0), -1.0, 1.0)
+    out: list[int] = []
+    for _ in range(k):
+        if len(out) == count:
+            break
+        i = book.cursor % k
+        book.cursor += 1
+        if book.deltas[i] >= _SIGMA_MIN:
+            out.append(i)
+    return out
+
+
+def folded(problem: Any) -> np.ndarray:
+    """Which coordinates are folded, shape ``(k,)``: a parameter whose nominal value is an end of its interval
+    maps ``u`` and ``-u`` to the same value (:meth:`~analysis.verify.verification.Parameter.at`), so its low end
+    is ``u = 0`` and ``u = ±1`` is its high end."""
+    return np.array([p.high > p.low and (p.nominal == p.low or p.nominal == p.high) for p in problem.parameters],
+                    dtype=bool)
+
+
+def physical_vertex(point: np.ndarray, fold: np.ndarray) -> np.ndarray:
+    """The vertex of the box (in the parameters' values) nearest ``point`` (shape ``(k,)``), in unit coordinates:
+    ``±1`` by the sign of a coordinate, and for a folded one (:func:`folded`) ``0`` (its nominal end) when
+    ``|u| < 1/2``, its sign otherwise."""
+    signs = np.where(point >= 0.0, 1.0, -1.0)
+    return np.where(fold, np.where(np.abs(point) < 0.5, 0.0, signs), signs)
+
+
+def _coordinate_move(search: Search, book: _Book, x: np.ndarray, i: int) -> np.ndarray:
+    """``x`` with coordinate ``i`` moved by its step in its direction, clipped to the box; a folded coordinate
+    moves in ``|u|`` (its value is monotone in ``|u|``), keeping its sign."""
+    y = x.copy()
+    if book.fold is not None and book.fold[i]:
+        sign = -1.0 if x[i] < 0 else 1.0
+        y[i] = sign * float(np.clip(abs(x[i]) + book.directions[i] * book.deltas[i], 0.0, 1.0))
+    else:
+        y[i] = float(np.clip(x[i] + book.directions[i] * book.deltas[i], -1.0, 1.0))
+    return y
+
+
+def _coordinate_outcome(book: _Book, i: int, better: bool) -> None:
+    """Update coordinate ``i``'s step and direction after its move (success: kept; failure: turn, then halve)."""
+    if better:
+        book.flipped[i] = False
+    elif not book.flipped[i]:
+        book.directions[i], book.flipped[i] = -book.directions[i], True
+    else:
+        book.deltas[i], book.flipped[i] = book.deltas[i] / 2.0, False
+
+
 def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, falsified: dict, chunk: int,
               restart: np.ndarray, faces: int = 0) -> bool:
     """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first, then up to ``faces``
@@ -283,25 +317,31 @@ def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, fal
     fx = _rho(search.evaluations[search.seen[book.center]], r) if book.center in search.seen else None
     xs, ys = _data(search, r, x, 2.0 * book.sigma)
     proposal = surrogate_minimum(xs, ys, np.maximum(x - 2 * book.sigma, -1.0), np.minimum(x + 2 * book.sigma, 1.0))
-    candidates = [proposal] if proposal is not None else []
+    candidates = [("surrogate", proposal)] if proposal is not None else []
     if faces:
-        moves = [m for m in face_moves(*_data(search, r), x) if unit_key(tuple(float(v) for v in m)) not in search.seen]
-        candidates.extend(moves[:faces])
-    for _ in range(chunk):
-        candidates.append(x + book.sigma * rng.standard_normal(k))
-    for y in candidates:
+        candidates.extend(("face", i) for i in _coordinates(search, r, book, x, faces))
+    candidates.extend(("step", None) for _ in range(chunk))
+    for kind, y in candidates:
         if r in falsified:
             return False
+        if kind == "face":  # a move of one coordinate by its own step, towards a face
+            i, y = y, _coordinate_move(search, book, x, y)
+        elif y is None:  # a step of the (1+1)-ES from the current centre, with the current step size
+            y = x + book.sigma * rng.standard_normal(k)
         e = _try(search, y, "local", falsified, "local search")
         fy = _rho(e, r)
-        if fy is not None and (fx is None or fy < fx):
+        better = fy is not None and (fx is None or fy < fx)
+        if better:
             x, fx = np.array(e.unit), fy
+        if kind == "face":  # a coordinate move says nothing about the step size of the ES
+            _coordinate_outcome(book, i, better)
+        elif better:
             book.sigma = min(1.0, book.sigma * 1.5)
         else:
             book.sigma *= 0.9
     book.center = tuple(float(v) for v in x)
     if book.sigma < _SIGMA_MIN:
-        book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
+        book.center, book.sigma, book.deltas = tuple(float(v) for v in restart), _SIGMA0, None
         return True
     return False
 
@@ -337,8 +377,9 @@ def _allocate(search: Search, seed: int, falsified: dict, step: str, skip: int) 
 
 
 def _group(search: Search, point: np.ndarray, falsified: dict, books: dict[int, _Book], how: str) -> None:
-    """One group of the space-filling start: the vertex of ``point``'s orthant, two surrogate steps, the point."""
-    _try(search, np.where(point >= 0.0, 1.0, -1.0), "start", falsified, how)
+    """One group of the space-filling start: the vertex nearest ``point`` (:func:`physical_vertex`), two surrogate
+    steps, the point."""
+    _try(search, physical_vertex(point, folded(search.problem)), "start", falsified, how)
     _surrogate_step(search, falsified, books, how)
     _surrogate_step(search, falsified, books, how)
     if _open(search, falsified):
@@ -360,10 +401,10 @@ def _interleave(search: Search, seed: int, falsified: dict, design: np.ndarray, 
         books[r].last_best = float(ys.min()) if ys.size else math.inf
         before = search.used
         restart = design[cursor % len(design)]
-        collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart, faces=_FACES)
+        collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart, faces=max(2, round(_FACE_SHARE * k)))
         stuck = search.used == before and not collapsed  # nothing new to simulate near this centre
         if stuck:
-            books[r].center, books[r].sigma = tuple(float(v) for v in restart), _SIGMA0
+            books[r].center, books[r].sigma, books[r].deltas = tuple(float(v) for v in restart), _SIGMA0, None
         if collapsed or stuck:
             cursor, restarts = cursor + 1, restarts + 1
             _try(search, restart, "start", falsified, "space-filling restart")
