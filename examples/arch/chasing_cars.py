@@ -240,11 +240,14 @@ def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HO
         while t < end:
             reached_y, reached_v = _advance(ys, vs, modes, u, b, end - t, sign)
             tau = _first_event(ys, vs, modes, u, b, end - t, sign, reached_y)
-            if tau is None or t + tau >= end:
+            if tau is None:  # no guard holds at the step's end: nothing to switch there
                 ys, vs, t = reached_y, reached_v, end
             else:
-                (ys, vs), t = _advance(ys, vs, modes, u, b, tau, sign), t + tau
-            _switch(ys, modes)
+                if t + tau >= end:
+                    ys, vs, t = reached_y, reached_v, end
+                else:
+                    (ys, vs), t = _advance(ys, vs, modes, u, b, tau, sign), t + tau
+                _switch(ys, modes)
             if t > times[-1]:
                 times.append(t), rows.append(ys + vs), mode_log.append(tuple(modes[1:]))
             else:  # an event at the sample's time: the sample shows the modes after it
