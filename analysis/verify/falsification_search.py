@@ -4,21 +4,30 @@ Both work in unit coordinates ``u ∈ [-1, 1]^k`` on a :class:`analysis.verify.f
 the cache, the journal's evaluations) and share one design:
 
 1. **Space-filling start**: a scrambled Sobol sequence (:func:`space_filling`, seeded by the search's
-   seed) after the nominal point, interleaved from the third point on with **surrogate steps**: a
-   least-squares model of each requirement's robustness (linear, then with diagonal quadratic terms
-   once there are enough points, weighted towards the lowest robustness seen) minimised over the box
-   in closed form (it is separable), so that a violation at a face or corner of the box, where a
+   seed) after the nominal point, in groups: the vertex of the box nearest the Sobol point
+   (:func:`physical_vertex`: nearest in the parameters' values, so a folded coordinate, whose nominal
+   value is an end of its interval, takes that end too), two **surrogate steps**, the point.  A
+   surrogate step is a least-squares model of the robustness (linear, then with diagonal quadratic
+   terms once there are enough points, weighted towards the lowest robustness seen) minimised over the
+   box in closed form (it is separable), so that a violation at a face or corner of the box, where a
    monotone defect puts it, is tried after a handful of simulations.
 2. **Adaptive allocation** (:func:`focus`): the budget goes in chunks to the requirement still holding
    whose lowest robustness is lowest relative to the spread of its values (robustness of different
    requirements has different units), with a bonus for a requirement whose lowest value fell in its
    last chunk (decreasing).
-3. **Local search** on the chosen requirement: ``guided`` runs a (1+1) evolution strategy with the 1/5
-   success rule (a CMA-ES without covariance: step size adapted, isotropic in unit coordinates), a
-   surrogate step fitted to the points near its centre at every chunk, and a restart from the next
-   space-filling point when the step has collapsed; ``whitebox`` runs projected gradient descent with
-   an Armijo backtracking line search, the gradient of the robustness by central finite differences
-   (:func:`central_gradient`, ``2k`` simulations per gradient, one batch) and restarts the same way.
+3. **Local search** on the chosen requirement: ``guided`` starts it after ``2 (k + 1)`` groups of the
+   start and then alternates a chunk of it with one more group, until the start's share of the budget
+   is spent.  A chunk is a local surrogate step (fitted to the points near the centre), ``k / 2``
+   **coordinate moves** (a compass search: each coordinate has its own step, first the whole box so
+   that the move ends on a face, its direction first where a local linear model descends; a failure
+   turns the direction, a failure both ways halves the step; a folded coordinate moves in ``|u|``)
+   and ``k`` steps of a (1+1) evolution strategy with the 1/5 success rule (step size adapted,
+   isotropic in unit coordinates), restarted from the next space-filling point when its step has
+   collapsed.  Many ARCH-COMP violations sit on faces of the box (full throttle, no brake on some
+   segments) where an isotropic step arrives late.  ``whitebox`` runs the whole start first, then
+   projected gradient descent with an Armijo backtracking line search, the gradient of the robustness
+   by central finite differences (:func:`central_gradient`, ``2k`` simulations per gradient, one
+   batch) and restarts the same way.
 
 Every simulation evaluates every requirement, so points spent on one requirement serve the others,
 and a violation of any requirement still holding is recorded at once.  The same seed gives the same
