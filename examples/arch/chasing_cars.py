@@ -136,19 +136,18 @@ def _advance(ys: list[float], vs: list[float], modes: list[int], u: float, b: fl
     return ny, nv
 
 
-def _position(j: int, ys: list[float], vs: list[float], modes: list[int], u: float, b: float, s: float,
-              sign: float) -> float:
-    """Position of car ``j`` after ``s`` seconds (as :func:`_advance`)."""
+def _position_of(j: int, ys: list[float], vs: list[float], modes: list[int], u: float, b: float, sign: float):
+    """Position of car ``j`` as a function of the time ``s`` spent in its mode (the closed forms of
+    :func:`_advance`, the same operations in the same order)."""
     y, v = ys[j], vs[j]
     if j == 0:
-        x = b * s
-        return y + v * s * _phi1(x) - u * s * s * _phi2(x)
+        return lambda s: y + v * s * _phi1(b * s) - u * s * s * _phi2(b * s)
     mode = modes[j]
     if mode == _CHASING:
-        return y - v * s - s * s / 2
+        return lambda s: y - v * s - s * s / 2
     if mode == _KEEPING:
-        return y + sign * v * s
-    return y - v * (1.0 - math.exp(-s))
+        return lambda s: y + sign * v * s
+    return lambda s: y - v * (1.0 - math.exp(-s))
 
 
 def _switch(ys: list[float], modes: list[int]) -> bool:
@@ -207,10 +206,10 @@ def _first_event(ys, vs, modes, u, b, h, sign, end_ys) -> float | None:
             if not ((gap_end <= threshold) if le else (gap_end >= threshold)):
                 continue
             sense = -1.0 if le else 1.0
+            mine, ahead = _position_of(i, ys, vs, modes, u, b, sign), _position_of(i - 1, ys, vs, modes, u, b, sign)
 
-            def g(s, i=i, threshold=threshold, sense=sense):
-                gap = _position(i, ys, vs, modes, u, b, s, sign) - _position(i - 1, ys, vs, modes, u, b, s, sign)
-                return sense * (gap - threshold)
+            def g(s, mine=mine, ahead=ahead, threshold=threshold, sense=sense):
+                return sense * (mine(s) - ahead(s) - threshold)
 
             tau = _crossing(g, 0.0, h, g(0.0), sense * (gap_end - threshold))
             best = tau if best is None else min(best, tau)
