@@ -22,7 +22,7 @@ closed-form ones of :mod:`analysis.planted`.
 psy-taliro (package ``staliro``, 3.2.0) is imported from the path when present (``.peers``, README "Benchmarks"): our
 problem is wrapped as its cost function (the same simulator, the same box in physical units, the same
 budget and seed; its optimizer is its own ``DualAnnealing``, generalised simulated annealing without
-local search, stopped at the first negative cost).  Absent, its column says so.
+local search, stopped at the first violating simulation, as ours are).  Absent, its column says so.
 
 Every finished run is appended to ``--results`` (JSON lines, default ``out/bench_fals/results.jsonl``):
 a second invocation with the same options resumes, running only what is missing.  ``--quick`` (three
@@ -121,19 +121,25 @@ def _psy_taliro(problem: Any, seed: int, budget: int) -> int | None:
 
     from analysis.verify.falsification import evaluate
 
+    count = [0]
+
     def cost(inputs: Any) -> Any:
         unit = tuple(p.unit_of(float(inputs.static[p.name])) for p in problem.parameters)
         outcome = evaluate(problem, tuple(max(-1.0, min(1.0, u)) for u in unit))
+        count[0] += 1
+        if outcome.evaluated and outcome.satisfied[0] is False:
+            # stop at the first violating simulation: its robustness may be exactly 0 (AT5x's gear atoms), which
+            # psy-taliro's min_cost (a strict "cost < 0") does not stop at
+            raise FirstViolation
         rho = outcome.robustness[0] if outcome.evaluated else 1e300
-        return staliro.Result(value=float(min(1e300, max(-1e300, rho))),
-                              extra=bool(outcome.evaluated and outcome.satisfied[0] is False))
+        return staliro.Result(value=float(min(1e300, max(-1e300, rho))), extra=False)
 
     bounds = {p.name: (p.low, p.high) if p.high > p.low else (p.low, p.low + 1e-12) for p in problem.parameters}
     options = staliro.TestOptions(static_inputs=bounds, iterations=budget, runs=1, seed=seed + 1)  # its seeds are > 0
-    runs = staliro.staliro(staliro.costfunc(cost), DualAnnealing(min_cost=0.0), options)
-    for index, evaluation in enumerate(runs[0].evaluations):
-        if evaluation.extra:
-            return index + 1
+    try:
+        staliro.staliro(staliro.costfunc(cost), DualAnnealing(min_cost=0.0), options)
+    except FirstViolation:
+        return count[0]
     return None
 
 
