@@ -45,8 +45,8 @@ import numpy as np
 
 from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
-__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "physical_vertex", "focus", "central_gradient", "guided_search",
-           "whitebox_search", "simulations_to_violation"]
+__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "folded", "physical_vertex", "focus", "central_gradient",
+           "guided_search", "whitebox_search", "simulations_to_violation"]
 
 START_SHARE = 0.25
 """The space-filling start of ``guided`` has ``max(2k + 2, START_SHARE * budget / 2)`` Sobol points, each with its
@@ -251,8 +251,8 @@ def _coordinates(search: Search, r: int, book: _Book, x: np.ndarray, count: int)
     """The next ``count`` coordinates of the compass search (round robin over those whose step is not spent).
 
     Each coordinate has its own step (first 2: the whole box, so the move ends on a face) and direction
-    (first where the linear model of :func:`face_moves` descends); a failed move turns the direction, a
-    failure both ways halves the step."""
+    (first where a least-squares plane through the ``4k + 2`` points nearest ``x`` descends, a folded
+    coordinate read as ``|u|``); a failed move turns the direction, a failure both ways halves the step."""
     k = x.size
     if book.deltas is None:
         xs, ys = _data(search, r)
@@ -291,7 +291,7 @@ def physical_vertex(point: np.ndarray, fold: np.ndarray) -> np.ndarray:
     return np.where(fold, np.where(np.abs(point) < 0.5, 0.0, signs), signs)
 
 
-def _coordinate_move(search: Search, book: _Book, x: np.ndarray, i: int) -> np.ndarray:
+def _coordinate_move(book: _Book, x: np.ndarray, i: int) -> np.ndarray:
     """``x`` with coordinate ``i`` moved by its step in its direction, clipped to the box; a folded coordinate
     moves in ``|u|`` (its value is monotone in ``|u|``), keeping its sign."""
     y = x.copy()
@@ -315,9 +315,9 @@ def _coordinate_outcome(book: _Book, i: int, better: bool) -> None:
 
 def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, falsified: dict, chunk: int,
               restart: np.ndarray, faces: int = 0) -> bool:
-    """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first, then up to ``faces``
-    moves of one coordinate to a face of the box (:func:`face_moves`).  Returns whether the step collapsed and
-    ``restart`` was taken as the new centre."""
+    """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first, then ``faces`` moves
+    of single coordinates (the compass search of :func:`_coordinates`, towards the faces of the box).  Returns
+    whether the step collapsed and ``restart`` was taken as the new centre."""
     k = search.problem.dimension
     if book.center is None:
         best = search.lowest(r)
@@ -334,7 +334,7 @@ def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, fal
         if r in falsified:
             return False
         if kind == "face":  # a move of one coordinate by its own step, towards a face
-            i, y = y, _coordinate_move(search, book, x, y)
+            i, y = y, _coordinate_move(book, x, y)
         elif y is None:  # a step of the (1+1)-ES from the current centre, with the current step size
             y = x + book.sigma * rng.standard_normal(k)
         e = _try(search, y, "local", falsified, "local search")
