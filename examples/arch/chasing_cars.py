@@ -109,6 +109,10 @@ _CHASING, _KEEPING, _BRAKING = 0, 1, 2
 _GUARD_TABLE = tuple(tuple((kind == "le", threshold, MODES.index(target)) for kind, threshold, target in _GUARDS[m])
                      for m in MODES)
 """``_GUARDS`` by mode index: ``(is d <= c, c, next mode index)``."""
+_BAND = tuple((min((c for le, c, _ in guards if le), default=-math.inf),
+               min((c for le, c, _ in guards if not le), default=math.inf)) for guards in _GUARD_TABLE)
+"""By mode index, ``(low, high)``: no guard of the mode holds while ``low < d < high`` (the common case, checked
+first)."""
 
 
 def _advance(ys: list[float], vs: list[float], modes: list[int], u: float, b: float, s: float,
@@ -116,7 +120,8 @@ def _advance(ys: list[float], vs: list[float], modes: list[int], u: float, b: fl
     """Positions and speeds of the five cars after ``s`` seconds in their modes (closed forms of :func:`lead`
     and :func:`follower`, written out: this is the simulation's inner loop)."""
     x = b * s
-    p1, p2 = _phi1(x), _phi2(x)
+    p1 = 1.0 - x / 2 + x * x / 6 if abs(x) < 1e-5 else -math.expm1(-x) / x  # _phi1(x) and _phi2(x), inlined
+    p2 = 0.5 - x / 6 + x * x / 24 if abs(x) < 1e-3 else (x + math.expm1(-x)) / (x * x)
     ny = [ys[0] + vs[0] * s * p1 - u * s * s * p2]
     nv = [vs[0] * math.exp(-x) - u * s * p1]
     decay = None
@@ -157,6 +162,9 @@ def _switch(ys: list[float], modes: list[int]) -> bool:
         changed = False
         for i in range(1, CARS):
             gap = ys[i] - ys[i - 1]
+            low, high = _BAND[modes[i]]
+            if low < gap < high:
+                continue
             for le, threshold, target in _GUARD_TABLE[modes[i]]:
                 if (gap <= threshold) if le else (gap >= threshold):
                     modes[i], changed = target, True
@@ -202,6 +210,9 @@ def _first_event(ys, vs, modes, u, b, h, sign, end_ys) -> float | None:
     best = None
     for i in range(1, CARS):
         gap_end = end_ys[i] - end_ys[i - 1]
+        low, high = _BAND[modes[i]]
+        if low < gap_end < high:
+            continue
         for le, threshold, _ in _GUARD_TABLE[modes[i]]:
             if not ((gap_end <= threshold) if le else (gap_end >= threshold)):
                 continue
