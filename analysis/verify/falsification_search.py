@@ -45,8 +45,8 @@ import numpy as np
 
 from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
-__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "folded", "physical_vertex", "focus", "central_gradient",
-           "guided_search", "whitebox_search", "simulations_to_violation"]
+__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "folded", "physical_vertex", "focus",
+           "central_gradient", "guided_search", "whitebox_search", "simulations_to_violation"]
 
 START_SHARE = 0.25
 """The space-filling start of ``guided`` has ``max(2k + 2, START_SHARE * budget / 2)`` Sobol points, each with its
@@ -403,14 +403,14 @@ def _interleave(search: Search, seed: int, falsified: dict, design: np.ndarray, 
     books = {r: _Book() for r in range(len(search.problem.requirements))}
     start_books = {r: _Book() for r in range(len(search.problem.requirements))}
     rng = np.random.default_rng([int(seed), 7002])
-    cursor, chunk, restarts = first, max(2, k), 0
+    cursor, chunk, restarts, faces = first, max(2, k), 0, max(2, round(_FACE_SHARE * k))
     while _open(search, falsified) and search.used < search.budget:
         r = focus(search, _open(search, falsified), books)
         _, ys = _data(search, r)
         books[r].last_best = float(ys.min()) if ys.size else math.inf
         before = search.used
         restart = design[cursor % len(design)]
-        collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart, faces=max(2, round(_FACE_SHARE * k)))
+        collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart, faces=faces)
         stuck = search.used == before and not collapsed  # nothing new to simulate near this centre
         if stuck:
             books[r].center, books[r].sigma, books[r].deltas = tuple(float(v) for v in restart), _SIGMA0, None
