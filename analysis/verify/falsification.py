@@ -9,9 +9,11 @@ Methods (:data:`METHODS`)
         1. the nominal point;
         2. a space-filling start: scrambled Sobol points under the seed, each followed by a
            surrogate step (a least-squares model of the robustness minimised over the box);
-        3. local search, the budget allocated in chunks to the requirement still holding whose
-           robustness is lowest relative to its spread (and falling): a (1+1) evolution strategy
-           with step-size adaptation and local surrogate steps, restarted from new Sobol points;
+        3. local search, alternating with the rest of the start, the budget allocated in chunks to
+           the requirement still holding whose robustness is lowest relative to its spread (and
+           falling): local surrogate steps, coordinate moves towards the faces of the box (a compass
+           search) and a (1+1) evolution strategy with step-size adaptation, restarted from new
+           Sobol points;
         4. a shrink of each counterexample (each coordinate set back to nominal where the
            violation persists).
         :mod:`analysis.verify.falsification_search` has the details.

@@ -4,21 +4,30 @@ Both work in unit coordinates ``u ∈ [-1, 1]^k`` on a :class:`analysis.verify.f
 the cache, the journal's evaluations) and share one design:
 
 1. **Space-filling start**: a scrambled Sobol sequence (:func:`space_filling`, seeded by the search's
-   seed) after the nominal point, interleaved from the third point on with **surrogate steps**: a
-   least-squares model of each requirement's robustness (linear, then with diagonal quadratic terms
-   once there are enough points, weighted towards the lowest robustness seen) minimised over the box
-   in closed form (it is separable), so that a violation at a face or corner of the box, where a
+   seed) after the nominal point, in groups: the vertex of the box nearest the Sobol point
+   (:func:`physical_vertex`: nearest in the parameters' values, so a folded coordinate, whose nominal
+   value is an end of its interval, takes that end too), two **surrogate steps**, the point.  A
+   surrogate step is a least-squares model of the robustness (linear, then with diagonal quadratic
+   terms once there are enough points, weighted towards the lowest robustness seen) minimised over the
+   box in closed form (it is separable), so that a violation at a face or corner of the box, where a
    monotone defect puts it, is tried after a handful of simulations.
 2. **Adaptive allocation** (:func:`focus`): the budget goes in chunks to the requirement still holding
    whose lowest robustness is lowest relative to the spread of its values (robustness of different
    requirements has different units), with a bonus for a requirement whose lowest value fell in its
    last chunk (decreasing).
-3. **Local search** on the chosen requirement: ``guided`` runs a (1+1) evolution strategy with the 1/5
-   success rule (a CMA-ES without covariance: step size adapted, isotropic in unit coordinates), a
-   surrogate step fitted to the points near its centre at every chunk, and a restart from the next
-   space-filling point when the step has collapsed; ``whitebox`` runs projected gradient descent with
-   an Armijo backtracking line search, the gradient of the robustness by central finite differences
-   (:func:`central_gradient`, ``2k`` simulations per gradient, one batch) and restarts the same way.
+3. **Local search** on the chosen requirement: ``guided`` starts it after ``2 (k + 1)`` groups of the
+   start and then alternates a chunk of it with one more group, until the start's share of the budget
+   is spent.  A chunk is a local surrogate step (fitted to the points near the centre), ``k / 2``
+   **coordinate moves** (a compass search: each coordinate has its own step, first the whole box so
+   that the move ends on a face, its direction first where a local linear model descends; a failure
+   turns the direction, a failure both ways halves the step; a folded coordinate moves in ``|u|``)
+   and ``k`` steps of a (1+1) evolution strategy with the 1/5 success rule (step size adapted,
+   isotropic in unit coordinates), restarted from the next space-filling point when its step has
+   collapsed.  Many ARCH-COMP violations sit on faces of the box (full throttle, no brake on some
+   segments) where an isotropic step arrives late.  ``whitebox`` runs the whole start first, then
+   projected gradient descent with an Armijo backtracking line search, the gradient of the robustness
+   by central finite differences (:func:`central_gradient`, ``2k`` simulations per gradient, one
+   batch) and restarts the same way.
 
 Every simulation evaluates every requirement, so points spent on one requirement serve the others,
 and a violation of any requirement still holding is recorded at once.  The same seed gives the same
@@ -36,8 +45,8 @@ import numpy as np
 
 from analysis.verify.falsification_book import BudgetExhausted, Evaluation, Search, unit_key
 
-__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "focus", "central_gradient", "guided_search",
-           "whitebox_search", "simulations_to_violation"]
+__all__ = ["START_SHARE", "space_filling", "surrogate_minimum", "folded", "physical_vertex", "focus",
+           "central_gradient", "guided_search", "whitebox_search", "simulations_to_violation"]
 
 START_SHARE = 0.25
 """The space-filling start of ``guided`` has ``max(2k + 2, START_SHARE * budget / 2)`` Sobol points, each with its
@@ -49,6 +58,11 @@ _SIGMA0 = 0.3
 """Initial step of the local search, in unit coordinates."""
 _SIGMA_MIN = 2e-3
 """A local search whose step fell below this restarts from a new space-filling point."""
+_FACE_SHARE = 0.5
+"""Coordinate moves per chunk of ``guided``'s local search, per coordinate of the box (at least 2)."""
+_FIRST_GROUPS = 2
+"""``guided`` starts its local search after ``_FIRST_GROUPS * (k + 1)`` groups of the space-filling start (then
+alternates a chunk of local search and a group)."""
 _FD_STEP = 2e-3
 """Step of the central differences in unit coordinates."""
 
@@ -156,6 +170,11 @@ class _Book:
     center: tuple[float, ...] | None = None
     sigma: float = _SIGMA0
     fails: int = 0
+    deltas: np.ndarray | None = None
+    directions: np.ndarray | None = None
+    flipped: np.ndarray | None = None
+    cursor: int = 0
+    fold: np.ndarray | None = None
 
 
 def focus(search: Search, open_: Sequence[int], books: dict[int, _Book]) -> int:
@@ -228,10 +247,77 @@ def _start(search: Search, seed: int, falsified: dict, count: int, how: str) -> 
     return used
 
 
+def _coordinates(search: Search, r: int, book: _Book, x: np.ndarray, count: int) -> list[int]:
+    """The next ``count`` coordinates of the compass search (round robin over those whose step is not spent).
+
+    Each coordinate has its own step (first 2: the whole box, so the move ends on a face) and direction
+    (first where a least-squares plane through the ``4k + 2`` points nearest ``x`` descends, a folded
+    coordinate read as ``|u|``); a failed move turns the direction, a failure both ways halves the step."""
+    k = x.size
+    if book.deltas is None:
+        xs, ys = _data(search, r)
+        near = np.argsort(np.max(np.abs(xs - x), axis=1), kind="stable")[:4 * k + 2] if len(xs) else []
+        book.fold = folded(search.problem)
+        g = np.zeros(k)
+        if len(near) >= 2:
+            zs = np.where(book.fold, np.abs(xs[near]), xs[near])  # a folded coordinate's value grows with |u|
+            g, *_ = np.linalg.lstsq(zs - zs.mean(axis=0), ys[near] - ys[near].mean(), rcond=None)
+        book.deltas, book.flipped = np.full(k, 2.0), np.zeros(k, dtype=bool)
+        book.directions = np.where(np.isfinite(g) & (g > 0), -1.0, 1.0)
+    out: list[int] = []
+    for _ in range(k):
+        if len(out) == count:
+            break
+        i = book.cursor % k
+        book.cursor += 1
+        if book.deltas[i] >= _SIGMA_MIN:
+            out.append(i)
+    return out
+
+
+def folded(problem: Any) -> np.ndarray:
+    """Which coordinates are folded, shape ``(k,)``: a parameter whose nominal value is an end of its interval
+    maps ``u`` and ``-u`` to the same value (:meth:`~analysis.verify.verification.Parameter.at`), so its low end
+    is ``u = 0`` and ``u = ±1`` is its high end."""
+    return np.array([p.high > p.low and (p.nominal == p.low or p.nominal == p.high) for p in problem.parameters],
+                    dtype=bool)
+
+
+def physical_vertex(point: np.ndarray, fold: np.ndarray) -> np.ndarray:
+    """The vertex of the box (in the parameters' values) nearest ``point`` (shape ``(k,)``), in unit coordinates:
+    ``±1`` by the sign of a coordinate, and for a folded one (:func:`folded`) ``0`` (its nominal end) when
+    ``|u| < 1/2``, its sign otherwise."""
+    signs = np.where(point >= 0.0, 1.0, -1.0)
+    return np.where(fold, np.where(np.abs(point) < 0.5, 0.0, signs), signs)
+
+
+def _coordinate_move(book: _Book, x: np.ndarray, i: int) -> np.ndarray:
+    """``x`` with coordinate ``i`` moved by its step in its direction, clipped to the box; a folded coordinate
+    moves in ``|u|`` (its value is monotone in ``|u|``), keeping its sign."""
+    y = x.copy()
+    if book.fold is not None and book.fold[i]:
+        sign = -1.0 if x[i] < 0 else 1.0
+        y[i] = sign * float(np.clip(abs(x[i]) + book.directions[i] * book.deltas[i], 0.0, 1.0))
+    else:
+        y[i] = float(np.clip(x[i] + book.directions[i] * book.deltas[i], -1.0, 1.0))
+    return y
+
+
+def _coordinate_outcome(book: _Book, i: int, better: bool) -> None:
+    """Update coordinate ``i``'s step and direction after its move (success: kept; failure: turn, then halve)."""
+    if better:
+        book.flipped[i] = False
+    elif not book.flipped[i]:
+        book.directions[i], book.flipped[i] = -book.directions[i], True
+    else:
+        book.deltas[i], book.flipped[i] = book.deltas[i] / 2.0, False
+
+
 def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, falsified: dict, chunk: int,
-              restart: np.ndarray) -> bool:
-    """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first.  Returns whether
-    the step collapsed and ``restart`` was taken as the new centre."""
+              restart: np.ndarray, faces: int = 0) -> bool:
+    """``chunk`` steps of the (1+1)-ES on requirement ``r``; a local surrogate step first, then ``faces`` moves
+    of single coordinates (the compass search of :func:`_coordinates`, towards the faces of the box).  Returns
+    whether the step collapsed and ``restart`` was taken as the new centre."""
     k = search.problem.dimension
     if book.center is None:
         best = search.lowest(r)
@@ -240,22 +326,31 @@ def _es_chunk(search: Search, r: int, book: _Book, rng: np.random.Generator, fal
     fx = _rho(search.evaluations[search.seen[book.center]], r) if book.center in search.seen else None
     xs, ys = _data(search, r, x, 2.0 * book.sigma)
     proposal = surrogate_minimum(xs, ys, np.maximum(x - 2 * book.sigma, -1.0), np.minimum(x + 2 * book.sigma, 1.0))
-    candidates = [proposal] if proposal is not None else []
-    for _ in range(chunk):
-        candidates.append(x + book.sigma * rng.standard_normal(k))
-    for y in candidates:
+    candidates = [("surrogate", proposal)] if proposal is not None else []
+    if faces:
+        candidates.extend(("face", i) for i in _coordinates(search, r, book, x, faces))
+    candidates.extend(("step", None) for _ in range(chunk))
+    for kind, y in candidates:
         if r in falsified:
             return False
+        if kind == "face":  # a move of one coordinate by its own step, towards a face
+            i, y = y, _coordinate_move(book, x, y)
+        elif y is None:  # a step of the (1+1)-ES from the current centre, with the current step size
+            y = x + book.sigma * rng.standard_normal(k)
         e = _try(search, y, "local", falsified, "local search")
         fy = _rho(e, r)
-        if fy is not None and (fx is None or fy < fx):
+        better = fy is not None and (fx is None or fy < fx)
+        if better:
             x, fx = np.array(e.unit), fy
+        if kind == "face":  # a coordinate move says nothing about the step size of the ES
+            _coordinate_outcome(book, i, better)
+        elif better:
             book.sigma = min(1.0, book.sigma * 1.5)
         else:
             book.sigma *= 0.9
     book.center = tuple(float(v) for v in x)
     if book.sigma < _SIGMA_MIN:
-        book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
+        book.center, book.sigma, book.deltas = tuple(float(v) for v in restart), _SIGMA0, None
         return True
     return False
 
@@ -290,6 +385,45 @@ def _allocate(search: Search, seed: int, falsified: dict, step: str, skip: int) 
                 return
 
 
+def _group(search: Search, point: np.ndarray, falsified: dict, books: dict[int, _Book], how: str) -> None:
+    """One group of the space-filling start: the vertex nearest ``point`` (:func:`physical_vertex`), two surrogate
+    steps, the point."""
+    _try(search, physical_vertex(point, folded(search.problem)), "start", falsified, how)
+    _surrogate_step(search, falsified, books, how)
+    _surrogate_step(search, falsified, books, how)
+    if _open(search, falsified):
+        _try(search, point, "start", falsified, how)
+
+
+def _interleave(search: Search, seed: int, falsified: dict, design: np.ndarray, first: int, count: int) -> None:
+    """After ``first`` groups of the start: chunks of local search on the requirement :func:`focus` picks, each
+    followed by the next group of the start until ``count`` groups are done; a collapsed local search restarts
+    from the next point of ``design``."""
+    k = search.problem.dimension
+    books = {r: _Book() for r in range(len(search.problem.requirements))}
+    start_books = {r: _Book() for r in range(len(search.problem.requirements))}
+    rng = np.random.default_rng([int(seed), 7002])
+    cursor, chunk, restarts, faces = first, max(2, k), 0, max(2, round(_FACE_SHARE * k))
+    while _open(search, falsified) and search.used < search.budget:
+        r = focus(search, _open(search, falsified), books)
+        _, ys = _data(search, r)
+        books[r].last_best = float(ys.min()) if ys.size else math.inf
+        before = search.used
+        restart = design[cursor % len(design)]
+        collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart, faces=faces)
+        stuck = search.used == before and not collapsed  # nothing new to simulate near this centre
+        if stuck:
+            books[r].center, books[r].sigma, books[r].deltas = tuple(float(v) for v in restart), _SIGMA0, None
+        if collapsed or stuck:
+            cursor, restarts = cursor + 1, restarts + 1
+            _try(search, restart, "start", falsified, "space-filling restart")
+            if restarts > 4 * len(design):
+                return
+        if cursor < count and _open(search, falsified):
+            _group(search, design[cursor], falsified, start_books, "space-filling start")
+            cursor += 1
+
+
 def guided_search(search: Search, seed: int, falsified: dict) -> None:
     """The ``guided`` method after the nominal point (module docstring); fills ``falsified``
     (requirement index -> (unit point, how found)).  Stops at the budget or when every requirement is
@@ -298,9 +432,15 @@ def guided_search(search: Search, seed: int, falsified: dict) -> None:
     if k == 0 or not _open(search, falsified):
         return
     count = max(2 * k + 2, round(START_SHARE * search.budget / 2))
+    first = min(count, _FIRST_GROUPS * (k + 1))
+    design = space_filling(k, count + 64, seed)
+    books = {r: _Book() for r in range(len(search.problem.requirements))}
     try:
-        used = _start(search, seed, falsified, count, "space-filling start")
-        _allocate(search, seed, falsified, "es", used)
+        for i in range(first):
+            if not _open(search, falsified):
+                return
+            _group(search, design[i], falsified, books, "space-filling start")
+        _interleave(search, seed, falsified, design, first, count)
     except BudgetExhausted:
         pass
 

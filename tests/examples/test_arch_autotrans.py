@@ -118,6 +118,18 @@ def test_full_throttle_falsifies_at1_and_at2():
     assert not problems["AT2"].parsed[0].formula.satisfied(rpm) and rpm.signal("rpm").max() > 4750
 
 
+def test_guided_falsifies_at1_at_its_corner_within_a_fifth_of_the_budget():
+    # AT1's violation needs full throttle before 20 s and no brake: the brake's nominal 0 is the low end of its
+    # range (a folded unit coordinate), a corner the search reached after ~800 simulations before its coordinate
+    # moves and physical vertices (issue 29); the witness is checked by reading the trace
+    problem = AT.problems()["AT1"]
+    for seed in (0, 1):
+        result = verify(problem, budget=300, seed=seed).requirement("AT1")
+        assert result.verdict == "falsified", (seed, result.robustness)
+        trace = problem.trace(result.counterexample.point)
+        assert trace.signal("speed")[trace.signal("time") <= 20.0].max() >= 120.0
+
+
 @pytest.mark.parametrize("name, throttle, brake", [
     ("AT51", [0, 25, 100, 50, 50, 50, 50], [0, 0, 0]),
     ("AT52", [100, 50, 50, 50, 50, 50, 50], [0, 0, 0]),

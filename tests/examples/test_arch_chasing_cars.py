@@ -129,6 +129,25 @@ def test_witnesses_falsify_cc1_cc3_and_cc5():
     assert not problems["CC5"].parsed[0].formula.satisfied(trace)
 
 
+def test_guided_falsifies_cc4():
+    # CC4's robustness is about 1.9 almost everywhere, with a narrow well on faces of the box (issue 29: not
+    # falsified in 1,500 simulations on 3 seeds of 5 before); the witness is checked by reading the trace:
+    # somewhere in [0, 65] s, the gap y5 - y4 does not stay >= 8 for 5 s at any start within the next 30 s
+    problem = CC.problems()["CC4"]
+    result = verify(problem, budget=400, seed=0).requirement("CC4")
+    assert result.verdict == "falsified", result.robustness
+    trace = problem.trace(result.counterexample.point)
+    t, gap = trace.times, trace.signal("y5") - trace.signal("y4")
+    bad = t[gap < 8.0]  # the samples where the gap is below 8
+    after = np.searchsorted(bad, t)
+    next_bad = np.where(after < bad.size, bad[np.minimum(after, bad.size - 1)], np.inf)
+    holds = (next_bad > t + 5.0) & (t <= 95.0)  # always[0, 5] (gap >= 8) from each sample
+    count = np.concatenate(([0], np.cumsum(holds)))
+    starts = t[t <= 65.0]  # eventually[0, 30] from each of them: some start within 30 s where it holds
+    within = count[np.searchsorted(t, starts + 30.0, side="right")] - count[np.searchsorted(t, starts)]
+    assert np.any(within == 0)
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="control_points"):
         CC.problems(brake_points=-1)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from analysis.verify.falsification import METHODS, evaluate, falsify
-from analysis.verify.falsification_search import central_gradient, simulations_to_violation, space_filling, surrogate_minimum
+from analysis.verify.falsification_search import (central_gradient, folded, physical_vertex, simulations_to_violation,
+                                                  space_filling, surrogate_minimum)
 from analysis.verify.falsification import Search
 from analysis.planted import VIOLATING_FRACTION, planted_problems
 from analysis.verify.requirements import Requirement
@@ -73,6 +74,49 @@ def test_the_surrogate_minimum_is_the_vertex_of_a_linear_model_and_the_centre_of
     ys = (xs[:, 0] - 0.3) ** 2 + 2.0 * (xs[:, 1] + 0.4) ** 2  # separable quadratic: minimiser (0.3, -0.4)
     assert surrogate_minimum(xs, ys) == pytest.approx([0.3, -0.4], abs=1e-9)
     assert surrogate_minimum(xs[:1], ys[:1]) is None
+
+
+def test_the_physical_vertex_of_a_folded_coordinate_is_its_nominal_end():
+    # a parameter whose nominal value is an end of its interval maps u and -u to one value: its vertices (in
+    # the parameter's values) are u = 0 and |u| = 1, read back here through Parameter.at, not the search's code
+    params = (Parameter(name="brake", low=0.0, high=325.0, nominal=0.0), Parameter(name="lift", low=-2.0, high=5.0,
+              nominal=5.0), Parameter(name="throttle", low=0.0, high=100.0, nominal=50.0))
+    problem = VerificationProblem(name="fold", simulate=Decay(), parameters=params, horizon=1.0, signals=("x",),
+                                  requirements=(Requirement(name="floor", formula="always[0, 1] (x >= 0.1)"),))
+    assert folded(problem).tolist() == [True, True, False]
+    for point in ([0.3, -0.7, 0.2], [-0.2, 0.6, -0.01], [0.9, 0.1, -1.0]):
+        vertex = physical_vertex(np.array(point), folded(problem))
+        values = [p.at(u) for p, u in zip(params, vertex)]
+        # each value is an end of its interval, the end nearest the point's own value
+        for p, u, value in zip(params, point, values):
+            assert value in (p.low, p.high)
+            assert abs(value - p.at(u)) <= (p.high - p.low) / 2 + 1e-12
+
+
+class Corner:
+    """``x = sum (1 - p_i) + sum q_j`` with ``p_i`` ranging over [0, 1] about 0.5 and ``q_j`` over [0, 1] from
+    their nominal 0 (folded): below 0.05 only in a simplex corner of the box, share 0.05^6 / 6! ≈ 2e-11."""
+
+    def __call__(self, point):
+        value = sum(1.0 - point[f"p{i}"] for i in range(3)) + sum(point[f"q{j}"] for j in range(3))
+        return SignalTrace(times=np.array([0.0, 1.0]), signals={"x": np.full(2, value)})
+
+
+def test_guided_reaches_a_corner_at_the_nominal_end_of_folded_coordinates():
+    params = tuple(Parameter(name=f"p{i}", low=0.0, high=1.0, nominal=0.5) for i in range(3)) + tuple(
+        Parameter(name=f"q{j}", low=0.0, high=1.0, nominal=0.0) for j in range(3))
+    problem = VerificationProblem(name="corner", simulate=Corner(), parameters=params, horizon=1.0, signals=("x",),
+                                  requirements=(Requirement(name="floor", formula="always[0, 1] (x >= 0.05)"),))
+    counts = []
+    for seed in SEEDS:
+        search, falsified = falsify(problem, budget=200, seed=seed, method="guided")
+        counts.append(simulations_to_violation(search))
+        assert 0 in falsified, (seed, counts)
+        # the counterexample read back in the parameters' values: in the corner by the closed form
+        point = problem.point(falsified[0][0])
+        assert sum(1.0 - point[f"p{i}"] for i in range(3)) + sum(point[f"q{j}"] for j in range(3)) < 0.05
+    # Monte-Carlo's expected count is 1 / 2e-11; the vertices and the coordinate moves reach the corner at once
+    assert max(counts) <= 60, counts
 
 
 class Decay:
