@@ -25,11 +25,11 @@ from analysis.verify.verification import Parameter, VerificationProblem
 from hybrid.examples import bouncing_ball, bouncing_ball_zeno_time, deadlock
 
 
-def _ball_problem(formula: str, horizon: float = 10.0) -> VerificationProblem:
+def _ball_problem(formula: str, horizon: float = 10.0, reach: bool | str = "auto") -> VerificationProblem:
     model = bouncing_ball(h0=4.905, restitution=0.5)
     return hybrid_problem(name="ball", system=model.system,
                           initial={"h": Parameter(name="h0", low=4.8, high=4.905, nominal=4.905), "v": 0.0},
-                          horizon=horizon, requirements=(Requirement(name="r", formula=formula),))
+                          horizon=horizon, requirements=(Requirement(name="r", formula=formula),), reach=reach)
 
 
 def test_a_zeno_ball_is_incomplete_with_its_zeno_time_never_not_falsified():
@@ -58,9 +58,13 @@ def test_a_violation_before_the_early_end_is_still_decided():
 
 
 def test_a_requirement_whose_window_ends_before_the_early_end_is_decided():
-    problem = _ball_problem("always[0, 2] (h >= -0.01)")  # 2 s < t_Z = 3 s: the prefix decides it
-    assert evaluate(problem, (0.0,)).satisfied == (True,)
-    assert verify(problem, budget=4, seed=0, method="monte-carlo").verdict == "not_falsified"
+    # 2 s < t_Z (2.97 s for h0 = 4.8, 3.0 s for 4.905): the prefix decides it
+    searched = _ball_problem("always[0, 2] (h >= -0.01)", reach=False)
+    assert evaluate(searched, (0.0,)).satisfied == (True,)
+    assert verify(searched, budget=4, seed=0, method="monte-carlo").verdict == "not_falsified"
+    # with reachability (the default) every run of the box is defined over the window [0, 2]: proven
+    result = verify(_ball_problem("always[0, 2] (h >= -0.01)"), budget=4, seed=0, method="monte-carlo")
+    assert result.verdict == "proven" and "reachability" in result.requirement("r").decided_by
 
 
 def test_a_deadlock_ends_the_run_incomplete_at_the_invariants_end():
