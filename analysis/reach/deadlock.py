@@ -35,7 +35,8 @@ from fractions import Fraction
 from typing import Any
 
 __all__ = ["face_uncovered", "clip_exact", "box_in_polyhedron", "FaceRow", "open_rows", "outward_row", "bounded_on",
-           "image_covered", "entry_uncovered", "clock_offsets", "reached_late"]
+           "image_covered", "entry_uncovered", "clock_offsets", "reached_late",
+           "contract_zonotope"]
 
 Box = list[tuple[Fraction, Fraction]]
 
@@ -71,6 +72,41 @@ def clip_exact(box: Box, rows: Sequence[Any]) -> Box | None:
                 if out[i][0] > out[i][1]:
                     return None
     return out
+
+
+def contract_zonotope(center: Sequence[Fraction], gens: Sequence[Sequence[Fraction]], rows: Sequence[Any],
+                      rounds: int) -> Box | None:
+    """A box holding ``{center + Σ_j ξ_j gens[j] : ξ ∈ [-1, 1]^p} ∩ {a·x <= b for each row}`` (exact rationals).
+
+    The weights ``ξ`` are narrowed row by row by interval propagation, ``rounds`` times over the rows; the box
+    of the narrowed zonotope is returned, ``None`` when the intersection is shown empty.  Zero coefficients
+    add exactly 0 and are skipped."""
+    lo, hi = [Fraction(-1)] * len(gens), [Fraction(1)] * len(gens)
+    for _ in range(rounds):
+        for row in rows:
+            a, b = row.normal, row.offset
+            nonzero = [(i, ai) for i, ai in enumerate(a) if ai != 0]
+            g = [sum((ai * col[i] for i, ai in nonzero if col[i]), Fraction(0)) for col in gens]
+            mins = [min(gj * l, gj * u) if gj else Fraction(0) for gj, l, u in zip(g, lo, hi)]
+            total = sum((ai * center[i] for i, ai in nonzero), Fraction(0)) + sum(mins, Fraction(0))
+            if total > b:
+                return None
+            for j, gj in enumerate(g):
+                if gj == 0:
+                    continue
+                room = (b - (total - mins[j])) / gj
+                if gj > 0:
+                    hi[j] = min(hi[j], room)
+                else:
+                    lo[j] = max(lo[j], room)
+                if lo[j] > hi[j]:
+                    return None
+                narrowed = min(gj * lo[j], gj * hi[j])
+                total += narrowed - mins[j]  # exact rationals: the sum with mins[j] replaced
+                mins[j] = narrowed
+    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)),
+             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)))
+            for i, c in enumerate(center)]
 
 
 def _top(a: Sequence[Fraction], box: Box) -> Fraction:

@@ -48,7 +48,7 @@ import numpy as np
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
-from .deadlock import entry_uncovered
+from .deadlock import contract_zonotope, entry_uncovered
 from .recheck_own import OwnFailure
 from .recheck_schedule import OWN_PARTS, schedule_recheck
 from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
@@ -342,36 +342,10 @@ def _pieces(mode: _Mode, z: _Zono, step: Fraction, m: int, w: Box, rem: Box, afw
 
 def _contract(z: _Zono, rows: Sequence[Any]) -> Box | None:
     """A box holding ``z ∩ {a·x <= b for each row}``: the generators' weights ``ξ ∈ [-1, 1]`` (and the error
-    box's) are narrowed by interval propagation through each row (3 rounds, exact rationals); ``None``: empty."""
+    box's) narrowed by interval propagation through each row (3 rounds, exact rationals); ``None``: empty."""
     n = len(z.center)
     gens = list(z.gens) + [[e if i == k else Fraction(0) for i in range(n)] for k, e in enumerate(z.err) if e]
-    lo, hi = [Fraction(-1)] * len(gens), [Fraction(1)] * len(gens)
-    for _ in range(3):
-        for row in rows:
-            a, b = row.normal, row.offset
-            nonzero = [(i, ai) for i, ai in enumerate(a) if ai != 0]  # exact: a zero coefficient adds 0
-            g = [sum((ai * col[i] for i, ai in nonzero), Fraction(0)) for col in gens]
-            mins = [min(gj * l, gj * u) if gj else Fraction(0) for gj, l, u in zip(g, lo, hi)]
-            total = sum((ai * z.center[i] for i, ai in nonzero), Fraction(0)) + sum(mins, Fraction(0))
-            if total > b:
-                return None
-            for j, gj in enumerate(g):
-                if gj == 0:
-                    continue
-                room = (b - (total - mins[j])) / gj
-                if gj > 0:
-                    hi[j] = min(hi[j], room)
-                else:
-                    lo[j] = max(lo[j], room)
-                if lo[j] > hi[j]:
-                    return None
-                narrowed = min(gj * lo[j], gj * hi[j])
-                total += narrowed - mins[j]  # exact rationals: the sum with mins[j] replaced
-                mins[j] = narrowed
-    # a zero entry of a generator adds exactly 0: skipped
-    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)),
-             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)))
-            for i, c in enumerate(z.center)]
+    return contract_zonotope(z.center, gens, rows, rounds=3)
 
 
 @dataclass(slots=True)

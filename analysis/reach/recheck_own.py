@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .deadlock import clip_exact, clock_offsets, entry_uncovered, face_uncovered, image_covered, open_rows, reached_late
+from .deadlock import clip_exact, clock_offsets, contract_zonotope, entry_uncovered, face_uncovered, image_covered, open_rows, reached_late
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
@@ -151,32 +151,7 @@ def _surely_beyond(row: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
 def _contract(z: FZ, rows: Sequence[Any]) -> Box | None:
     """A box holding ``z ∩ {a·x <= b}``: the weights ``ξ ∈ [−1, 1]`` narrowed row by row (exact rationals)."""
     center, gens = z.exact()
-    lo, hi = [Fraction(-1)] * len(gens), [Fraction(1)] * len(gens)
-    for _ in range(2):
-        for row in rows:
-            a, b = row.normal, row.offset
-            g = [sum((ai * col[i] for i, ai in enumerate(a) if ai and col[i]), Fraction(0)) for col in gens]
-            base = sum((ai * ci for ai, ci in zip(a, center) if ai), Fraction(0))
-            mins = [min(gj * l, gj * u) for gj, l, u in zip(g, lo, hi)]
-            total = base + sum(mins, Fraction(0))
-            if total > b:
-                return None
-            for j, gj in enumerate(g):
-                if gj == 0:
-                    continue
-                room = (b - (total - mins[j])) / gj
-                if gj > 0:
-                    hi[j] = min(hi[j], room)
-                else:
-                    lo[j] = max(lo[j], room)
-                if lo[j] > hi[j]:
-                    return None
-                new = min(gj * lo[j], gj * hi[j])
-                total += new - mins[j]
-                mins[j] = new
-    return [(c + sum((min(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)),
-             c + sum((max(col[i] * l, col[i] * u) for col, l, u in zip(gens, lo, hi) if col[i]), Fraction(0)))
-            for i, c in enumerate(center)]
+    return contract_zonotope(center, gens, rows, rounds=2)
 
 
 DUAL_GENERATORS = 80
