@@ -52,13 +52,14 @@ class FaceRow:
         self.text = ""
 
 
-def clip_exact(box: Box, rows: Sequence[Any]) -> Box | None:
-    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, two rounds); ``None``: empty.
+def clip_exact(box: Box, rows: Sequence[Any], rounds: int = 2) -> Box | None:
+    """A box holding ``box ∩ {a·x <= b for each row}`` (exact interval propagation, ``rounds`` rounds over the
+    rows); ``None``: empty.
     Only the coordinates the rows read (non-zero coefficients) are read and changed; the others are returned as
     given (a caller may leave them ``None``)."""
     out = list(box)
     sparse = [(h, [(i, ai) for i, ai in enumerate(h.normal) if ai]) for h in rows]  # zero terms change nothing
-    for _ in range(2):
+    for _ in range(rounds):
         for h, terms in sparse:
             b = h.offset
             mins = {i: min(ai * out[i][0], ai * out[i][1]) for i, ai in terms}

@@ -48,7 +48,7 @@ import numpy as np
 
 from .fragment import Conj, Disj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import AffineHybridModel, affine_model
-from .deadlock import contract_zonotope, entry_uncovered
+from .deadlock import clip_exact, contract_zonotope, entry_uncovered
 from .recheck_own import OwnFailure
 from .recheck_schedule import OWN_PARTS, schedule_recheck
 from .recheck_inputs import InputDynamics, InputFlow, InputMismatch, checked_inputs, model_inputs
@@ -148,23 +148,8 @@ def _matmul(a: Sequence[Sequence[Fraction]], b: Sequence[Sequence[Fraction]]) ->
 
 
 def _clip(box: Box, halfspaces: Sequence[Any]) -> Box | None:
-    """A box holding ``box ∩ {a·x <= b}`` (exact interval propagation); ``None`` when proven empty."""
-    out = list(box)
-    for h in halfspaces:
-        a, b = h.normal, h.offset
-        mins = [min(ai * lo, ai * hi) for ai, (lo, hi) in zip(a, out)]
-        total = sum(mins, Fraction(0))
-        if total > b:
-            return None
-        for i, ai in enumerate(a):
-            if ai == 0:
-                continue
-            room = (b - (total - mins[i])) / ai
-            lo, hi = out[i]
-            out[i] = (lo, min(hi, room)) if ai > 0 else (max(lo, room), hi)
-            if out[i][0] > out[i][1]:
-                return None
-    return out
+    """A box holding ``box ∩ {a·x <= b}`` (exact interval propagation, one round); ``None`` when proven empty."""
+    return clip_exact(box, halfspaces, rounds=1)
 
 
 def _clip_union(box: Box, polyhedra: Sequence[Any]) -> Box | None:
