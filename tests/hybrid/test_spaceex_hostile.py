@@ -4,6 +4,8 @@ of another type, a hang or an entity expansion."""
 from __future__ import annotations
 
 import dataclasses
+import gc
+import math
 import time
 from pathlib import Path
 
@@ -183,10 +185,22 @@ def chain(n: int) -> bytes:
     return document(component(locations + transitions))
 
 
-def cpu_seconds_to_import(data: bytes) -> tuple[float, int]:
-    start = time.process_time()  # CPU time of this process: the machine's other jobs do not count
-    model = import_spaceex(data, source="chain.xml")
-    return time.process_time() - start, len(model.system.automaton.modes)
+def cpu_seconds_to_import(data: bytes, repeats: int = 2) -> tuple[float, int]:
+    """The least CPU time of ``repeats`` imports, with the cyclic garbage collector held off while each runs: a
+    full collection walks the whole heap, so its cost depends on what earlier tests left there and on when it
+    happens to fire, not on the importer's growth (which is what the test measures)."""
+    best, modes = math.inf, 0
+    for _ in range(repeats):
+        gc.collect()
+        gc.disable()
+        try:
+            start = time.process_time()  # CPU time of this process: the machine's other jobs do not count
+            model = import_spaceex(data, source="chain.xml")
+            best = min(best, time.process_time() - start)
+        finally:
+            gc.enable()
+        modes = len(model.system.automaton.modes)
+    return best, modes
 
 
 def cpu_seconds_to_validate(system) -> float:
