@@ -43,7 +43,8 @@ returns them keyed by requirement name.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping
 from functools import partial
 
 import numpy as np
@@ -80,6 +81,11 @@ _GUARDS = {  # mode -> ((comparison, threshold, next mode), ...): d <= c is "le"
     "keeping": (("ge", 15.0, "chasing"), ("le", 5.0, "braking")),
     "braking": (("ge", 20.0, "chasing"),),
 }
+
+_CALM = {mode: (max((c for kind, c, _ in guards if kind == "le"), default=-math.inf),
+                min((c for kind, c, _ in guards if kind == "ge"), default=math.inf))
+         for mode, guards in _GUARDS.items()}
+"""Mode -> ``(lo, hi)``: no guard of the mode holds while ``lo < d < hi`` (read off :data:`_GUARDS`)."""
 
 
 def _phi1(x: float) -> float:
@@ -119,13 +125,17 @@ def _fires(kind: str, gap: float, threshold: float) -> bool:
     return gap <= threshold if kind == "le" else gap >= threshold
 
 
-def _switch(state: list[tuple[float, float]], modes: list[str]) -> bool:
-    """Take every enabled transition (in car order, chains at one instant allowed); whether any was taken."""
+def _switch(positions: list[float], modes: list[str]) -> bool:
+    """Take every enabled transition (in car order, chains at one instant allowed) at the cars' ``positions``
+    ``y1..y5``; whether any was taken."""
     taken = False
     for _ in range(3):  # no guard of a mode's successor is enabled by the same gap twice: chains have length <= 2
         changed = False
         for i in range(1, CARS):
-            gap = state[i][0] - state[i - 1][0]
+            gap = positions[i] - positions[i - 1]
+            lo, hi = _CALM[modes[i]]
+            if lo < gap < hi:
+                continue  # no guard of the mode holds
             for kind, threshold, target in _GUARDS[modes[i]]:
                 if _fires(kind, gap, threshold):
                     modes[i], changed = target, True
@@ -206,6 +216,154 @@ def _event_time(tau: float, g_values, g_duals) -> Dual:
     return Dual(tau, -partial.grad / slope)
 
 
+# The float fast path (no sensitivities asked): the same closed forms with the same floating-point operations in the
+# same order, so its traces are bit-identical to the generic path's on floats (tests/examples/test_arch_chasing_cars
+# checks the two against each other).  Per input segment and step length, the state-free terms of the closed forms
+# (``e^-bs``, ``phi1``, ``phi2``, ``e^-s`` and the input terms) are computed once; the state is two flat lists.
+
+
+def _phi1_float(x: float) -> float:
+    """:func:`_phi1` on a float (``math.expm1``, which :func:`analysis.dual.expm1` calls on floats)."""
+    return 1.0 - x / 2 + x * x / 6 if abs(x) < 1e-5 else -math.expm1(-x) / x
+
+
+def _phi2_float(x: float) -> float:
+    """:func:`_phi2` on a float."""
+    return 0.5 - x / 6 + x * x / 24 if abs(x) < 1e-3 else (x + math.expm1(-x)) / (x * x)
+
+
+def _lead_curve(y: float, v: float, throttle: float, brake: float) -> Callable[[float], float]:
+    """``s -> lead(y, v, throttle, brake, s)[0]`` on floats (the same operations)."""
+    def position(s: float) -> float:
+        x = brake * s
+        return y + v * s * _phi1_float(x) - throttle * s * s * _phi2_float(x)
+    return position
+
+
+def _follower_curve(mode: str, y: float, v: float, keeping_sign: float) -> Callable[[float], float]:
+    """``s -> follower(mode, y, v, s, keeping_sign)[0]`` on floats (the same operations, the mode's branch taken
+    once)."""
+    if mode == "chasing":
+        return lambda s: y - v * s - s * s / 2
+    if mode == "keeping":
+        speed = keeping_sign * v
+        return lambda s: y + speed * s
+    return lambda s: y - v * (1.0 - math.exp(-s))
+
+
+def _coefficients(u: float, b: float, s: float) -> tuple[float, ...]:
+    """The state-free terms of the closed forms over ``s`` seconds: ``lead`` is ``(y + v s phi1 - c2, v e - c1)``,
+    chasing ``(y - v s - s^2/2, v + s)``, braking ``(y - v (1 - e^-s), v e^-s)``."""
+    x = b * s
+    p1 = _phi1_float(x)
+    decay = math.exp(-s)
+    return p1, math.exp(-x), u * s * p1, u * s * s * _phi2_float(x), s * s / 2, 1.0 - decay, decay
+
+
+def _chain(modes: list[str]) -> tuple[tuple[int, str, float, float], ...]:
+    """The followers as ``(car, mode, lo, hi)``: their gap is calm (no guard holds) while ``lo < d < hi``."""
+    return tuple((i, modes[i], *_CALM[modes[i]]) for i in range(1, CARS))
+
+
+def _step_floats(ys: list[float], vs: list[float], chain: tuple, u: float, b: float, s: float, sign: float,
+                 cache: dict) -> tuple[list[float], list[float], bool]:
+    """:func:`_advance` on flat float lists (positions, speeds; ``chain``: :func:`_chain` of the modes), the terms of
+    ``(u, b, s)`` kept in ``cache``; and whether every gap at the end is calm."""
+    c = cache.get(s)
+    if c is None:
+        c = cache[s] = _coefficients(u, b, s)
+    p1, e, c1, c2, half, lost, decay = c
+    y, v = ys[0], vs[0]
+    ahead = y + v * s * p1 - c2
+    ny, nv, calm = [ahead], [v * e - c1], True
+    for i, mode, lo, hi in chain:
+        y, v = ys[i], vs[i]
+        if mode == "keeping":
+            y = y + sign * v * s
+        elif mode == "chasing":
+            y, v = y - v * s - half, v + s
+        else:
+            y, v = y - v * lost, v * decay
+        ny.append(y)
+        nv.append(v)
+        if not lo < y - ahead < hi:
+            calm = False
+        ahead = y
+    return ny, nv, calm
+
+
+def _first_event_floats(ys: list[float], vs: list[float], chain: tuple, u: float, b: float, h: float,
+                        sign: float, end: list[float]) -> float | None:
+    """:func:`_first_event` on floats (``end``: the positions after ``h``).  ``g(0)`` is taken from the positions:
+    every closed form at ``s = 0`` gives ``y`` (up to the sign of a zero, which ``- threshold`` erases)."""
+    best = None
+    for i, mode, lo, hi in chain:
+        gap_end = end[i] - end[i - 1]
+        if lo < gap_end < hi:
+            continue  # no guard of the mode holds
+        for kind, threshold, _ in _GUARDS[mode]:
+            if not _fires(kind, gap_end, threshold):
+                continue
+            sense = 1.0 if kind == "ge" else -1.0
+            car = _follower_curve(mode, ys[i], vs[i], sign)
+            ahead = (_lead_curve(ys[0], vs[0], u, b) if i == 1
+                     else _follower_curve(chain[i - 2][1], ys[i - 1], vs[i - 1], sign))
+
+            def g(s, car=car, ahead=ahead, threshold=threshold, sense=sense):
+                return sense * (car(s) - ahead(s) - threshold)
+
+            tau = _crossing(g, 0.0, h, sense * (ys[i] - ys[i - 1] - threshold), sense * (gap_end - threshold))
+            if best is None or tau < best:
+                best = tau
+    return best
+
+
+def simulate_floats(grid: np.ndarray, throttle: np.ndarray, brake: np.ndarray, keeping_sign: float
+                    ) -> dict[str, object]:
+    """:func:`simulate_cars` on float inputs: ``grid`` its time grid [s], ``throttle``, ``brake`` the inputs on each
+    of its intervals (shape ``(grid.size - 1,)``); the same output, bit for bit."""
+    ys, vs = [10.0 * i for i in range(CARS)], [0.0] * CARS
+    modes = ["lead"] + ["keeping"] * (CARS - 1)
+    now = tuple(modes[1:])
+    chains = {now: _chain(modes)}  # modes -> their chain, built once per configuration
+    chain, times, flat, mode_log = chains[now], [0.0], ys + vs, [now]
+    fresh = np.ones(throttle.size, dtype=bool)  # a new input segment: the cached terms no longer hold
+    fresh[1:] = ((throttle[1:] != throttle[:-1]) | (brake[1:] != brake[:-1])
+                 | (np.signbit(throttle[1:]) != np.signbit(throttle[:-1]))
+                 | (np.signbit(brake[1:]) != np.signbit(brake[:-1])))
+    grid_list, sign, cache = grid.tolist(), keeping_sign, {}
+    for k, (u, b, new) in enumerate(zip(throttle.tolist(), brake.tolist(), fresh.tolist())):
+        if new:
+            cache = {}
+        t, end = grid_list[k], grid_list[k + 1]
+        while t < end:
+            ny, nv, calm = _step_floats(ys, vs, chain, u, b, end - t, sign, cache)
+            if calm:
+                ys, vs, t = ny, nv, end  # no guard holds at the step's end: no event, no switch
+            else:
+                tau = _first_event_floats(ys, vs, chain, u, b, end - t, sign, ny)
+                if tau is None or t + tau >= end:
+                    ys, vs, t = ny, nv, end
+                else:
+                    ys, vs, _ = _step_floats(ys, vs, chain, u, b, tau, sign, cache)
+                    t = t + tau
+                if _switch(ys, modes):
+                    now = tuple(modes[1:])
+                    chain = chains.get(now) or chains.setdefault(now, _chain(modes))
+            if t > times[-1]:
+                times.append(t), mode_log.append(now)
+                flat += ys
+                flat += vs
+            else:  # an event at the sample's time: the sample shows the modes after it
+                flat[-2 * CARS:], mode_log[-1] = ys + vs, now
+    arr = np.array(flat).reshape(-1, 2 * CARS)
+    out: dict[str, object] = {"time": np.asarray(times)}
+    for i in range(CARS):
+        out[f"y{i + 1}"], out[f"v{i + 1}"] = arr[:, i], arr[:, CARS + i]
+    out["modes"] = tuple(mode_log)
+    return out
+
+
 def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HORIZON, *,
                   keeping_sign: float = 1.0) -> dict[str, np.ndarray]:
     """Simulate the five cars over ``[0, horizon]``.
@@ -219,6 +377,8 @@ def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HO
     grid = np.unique(np.round(np.concatenate((np.arange(0.0, horizon + 1e-9, SAMPLE), throttle.starts,
                                               brake.starts, [horizon])), 9))
     grid = grid[grid <= horizon]
+    if throttle.values.dtype != object and brake.values.dtype != object:  # plain floats: the fast path
+        return simulate_floats(grid, throttle.at(grid[:-1]), brake.at(grid[:-1]), keeping_sign)
     state = [(10.0 * i, 0.0) for i in range(CARS)]
     modes = ["lead"] + ["keeping"] * (CARS - 1)
     times, states, mode_log = [0.0], [list(state)], [tuple(modes[1:])]
@@ -232,7 +392,7 @@ def simulate_cars(throttle: InputSignal, brake: InputSignal, horizon: float = HO
                 state, t = reached, end
             else:
                 state, t = _advance(state, modes, u, b, tau, keeping_sign), t + tau
-            _switch(state, modes)
+            _switch([y for y, _ in state], modes)
             if t > times[-1]:
                 times.append(value_of(t)), states.append(list(state)), mode_log.append(tuple(modes[1:]))
             else:  # an event at the sample's time: the sample shows the modes after it
