@@ -36,6 +36,9 @@ Inputs: throttle and brake piecewise constant over [0, 100] s, 7 and 3 control p
 
 Sensitivities (the ``whitebox`` search's gradients): :func:`sensitivities_cars` runs the same closed forms on
 dual numbers (:mod:`analysis.dual`), each event time given its derivative by the implicit function theorem.
+Plain float inputs take :func:`simulate_floats`, the same closed forms with the same floating-point operations in
+the same order (bit-identical traces), without the dual-number checks and with each step's state-free terms
+computed once per input segment and step length.
 
 Load them with ``visnav verify examples/arch/chasing_cars.py:cc1`` (``cc2`` .. ``cc5``, ``ccx``); :func:`problems`
 returns them keyed by requirement name.
@@ -217,7 +220,7 @@ def _event_time(tau: float, g_values, g_duals) -> Dual:
 
 
 # The float fast path (no sensitivities asked): the same closed forms with the same floating-point operations in the
-# same order, so its traces are bit-identical to the generic path's on floats (tests/examples/test_arch_chasing_cars
+# same order, so its traces are bit-identical to the generic path's on floats (tests/examples/test_arch_chasing_cars_fast
 # checks the two against each other).  Per input segment and step length, the state-free terms of the closed forms
 # (``e^-bs``, ``phi1``, ``phi2``, ``e^-s`` and the input terms) are computed once; the state is two flat lists.
 

@@ -29,7 +29,8 @@ def cc():
 
 
 def _signals(cc, rng, throttle_points, brake_points):
-    throttle = PiecewiseConstantInput(name="throttle", low=0.0, high=1.0, control_points=throttle_points, span=cc.HORIZON)
+    throttle = PiecewiseConstantInput(name="throttle", low=0.0, high=1.0, control_points=throttle_points,
+                                      span=cc.HORIZON)
     brake = PiecewiseConstantInput(name="brake", low=0.0, high=1.0, control_points=brake_points, span=cc.HORIZON)
     point = {}
     for item in (throttle, brake):
