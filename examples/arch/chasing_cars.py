@@ -220,9 +220,10 @@ def _event_time(tau: float, g_values, g_duals) -> Dual:
 
 
 # The float fast path (no sensitivities asked): the same closed forms with the same floating-point operations in the
-# same order, so its traces are bit-identical to the generic path's on floats (tests/examples/test_arch_chasing_cars_fast
-# checks the two against each other).  Per input segment and step length, the state-free terms of the closed forms
-# (``e^-bs``, ``phi1``, ``phi2``, ``e^-s`` and the input terms) are computed once; the state is two flat lists.
+# same order, so its traces are bit-identical to the generic path's on floats
+# (tests/examples/test_arch_chasing_cars_fast.py checks the two against each other).  Per input segment and step
+# length, the state-free terms of the closed forms (``e^-bs``, ``phi1``, ``phi2``, ``e^-s`` and the input terms) are
+# computed once; the state is two flat lists.
 
 
 def _phi1_float(x: float) -> float:
