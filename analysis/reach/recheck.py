@@ -24,7 +24,8 @@ while the requirement holds changes nothing (docs/reachability.md).
 flowpipe, from the problem's initial box or the exact reset image of the saved box before the jump, the
 re-checker's own zonotope per step; affine modes by an interval Picard box ``W`` and Taylor boxes of order
 :data:`TAYLOR_ORDER` in exact rationals (``m`` = 4, 16, 64, 256 time pieces), nonlinear ones by the centred
-second-order Taylor map (:data:`SUB_STEPS` sub-steps).  Every piece must lie in the saved segment box (the saved
+second-order Taylor map (:data:`SUB_STEPS` sub-steps), then its slope form (:data:`SLOPE_SUB_STEPS`; first on a
+wide set).  Every piece must lie in the saved segment box (the saved
 times covering the step's), every guard part in the ``before`` box of a saved jump of that transition, every
 ``after`` box must hold the exact reset image of ``before``; flowpipes ending at the horizon must reach it, those
 leaving the invariant must have their states there outside it; no deadlock at the exits and entries
@@ -60,7 +61,10 @@ Box = list[tuple[Fraction, Fraction]]
 TAYLOR_ORDER = 4
 PICARD_TRIES = 40  # a chain of couplings from a point start widens one coordinate of the chain per try
 SUB_STEPS = (1, 2, 8)
-"""Sub-steps tried per segment of a nonlinear mode (each a time piece) before the re-check fails."""
+"""Sub-steps tried per segment of a nonlinear mode (each a time piece) with the centred Taylor map."""
+SLOPE_SUB_STEPS = (1, 4)
+"""Sub-steps tried next with the slope form of the Taylor map (``recheck_smooth.SmoothStepper.slope_taylor``:
+wide sets); when these fail too the re-check fails (a bounded number of attempts)."""
 RECHECKED_PARTS = ("segments by interval Picard and Taylor boxes", "chaining of flowpipes and their ends",
                    "no deadlock where a flowpipe leaves its invariant or a jump lands",
                    "jumps (guards and resets)", "requirement atoms in exact rationals")
@@ -365,21 +369,27 @@ def _hull_zono(start: SmoothSet, end: SmoothSet, bend: Sequence[Fraction]) -> _Z
 def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
                  covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono | None]]]:
     """:func:`_step` for a nonlinear mode (:class:`~analysis.reach.recheck_smooth.SmoothStepper`): ``m`` sub-steps
-    of ``δ/m`` (``m`` from :data:`SUB_STEPS`), each a time piece: its box and the zonotope of :func:`_hull_zono`."""
+    of ``δ/m`` (``m`` from :data:`SUB_STEPS` with the centred Taylor map, then from :data:`SLOPE_SUB_STEPS` with its
+    slope form; the slope form first on a wide set), each a time piece: its box and the zonotope of
+    :func:`_hull_zono`."""
     first = SmoothSet(center=np.array([float(v) for v in z.center]),
                       gens=np.array([[float(v) for v in g] for g in z.gens]).T.reshape(len(z.center), -1),
                       err=np.array([float(v) for v in z.err]))
     problem = ""
     try:
-        for m in SUB_STEPS:
+        whole = mode.stepper.prepare(reduced(first), float(step))
+        attempts = [(m, False) for m in SUB_STEPS] + [(m, True) for m in SLOPE_SUB_STEPS]
+        if mode.stepper.is_wide(whole):  # the slope form first (a precision choice: both forms are sound)
+            attempts = attempts[len(SUB_STEPS):] + attempts[:len(SUB_STEPS)]
+        for m, slope in attempts:
             h = float(step / m)  # exact: a float divided by a power of two (the sub-steps sum to δ exactly)
             if Fraction(h) * m != step:
                 raise StepFailed(f"the step {float(step)!r} s is not divisible by {m} in floating point")
             current = reduced(first)
             pieces: list[tuple[Box, _Zono | None]] = []
             for _ in range(m):
-                pre = mode.stepper.prepare(current, h)
-                after = mode.stepper.taylor(current, h, pre)
+                pre = whole if m == 1 else mode.stepper.prepare(current, h)
+                after = (mode.stepper.slope_taylor if slope else mode.stepper.taylor)(current, h, pre)
                 lo, hi = current.hull()
                 lo2, hi2 = after.hull()
                 q_lo, q_hi = pre["qw"]

@@ -17,6 +17,11 @@ states at ``kδ`` after entry (floats, read as exact reals):
   with ``Dg_s = I + s Df + s²/2 Dq`` (second order for ``f``, mean value form for the small ``s²/2 q``).  The midpoint of ``Dg_s(c)`` maps the
   generators (each computed column within ``γ_n |M||g|`` of the exact one, Higham §3.1); its radius,
   the quadratic term, the third-order term and the roundings become a box of new generators.
+* **Slope form** (:meth:`SmoothStepper.slope_taylor`, for wide sets where ``Dg_s(c)`` sees no contraction, e.g.
+  ``x' = −x³`` around 0): ``g_s(x₀) = g_s(c) + M(x₀ − c) + r(x₀)`` with ``M`` the float midpoint of
+  ``Dg_s(hull Z)``, and ``r`` enclosed on a grid of boxes ``P`` covering the hull by the mean value theorem:
+  ``r(x) ∈ g_s(p) − g_s(c) − M(p − c) + (Dg_s(P) − M)(P − p)`` for a point ``p ∈ P``
+  (:func:`slope_remainder`; valid for any ``M``).
 * The tube of the step is cut in ``m`` sub-steps of ``h = δ/m``, each a Taylor step from the last; the
   states of a sub-step lie in ``hull(Y_j, Y_{j+1}) ± h²/8 · max|q(W)|`` (the error of linear
   interpolation between the two ends of one solution, ``|x − L| <= h²/8 max|ẍ|``), ``∩ W``.
@@ -44,9 +49,13 @@ from .interval_tape import IntervalTape, TapeFallback, compile_tape
 from .smooth import SmoothFlow
 
 __all__ = ["SmoothStepper", "SmoothSet", "MAX_GENERATORS", "StepFailed", "reduced"]
+# SLOPE_PIECES, slope_remainder and grid_pieces are public too (tests); kept out of __all__ so that the string
+# constants Hypothesis draws from (the report's fuzzing) stay those of before
 
 MAX_GENERATORS = 40
 """Generators the re-check's set keeps per step (the smallest beyond are boxed)."""
+SLOPE_PIECES = 16
+"""Boxes of the slope form's remainder (:func:`slope_remainder`): a fixed number, so a step's cost is bounded."""
 
 _U = 2.0 ** -53
 _TINY = 2.0 ** -1000
@@ -186,8 +195,11 @@ class SmoothStepper:
         self.at_point = list(f) + q + [e for row in jac for e in row] + [e for row in dq for e in row]
         self.over_hull = [e for a in hess for b in a for e in b] + [e for row in dq for e in row]
         self.over_w = list(f) + third + q
+        self.fq = list(f) + q
+        self.slopes = [e for row in jac for e in row] + [e for row in dq for e in row]
         # each list compiled once (the re-check's vectorised evaluation, same numbers as Interval's)
-        self.tapes = {id(roots): compile_tape(roots) for roots in (self.f, self.at_point, self.over_hull, self.over_w)}
+        self.tapes = {id(roots): compile_tape(roots) for roots in (self.f, self.at_point, self.over_hull, self.over_w,
+                                                                 self.fq, self.slopes)}
 
     def picard(self, lo: np.ndarray, hi: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
         """A box ``W`` with ``[lo, hi] + [0, δ] f(W) ⊂ int W``."""
@@ -253,16 +265,139 @@ class SmoothStepper:
         m_lo, m_hi = _iadd(_iadd((np.eye(n), np.eye(n)), _imul((s, s), pre["jac"])), _imul(half, pre["dq"]))
         mid = 0.5 * m_lo + 0.5 * m_hi
         rad = _upn(np.maximum(mid - m_lo, m_hi - mid))
-        gens = mid @ z.gens
-        absg = _sum_up(np.abs(z.gens), axis=1) if z.gens.shape[1] else np.zeros(n)
-        mag = _upn(absg + z.err)
-        rounding = _upn(_upn(((n + 2) * _U / (1 - (n + 2) * _U)) * (np.abs(mid) @ absg)) * (1 + 4 * (n + 2) * _U)
-                        + (n + 2) * _TINY)
-        spread = _upn((rad @ mag + np.abs(mid) @ z.err) * (1 + 4 * (n + 2) * _U) + (n + 2) * _TINY)
-        center = 0.5 * total[0] + 0.5 * total[1]
-        box = _upn(np.maximum(center - total[0], total[1] - center))
-        err = _upn(_upn(box + rounding) + spread)
-        return SmoothSet(center=center, gens=gens, err=err)
+        return _assemble(z, total, mid, rad)
+
+    def is_wide(self, pre: dict[str, Any]) -> bool:
+        """Whether the Jacobian's spread over the set's hull, ``Σ_k |D²f_{·,·,k}| |d_k|``, exceeds ``|Df(c)|`` (∞-norms,
+        and ``10⁻³``): the centred form then sees too little of the contraction across the set (a precision
+        heuristic only; it orders the attempts, both forms being sound)."""
+        d = np.maximum(np.abs(pre["d"][0]), np.abs(pre["d"][1]))
+        hess = np.maximum(np.abs(pre["hess"][0]), np.abs(pre["hess"][1]))
+        spread = float(np.max(np.sum(hess @ d, axis=1)))
+        jac = np.maximum(np.abs(pre["jac"][0]), np.abs(pre["jac"][1]))
+        return spread > max(float(np.max(np.sum(jac, axis=1))), 1e-3)
+
+    def slope_taylor(self, z: SmoothSet, s: float, pre: dict[str, Any], pieces: int = SLOPE_PIECES) -> SmoothSet:
+        """``Y_s`` like :meth:`taylor`, in slope (mean-value) form: the linear part is the midpoint ``M`` of
+        ``Dg_s`` over the set's hull (the contraction across a wide set, where ``Dg_s(c)`` sees none), and the
+        remainder ``r(x) = g_s(x) − g_s(c) − M(x − c)`` is enclosed on ``pieces`` boxes covering the hull
+        (:func:`slope_remainder`)."""
+        n = self.n
+        lo, hi = z.hull()
+        half = _imul(_isquare((s, s)), (0.5, 0.5))
+        s3 = _imul(_imul(_isquare((s, s)), (s, s)), (1.0 / 6.0 - 2 * _U, 1.0 / 6.0 + 2 * _U))
+        g = _iadd(_iadd((z.center, z.center), _imul((s, s), pre["f"])), _imul(half, pre["q"]))
+        d_lo, d_hi = self.slope_matrix(lo, hi, s)
+        mid = 0.5 * d_lo + 0.5 * d_hi
+        r = slope_remainder(self, z.center, g, mid, lo, hi, s, pieces)
+        total = _iadd(_iadd(g, r), _imul(s3, pre["third"]))
+        return _assemble(z, total, mid, np.zeros((n, n)))
+
+    def g_at(self, point: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """An interval vector holding ``g_s(p) = p + s f(p) + s²/2 q(p)`` at the float point ``p``."""
+        n = self.n
+        v_lo, v_hi = _evaluate(self.fq, point, point, self.tapes[id(self.fq)])
+        half = _imul(_isquare((s, s)), (0.5, 0.5))
+        return _iadd(_iadd((point, point), _imul((s, s), (v_lo[:n], v_hi[:n]))), _imul(half, (v_lo[n:], v_hi[n:])))
+
+    def slope_matrix(self, lo: np.ndarray, hi: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """An interval matrix holding ``Dg_s(x) = I + s Df(x) + s²/2 Dq(x)`` for every ``x`` in the box."""
+        n = self.n
+        v_lo, v_hi = _evaluate(self.slopes, lo, hi, self.tapes[id(self.slopes)])
+        half = _imul(_isquare((s, s)), (0.5, 0.5))
+        jac = (v_lo[: n * n].reshape(n, n), v_hi[: n * n].reshape(n, n))
+        dq = (v_lo[n * n:].reshape(n, n), v_hi[n * n:].reshape(n, n))
+        return _iadd(_iadd((np.eye(n), np.eye(n)), _imul((s, s), jac)), _imul(half, dq))
+
+
+def slope_remainder(stepper: SmoothStepper, center: np.ndarray, g_center: tuple[np.ndarray, np.ndarray],
+                    matrix: np.ndarray, lo: np.ndarray, hi: np.ndarray, s: float,
+                    pieces: int) -> tuple[np.ndarray, np.ndarray]:
+    """An interval vector holding ``r(x) = g_s(x) − g_s(c) − M(x − c)`` for every ``x`` in ``[lo, hi]``.
+
+    The box is cut into a grid of at most ``pieces`` boxes ``P`` (:func:`grid_pieces`: they cover it, float edges
+    shared).  On ``P`` with a float point ``p ∈ P``, the mean value theorem per component along the segment
+    ``[p, x] ⊂ P`` gives ``r(x) = r(p) + (Dg_s(ζ) − M)(x − p)`` with ``Dg_s(ζ)`` in the interval matrix
+    ``Dg_s(P)``, and ``r(p) = g_s(p) − g_s(c) − M(p − c)``: every term enclosed (outward), the union over the
+    pieces kept as its hull.
+
+    Parameters
+    ----------
+    stepper : SmoothStepper
+    center : ndarray, shape (n,)
+        ``c`` (floats, exact reals).
+    g_center : (ndarray, ndarray), shapes (n,)
+        An interval vector holding ``g_s(c)``.
+    matrix : ndarray, shape (n, n)
+        ``M``: any float matrix (the enclosure is valid for every ``M``; its midpoint choice is for precision).
+    lo, hi : ndarray, shape (n,)
+        The box (every ``x`` of the set lies in it).
+    s : float
+        The local time ``s`` [s].
+    pieces : int
+        The most boxes of the grid.
+    """
+    n = center.size
+    out_lo, out_hi = np.full(n, np.inf), np.full(n, -np.inf)
+    for p_lo, p_hi in grid_pieces(lo, hi, pieces):
+        point = 0.5 * p_lo + 0.5 * p_hi
+        point = np.minimum(np.maximum(point, p_lo), p_hi)
+        gp = stepper.g_at(point, s)
+        shift = (_dn(point - center), _upn(point - center))
+        lin = _imul((matrix, matrix), (shift[0][None, :], shift[1][None, :]))
+        lin = _interval_sum(lin[0], lin[1])
+        base = _iadd(_iadd(gp, (-g_center[1], -g_center[0])), (-lin[1], -lin[0]))
+        d_lo, d_hi = stepper.slope_matrix(p_lo, p_hi, s)
+        slope = _iadd((d_lo, d_hi), (-matrix, -matrix))
+        dx = (_dn(p_lo - point), _upn(p_hi - point))
+        spread = _imul(slope, (dx[0][None, :], dx[1][None, :]))
+        part = _iadd(base, _interval_sum(spread[0], spread[1]))
+        out_lo, out_hi = np.minimum(out_lo, part[0]), np.maximum(out_hi, part[1])
+    if not (np.all(np.isfinite(out_lo)) and np.all(np.isfinite(out_hi))):
+        raise StepFailed("the slope form's remainder is not finite")
+    return out_lo, out_hi
+
+
+def grid_pieces(lo: np.ndarray, hi: np.ndarray, pieces: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Boxes covering ``[lo, hi]`` (shapes (n,)): a grid, the widest cells halved first, at most ``pieces`` cells.
+
+    Along each coordinate the edges ``lo = e_0 <= e_1 <= … <= e_k = hi`` are floats shared by neighbouring cells,
+    so the cells cover the box exactly.
+    """
+    n = lo.size
+    counts = np.ones(n, dtype=int)
+    width = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
+    while int(np.prod(counts)) * 2 <= pieces:
+        k = int(np.argmax(width / counts))
+        if not width[k] > 0:
+            break
+        counts[k] *= 2
+    edges = []
+    for i in range(n):
+        e = lo[i] + width[i] * (np.arange(counts[i] + 1) / counts[i])
+        e[0], e[-1] = lo[i], hi[i]
+        edges.append(np.minimum(np.maximum.accumulate(np.maximum(e, lo[i])), hi[i]))
+    out = []
+    for index in np.ndindex(*counts):
+        out.append((np.array([edges[i][j] for i, j in enumerate(index)]),
+                    np.array([edges[i][j + 1] for i, j in enumerate(index)])))
+    return out
+
+
+def _assemble(z: SmoothSet, total: tuple[np.ndarray, np.ndarray], mid: np.ndarray, rad: np.ndarray) -> SmoothSet:
+    """``total ⊕ [mid ± rad](x − c)`` over ``x ∈ z`` as a set: ``mid`` maps the generators (each computed column
+    within ``γ_n |mid||g|`` of the exact one), the radius, the error box and the roundings join ``total``'s box."""
+    n = z.center.size
+    gens = mid @ z.gens
+    absg = _sum_up(np.abs(z.gens), axis=1) if z.gens.shape[1] else np.zeros(n)
+    mag = _upn(absg + z.err)
+    rounding = _upn(_upn(((n + 2) * _U / (1 - (n + 2) * _U)) * (np.abs(mid) @ absg)) * (1 + 4 * (n + 2) * _U)
+                    + (n + 2) * _TINY)
+    spread = _upn((rad @ mag + np.abs(mid) @ z.err) * (1 + 4 * (n + 2) * _U) + (n + 2) * _TINY)
+    center = 0.5 * total[0] + 0.5 * total[1]
+    box = _upn(np.maximum(center - total[0], total[1] - center))
+    err = _upn(_upn(box + rounding) + spread)
+    return SmoothSet(center=center, gens=gens, err=err)
 
 
 def _form_on_generators(cols: np.ndarray, coef: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
