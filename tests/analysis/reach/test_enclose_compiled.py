@@ -122,7 +122,11 @@ def test_an_expression_outside_the_smooth_operations_is_not_compiled():
     x = coordinates(*NAMES)
     assert compile_enclosure([x.x * x.y, exp(x.x)], NAMES) is None
     assert compile_enclosure([x.x + x.y], ("x",)) is None  # y is not a coordinate of this list
-    assert compile_enclosure([], NAMES)([], []) == ([], [])
+    assert compile_enclosure([], NAMES)([0.0, 1.0], [0.0, 1.0]) == ([], [])
+    x = coordinates(*NAMES)
+    infinite = x.x * Const(math.inf) + Const(-math.inf)  # enclose cleans [inf, inf] and [-inf, -inf]
+    lows, highs = compile_enclosure([infinite], NAMES)([1.0, 0.0], [2.0, 0.0])
+    assert (lows[0], highs[0]) == enclose(infinite, {"x": (1.0, 2.0), "y": (0.0, 0.0)})
 
 
 @pytest.mark.parametrize("name", ["vdp", "cubic", "pendulum"])
