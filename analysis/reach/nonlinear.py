@@ -9,11 +9,12 @@ Per time step ``[kδ, (k+1)δ]``, from a zonotope ``R_k`` holding the states at 
    ``L(x) = (f(x*) − f̃) + (f̃ − A x* − c) + (Df(x*) − A)(x − x*) + ½ (x − x*)ᵀ H(ξ) (x − x*)``
    (Taylor with the Lagrange remainder; ``ξ`` on the segment from ``x*`` to ``x``).  Over a box ``Ω``
    holding ``x*`` and the states of the step, ``L(Ω)`` is enclosed by interval arithmetic with
-   outward rounding: ``f(x*)`` and ``Df(x*)`` by :func:`hybrid.symbolic.enclose` on the point,
-   every Hessian entry ``∂²f_i/∂x_j∂x_k`` by the same over ``Ω``, products and sums rounded outward.
+   outward rounding: ``f(x*)`` and ``Df(x*)`` by :func:`hybrid.symbolic.enclose`'s arithmetic on the point,
+   every Hessian entry ``∂²f_i/∂x_j∂x_k`` by the same over ``Ω`` (compiled once per mode:
+   :mod:`analysis.reach.enclose_compiled`, the same floats), products and sums rounded outward.
 3. **Fixed point.** The step is the affine flow ``ẋ = A x + c + u``, ``u(t) ∈ U`` (a box), computed
    with the sound affine machinery (:func:`analysis.reach.float_series.float_dynamics` and
-   :func:`~analysis.reach.flowpipe.first_segment`: ``e^{Aδ}`` in midpoint-radius intervals):
+   :func:`~analysis.reach.flowpipe.first_segment`: ``e^{Aδ}`` in floats with an a-priori rounding bound):
    its tube ``Ω(U)`` over ``[0, δ]``.  When ``L(box Ω(U)) ⊂ int U``, the tube holds every solution of
    the nonlinear flow over the step; otherwise ``U`` is enlarged to the hull with ``L`` (times 1.5) and
    the step redone, at most :data:`MAX_ITERATIONS` times.
@@ -44,6 +45,7 @@ import numpy as np
 
 from hybrid.symbolic import Const, enclose
 
+from .enclose_compiled import compile_enclosure
 from .float_series import float_dynamics
 from .flowpipe import ModeDynamics, first_segment
 from .series import MAX_NORM_STEP
@@ -103,6 +105,9 @@ class _Evaluator:
         self.f_float = list(flow.components)  # called as e(v, m): compiled once
         # the distinct Hessian entries (j <= k), with their multiplicity 1 or 2 in the quadratic form
         self.pairs = [(j, k) for j in range(self.n) for k in range(j, self.n)]
+        self.pair_index = (np.array([j for j, _ in self.pairs], dtype=int),
+                           np.array([k for _, k in self.pairs], dtype=int))
+        self.pair_diagonal = self.pair_index[0] == self.pair_index[1]
         # constant Jacobian and Hessian entries (most of them, for sparse flows) are read once
         self.j_const = np.zeros((self.n, self.n))
         self.j_vary = []
@@ -123,57 +128,101 @@ class _Evaluator:
                     self.h_const[i, j, k] = self.h_const[i, k, j] = float(entry.value)
                 else:
                     self.h_vary.append((i, j, k))
+        # the enclosures compiled once (the same floats as enclose's tree walk; None: walk the tree)
+        names = flow.names
+        j_roots = [flow.jacobian[i][j] for i, j in self.j_vary]
+        self.f_tape = compile_enclosure(flow.components, names)
+        self.point_tape = compile_enclosure(list(flow.components) + j_roots, names)
+        self.j_tape = compile_enclosure(j_roots, names)
+        self.h_tape = compile_enclosure([flow.hessian[i][j][k] for i, j, k in self.h_vary], names)
+        self.j_index = tuple(np.array(v, dtype=int) for v in zip(*self.j_vary)) if self.j_vary else None
+        if self.h_vary:
+            hi_, hj, hk = (np.array(v, dtype=int) for v in zip(*self.h_vary))
+            self.h_index = (np.concatenate([hi_, hi_]), np.concatenate([hj, hk]), np.concatenate([hk, hj]))
+        else:
+            self.h_index = None
 
     def box(self, lo: np.ndarray, hi: np.ndarray) -> dict[str, tuple[float, float]]:
         return {name: (float(a), float(b)) for name, a, b in zip(self.flow.names, lo, hi)}
 
     def point_enclosures(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Enclosures of ``f(x)`` and ``Df(x)`` at a float point: (f_lo, f_hi, J_lo, J_hi)."""
+        if self.point_tape is not None:
+            xs = x.tolist()
+            lows, highs = self.point_tape(xs, xs)
+            n = self.n
+            j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
+            if self.j_index is not None:
+                j_lo[self.j_index], j_hi[self.j_index] = lows[n:], highs[n:]
+            return np.array(lows[:n]), np.array(highs[:n]), j_lo, j_hi
         bounds = self.box(x, x)
         shared: dict = {}  # subtrees common to the entries enclosed once (the same numbers)
         f = np.array([enclose(e, bounds, shared=shared) for e in self.flow.components])
         j_lo, j_hi = self.jacobian(x, x, shared=shared)
         return f[:, 0], f[:, 1], j_lo, j_hi
 
+    def f_point(self, x: np.ndarray) -> np.ndarray:
+        """Enclosures of ``f(x)`` at a float point, shape (n, 2)."""
+        if self.f_tape is not None:
+            xs = x.tolist()
+            lows, highs = self.f_tape(xs, xs)
+            return np.array([lows, highs]).T
+        bounds = self.box(x, x)
+        return np.array([enclose(e, bounds) for e in self.flow.components])
+
     def jacobian(self, lo: np.ndarray, hi: np.ndarray, shared: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Enclosures of every ``∂f_i/∂x_j`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n).
 
         ``shared``: a memo of subtree enclosures over this same box (see :func:`hybrid.symbolic.enclose`)."""
+        j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
+        if self.j_tape is not None and shared is None:
+            if self.j_index is not None:
+                j_lo[self.j_index], j_hi[self.j_index] = self.j_tape(lo.tolist(), hi.tolist())
+            return j_lo, j_hi
         bounds = self.box(lo, hi)
         shared = {} if shared is None else shared
-        j_lo, j_hi = self.j_const.copy(), self.j_const.copy()
         for i, j in self.j_vary:
             j_lo[i, j], j_hi[i, j] = enclose(self.flow.jacobian[i][j], bounds, shared=shared)
         return j_lo, j_hi
 
     def hessian(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Enclosures of every ``∂²f_i/∂x_j∂x_k`` over the box ``[lo, hi]``: (lo, hi), each shape (n, n, n)."""
-        bounds = self.box(lo, hi)
-        shared: dict = {}  # subtrees common to the entries enclosed once (the same numbers)
         h_lo, h_hi = self.h_const.copy(), self.h_const.copy()
-        for i, j, k in self.h_vary:
-            h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds, shared=shared)
-            h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
+        if self.h_tape is not None:
+            if self.h_index is not None:
+                lows, highs = self.h_tape(lo.tolist(), hi.tolist())
+                h_lo[self.h_index], h_hi[self.h_index] = lows + lows, highs + highs
+        else:
+            bounds = self.box(lo, hi)
+            shared: dict = {}  # subtrees common to the entries enclosed once (the same numbers)
+            for i, j, k in self.h_vary:
+                h_lo[i, j, k], h_hi[i, j, k] = enclose(self.flow.hessian[i][j][k], bounds, shared=shared)
+                h_lo[i, k, j], h_hi[i, k, j] = h_lo[i, j, k], h_hi[i, j, k]
         self.curvature = np.maximum(np.abs(h_lo), np.abs(h_hi))  # the latest |H| (a hint for _linearise)
         return h_lo, h_hi
 
     def quadratic(self, d_lo: np.ndarray, d_hi: np.ndarray, h_lo: np.ndarray, h_hi: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-        """An enclosure of ``½ dᵀ H d`` for ``d ∈ [d_lo, d_hi]``, ``H ∈ [h_lo, h_hi]`` (interval form)."""
+        """An enclosure of ``½ dᵀ H d`` for ``d ∈ [d_lo, d_hi]``, ``H ∈ [h_lo, h_hi]`` (interval form).
+
+        The products of every pair ``(j, k)`` are formed at once (elementwise the same operations as one pair at a
+        time); the terms are then added pair by pair, each addition rounded outward."""
+        pj, pk = self.pair_index
+        live = np.any(h_lo[:, pj, pk] != 0.0, axis=0) | np.any(h_hi[:, pj, pk] != 0.0, axis=0)
+        if not np.any(live):  # a zero column of the Hessian adds nothing
+            return np.zeros(self.n), np.zeros(self.n)
+        pj, pk, diag = pj[live], pk[live], self.pair_diagonal[live]
+        aj_lo, aj_hi, ak_lo, ak_hi = d_lo[pj], d_hi[pj], d_lo[pk], d_hi[pk]
+        sq_hi = _up(np.maximum(aj_lo ** 2, aj_hi ** 2))
+        sq_lo = np.where((aj_lo <= 0.0) & (0.0 <= aj_hi), 0.0, _down(np.minimum(aj_lo ** 2, aj_hi ** 2)))
+        m_lo, m_hi = _mul(aj_lo, aj_hi, ak_lo, ak_hi)
+        p_lo, p_hi = np.where(diag, sq_lo, m_lo), np.where(diag, sq_hi, m_hi)
+        weight = np.where(diag, 0.5, 1.0)  # ½ (H_jk + H_kj) d_j d_k = H_jk d_j d_k off the diagonal
+        t_lo, t_hi = _mul(h_lo[:, pj, pk] * weight, h_hi[:, pj, pk] * weight, np.broadcast_to(p_lo, (self.n, pj.size)),
+                          np.broadcast_to(p_hi, (self.n, pj.size)))
         out_lo, out_hi = np.zeros(self.n), np.zeros(self.n)
-        for j, k in self.pairs:
-            if not (np.any(h_lo[:, j, k]) or np.any(h_hi[:, j, k])):
-                continue  # a zero column of the Hessian adds nothing
-            if j == k:
-                sq_hi = _up(np.maximum(d_lo[j] ** 2, d_hi[j] ** 2))
-                sq_lo = 0.0 if d_lo[j] <= 0.0 <= d_hi[j] else _down(min(d_lo[j] ** 2, d_hi[j] ** 2))
-                p_lo, p_hi, weight = np.array([sq_lo]), np.array([sq_hi]), 0.5
-            else:
-                p_lo, p_hi = _mul(np.array([d_lo[j]]), np.array([d_hi[j]]), np.array([d_lo[k]]), np.array([d_hi[k]]))
-                weight = 1.0  # ½ (H_jk + H_kj) d_j d_k = H_jk d_j d_k
-            t_lo, t_hi = _mul(h_lo[:, j, k] * weight, h_hi[:, j, k] * weight, np.repeat(p_lo, self.n),
-                              np.repeat(p_hi, self.n))
-            out_lo, out_hi = _down(out_lo + t_lo), _up(out_hi + t_hi)
+        for q in range(pj.size):
+            out_lo, out_hi = _down(out_lo + t_lo[:, q]), _up(out_hi + t_hi[:, q])
         return out_lo, out_hi
 
 
@@ -187,21 +236,18 @@ def _quadratic_zonotope(gens: np.ndarray, h_lo: np.ndarray, h_hi: np.ndarray) ->
     """
     n, m = gens.shape
     absg = np.abs(gens)
-    mask = ~np.eye(m, dtype=bool)
-    out_lo, out_hi = np.empty(n), np.empty(n)
-    for i in range(n):
-        hc = 0.5 * h_lo[i] + 0.5 * h_hi[i]
-        hr = upper(np.maximum(hc - h_lo[i], h_hi[i] - hc), 1)
-        p = hc @ gens
-        mat = gens.T @ p
-        rad = upper(gamma(n) * (absg.T @ np.abs(p) + absg.T @ (np.abs(hc) @ absg)) + absg.T @ (hr @ absg), 4 * n + 4)
-        diag, rdiag = np.diag(mat), np.diag(rad)
-        off = upper((np.abs(mat) + rad)[mask].sum(), m * m + 1)
-        top = upper(np.maximum(diag + rdiag, 0.0).sum(), m + 1)
-        bottom = upper(np.maximum(rdiag - diag, 0.0).sum(), m + 1)
-        out_lo[i] = float(_down(-0.5 * float(upper(bottom + off, 2))))
-        out_hi[i] = float(_up(0.5 * float(upper(top + off, 2))))
-    return out_lo, out_hi
+    mask = 1.0 - np.eye(m)  # x·0 = 0 and x·1 = x exactly: the off-diagonal sum below has m² terms
+    # every row i at once (stacked matrix products: each entry is the same dot product of length n, in some order)
+    hc = 0.5 * h_lo + 0.5 * h_hi
+    hr = upper(np.maximum(hc - h_lo, h_hi - hc), 1)
+    p = hc @ gens
+    mat = gens.T @ p
+    rad = upper(gamma(n) * (absg.T @ np.abs(p) + absg.T @ (np.abs(hc) @ absg)) + absg.T @ (hr @ absg), 4 * n + 4)
+    diag, rdiag = np.diagonal(mat, axis1=1, axis2=2), np.diagonal(rad, axis1=1, axis2=2)
+    off = upper(((np.abs(mat) + rad) * mask).sum(axis=(1, 2)), m * m + 1)
+    top = upper(np.maximum(diag + rdiag, 0.0).sum(axis=1), m + 1)
+    bottom = upper(np.maximum(rdiag - diag, 0.0).sum(axis=1), m + 1)
+    return _down(-0.5 * upper(bottom + off, 2)), _up(0.5 * upper(top + off, 2))
 
 
 def remainder_box(ev: _Evaluator, xstar: np.ndarray, lin: tuple[np.ndarray, ...], lo: np.ndarray,
@@ -247,14 +293,14 @@ def _mean_value(ev: _Evaluator, a: np.ndarray, xstar: np.ndarray, lo: np.ndarray
     """
     n = ev.n
     k = max(1, int(math.floor(MEAN_VALUE_PIECES ** (1.0 / n) + 1e-9)))
-    f_star = np.array([enclose(e, ev.box(xstar, xstar)) for e in ev.flow.components])
+    f_star = ev.f_point(xstar)
     cuts = [np.linspace(lo[i], hi[i], k + 1) for i in range(n)]
     out_lo, out_hi = np.full(n, np.inf), np.full(n, -np.inf)
     for index in itertools.product(range(k), repeat=n):
         p_lo = np.array([cuts[i][j] if j > 0 else lo[i] for i, j in enumerate(index)])
         p_hi = np.array([cuts[i][j + 1] if j + 1 < k else hi[i] for i, j in enumerate(index)])
         m = 0.5 * p_lo + 0.5 * p_hi
-        f_m = np.array([enclose(e, ev.box(m, m)) for e in ev.flow.components])
+        f_m = ev.f_point(m)
         # A (m − x*): m − x* in [g_lo, g_hi] (the float midpoint within g_hi − g_lo of it), the product rounded
         g_lo, g_hi = _down(m - xstar), _up(m - xstar)
         dm = np.maximum(np.abs(g_lo), np.abs(g_hi))
@@ -346,9 +392,10 @@ def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: in
         dyn, aug, tube = _tube(mode, lin, u_lo, u_hi, start, step)
         if not tube.is_finite():
             return "the tube is not finite"
-        lo, hi = interval_hull(tube.project(n))
+        states = tube.project(n)
+        lo, hi = interval_hull(states)
         lo, hi = np.minimum(lo, xstar), np.maximum(hi, xstar)
-        l_lo, l_hi = remainder_box(ev, xstar, lin, lo, hi, tube.project(n))
+        l_lo, l_hi = remainder_box(ev, xstar, lin, lo, hi, states)
         if not (np.all(np.isfinite(l_lo)) and np.all(np.isfinite(l_hi))):
             return "the Lagrange remainder is not finite"
         if np.all(u_lo < l_lo) and np.all(l_hi < u_hi):
