@@ -122,7 +122,9 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         Values of the component's own constants that no bind maps (:func:`hybrid.spaceex_import.load_spaceex`).
     reach_options : dict or None
         Options of the reachability proof (:func:`analysis.verify.problems.hybrid_problem`), e.g.
-        ``{"time_step": 0.5, "mode_time_steps": {"P3": 0.02}}`` for a model with a fast location.
+        ``{"time_step": 0.5, "mode_time_steps": {"P3": 0.02}}`` for a model with a fast location.  Without a
+        ``time_step`` here, the configuration's ``sampling-time`` is the step (when it has one); without
+        either, the steps are chosen from the dynamics (:mod:`analysis.reach.autostep`).
 
     Raises
     ------
@@ -156,6 +158,10 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         notes.append(f"the forbidden set holds at the clock's instant {instant!r} s only: checked there "
                      f"(always[{instant!r}, {instant!r}]), the trace sampled every {period!r} s")
     parameters, mode = _choices(model, cfg, modes, input_points, notes)
+    reach_options = dict(reach_options or {})
+    if cfg.sampling_time is not None and "time_step" not in reach_options:
+        reach_options["time_step"] = cfg.sampling_time
+        notes.append(f"reachability steps of sampling-time = {cfg.sampling_time!r} s (from {Path(config).name})")
     notes.append("hybrid fires each transition as soon as its guard holds; SpaceEx may fire it later while the "
                  "invariant holds: the simulated runs are runs of the SpaceEx model, not all of them")
     system: HybridSystem | InputSignals = model.system
@@ -170,7 +176,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
                     + " ".join(notes),
         source=f"{xml}:{model.system.automaton.name} --config {config}", reach_options=reach_options,
     )
-    return _with_input_proofs(problem, model, initial, mode)
+    return _with_input_proofs(problem, model, initial, mode, reach_options)
 
 
 def _choices(model: SpaceExModel, cfg: object, modes: list[str], input_points: int,
@@ -234,13 +240,15 @@ def _instant_formula(model: SpaceExModel, cfg: object, box: Mapping[str, tuple[f
 
 
 def _with_input_proofs(problem: VerificationProblem, model: SpaceExModel, initial: Mapping[str, object],
-                       mode: object) -> VerificationProblem:
-    """The problem with reachability proofs taking the model's inputs (none without inputs)."""
+                       mode: object, reach_options: Mapping[str, Any]) -> VerificationProblem:
+    """The problem with reachability proofs taking the model's inputs (none without inputs), with the step and the
+    jump bound of ``reach_options`` (steps chosen from the dynamics without a step)."""
     from dataclasses import replace
 
     from analysis.spaceex_reach import input_proofs
 
     if not model.inputs:
         return problem
-    found = input_proofs(model.system, model.input_flows, model.inputs, problem.parsed, initial, mode)
+    found = input_proofs(model.system, model.input_flows, model.inputs, problem.parsed, initial, mode,
+                         time_step=reach_options.get("time_step"), max_jumps=reach_options.get("max_jumps"))
     return replace(problem, proofs={**problem.proofs, **found}) if found else problem

@@ -11,6 +11,13 @@ A decision that holds is re-checked from the saved flowpipe (whose JSON carries 
 :func:`analysis.reach.recheck.recheck_flowpipe` with the model's inputs
 (its own sets with the input bounds of :mod:`analysis.reach.recheck_inputs`, outward-rounded intervals and exact
 rationals: :mod:`analysis.reach.recheck_own`); only a passed re-check gives ``rechecked=True`` and so ``proven``.
+
+Without a step (``time_step=None``) the steps are chosen from the dynamics as for a model without inputs
+(:func:`analysis.reach.autostep.auto_choices`: ``‖A_aug‖∞ δ <= κ`` for ``κ`` in
+:data:`analysis.reach.autostep.AUTO_INPUT_STEPS`, 3.9, 0.4 and 0.1, then with ``jump_cluster``), one choice after
+the other until one is proven and re-checked; with a step, only the fast modes get one (``κ = 3.9``).  The input's
+centre ``B u_c`` joins the constant column, scaled to at most 1 (so the ``+ 1`` of the bound covers it); the input's
+spread is over-approximated by up to ``e^κ`` per step (``AUTO_INPUT_STEPS``), hence the finer last choice.
 """
 
 from __future__ import annotations
@@ -88,23 +95,30 @@ class InputReachProof:
         from analysis.reach.affine import AffineError
         from analysis.reach.model import affine_model
         from analysis.reach.recheck import recheck_flowpipe
+        from analysis.reach.autostep import AUTO_INPUT_STEPS, auto_choices, chosen_text
         from analysis.reach.verdict import MAX_SEGMENTS, METHOD, decide, default_max_jumps, default_time_step
 
         method = METHOD.replace(", re-checked", " with bounded non-deterministic inputs, re-checked")
         end = max(self.fragment.end, 1e-9)
         step = min(default_time_step(end) if self.time_step is None else self.time_step, end)
         jumps = default_max_jumps(end) if self.max_jumps is None else self.max_jumps
+        initial = {k: (lo, hi) for k, lo, hi in self.initial}
         try:
             zero, matrices = input_reach_model(self.system, self.input_flows, self.inputs)
-            result = reach(zero, {k: (lo, hi) for k, lo, hi in self.initial}, horizon=end, time_step=step,
-                           initial_mode=self.initial_mode, max_jumps=jumps, inputs=matrices,
-                           max_segments=MAX_SEGMENTS, max_flowpipes=MAX_FLOWPIPES)
-            initial = {k: (lo, hi) for k, lo, hi in self.initial}
-            holds, margin, reason = decide(result, self.fragment, affine_model(zero), initial)
-            check = recheck_flowpipe(result.to_json(), zero, initial, self.fragment, initial_mode=self.initial_mode,
-                                     inputs=matrices) if holds else None
+            kappas = AUTO_INPUT_STEPS if self.time_step is None else AUTO_INPUT_STEPS[:1]
+            choices = auto_choices(affine_model(zero), end, step, {}, kappas, MAX_SEGMENTS) or [(None, {})]
+            for kappa, options in choices:
+                result = reach(zero, dict(initial), horizon=end, time_step=step, initial_mode=self.initial_mode,
+                               max_jumps=jumps, inputs=matrices, max_segments=MAX_SEGMENTS,
+                               max_flowpipes=MAX_FLOWPIPES, **options)
+                holds, margin, reason = decide(result, self.fragment, affine_model(zero), initial)
+                check = recheck_flowpipe(result.to_json(), zero, initial, self.fragment,
+                                         initial_mode=self.initial_mode, inputs=matrices) if holds else None
+                if check is not None and check.passed:
+                    break
         except (AffineError, ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=method, evidence=f"not decided by reachability: {exc}", rechecked=False)
+        reason += chosen_text(kappa, options)
         bounds = ", ".join(f"{i.name} in [{i.low:g}, {i.high:g}]" for i in self.inputs)
         if check is None:
             again = NOT_RECHECKED
@@ -125,8 +139,10 @@ class InputReachProof:
 
 
 def input_proofs(system: HybridSystem, input_flows: Mapping[str, Any], inputs: Sequence[SpaceExInput],
-                 parsed: Sequence[Any], initial: Mapping[str, Any], initial_mode: Any) -> dict[str, InputReachProof]:
-    """``{requirement: InputReachProof}`` for the requirements in the safety fragment (a single initial mode)."""
+                 parsed: Sequence[Any], initial: Mapping[str, Any], initial_mode: Any, *,
+                 time_step: float | None = None, max_jumps: int | None = None) -> dict[str, InputReachProof]:
+    """``{requirement: InputReachProof}`` for the requirements in the safety fragment (a single initial mode), with
+    the user's step and jump bound (``None``: steps chosen from the dynamics, the default jump bound)."""
     from analysis.reach.fragment import NotInFragment, safety_fragment
 
     if not isinstance(initial_mode, str):
@@ -139,6 +155,7 @@ def input_proofs(system: HybridSystem, input_flows: Mapping[str, Any], inputs: S
         except NotInFragment:
             continue
         out[p.name] = InputReachProof(system=system, input_flows=dict(input_flows), inputs=tuple(inputs),
-                                      fragment=fragment, initial=box, initial_mode=initial_mode)
+                                      fragment=fragment, initial=box, initial_mode=initial_mode,
+                                      time_step=time_step, max_jumps=max_jumps)
     return out
 

@@ -2,10 +2,11 @@
 
 A ``.cfg`` is a list of ``key = value`` lines (``#`` comments, values quoted or
 bare).  Read: ``system``, ``initially``, ``forbidden``, ``time-horizon``,
-``output-variables``.  Every other key (``scenario``, ``directions``,
-``sampling-time``, ``flowpipe-tolerance``, ``iter-max``, ``rel-err``, ...) tunes
-SpaceEx's own reachability algorithm: it is ignored and listed in
-:attr:`SpaceExConfig.ignored`.
+``output-variables`` and ``sampling-time`` (SpaceEx's time step, the flowpipe's step:
+:attr:`SpaceExConfig.sampling_time`; in the scenarios ``stc`` and ``simu`` it is not a
+fixed flowpipe step, so it is not read there).  Every other key (``scenario``,
+``directions``, ``flowpipe-tolerance``, ``iter-max``, ``rel-err``, ...) tunes SpaceEx's own
+reachability algorithm: it is ignored and listed in :attr:`SpaceExConfig.ignored`.
 
 The initial set must be a conjunction of bounds ``c1 <= x <= c2``,
 ``x == c``, ``x >= c`` ... and location constraints ``loc(instance) == name``;
@@ -27,10 +28,16 @@ from .spaceex_flatten import constant_value
 from .spaceex_import import SpaceExModel, substitute_tree
 from .spaceex_syntax import SpaceExError, parse_constraints
 
-__all__ = ["SpaceExConfig", "parse_config", "initial_box", "forbidden_formula", "USED_KEYS"]
+__all__ = ["SpaceExConfig", "parse_config", "initial_box", "forbidden_formula", "USED_KEYS", "STEP_FREE_SCENARIOS"]
 
-USED_KEYS = ("system", "initially", "forbidden", "time-horizon", "output-variables")
-"""The configuration keys the import reads; the others are SpaceEx algorithm settings, ignored."""
+USED_KEYS = ("system", "initially", "forbidden", "time-horizon", "output-variables", "sampling-time")
+"""The configuration keys the import reads; the others are SpaceEx algorithm settings, ignored (``sampling-time``
+too in the scenarios of :data:`STEP_FREE_SCENARIOS`)."""
+
+STEP_FREE_SCENARIOS = ("stc", "simu")
+"""Scenarios whose ``sampling-time`` is not a fixed flowpipe step: ``stc`` adapts its time steps to the
+``flowpipe-tolerance`` (the sampling time is where it starts), ``simu`` simulates (it is the output's sampling).
+There the key is ignored; in ``supp`` (the LGG algorithm's fixed step, SpaceEx's default) it is read."""
 
 _LINE = re.compile(r'^\s*([A-Za-z][A-Za-z0-9_-]*)\s*=\s*(.*?)\s*$')
 
@@ -47,6 +54,9 @@ class SpaceExConfig:
         Constraint trees (:mod:`hybrid.spaceex_syntax`), ``None`` when absent or empty.
     horizon : float or None
         ``time-horizon`` [s].
+    sampling_time : float or None
+        ``sampling-time`` [s], ``0 < sampling_time <= horizon``: the flowpipe's step the user chose
+        (``None`` when absent or in a scenario of :data:`STEP_FREE_SCENARIOS`).
     outputs : tuple of str
         ``output-variables``.
     ignored : tuple of str
@@ -62,6 +72,7 @@ class SpaceExConfig:
     outputs: tuple[str, ...]
     ignored: tuple[str, ...]
     source: str
+    sampling_time: float | None = None
 
 
 def _values(text: str, source: str) -> dict[str, tuple[str, int]]:
@@ -103,7 +114,8 @@ def parse_config(text: str, source: str = "<cfg>") -> SpaceExConfig:
     Raises
     ------
     SpaceExError
-        A malformed line, a set outside the expression language, a horizon that is not a finite number > 0.
+        A malformed line, a set outside the expression language, a horizon that is not a finite number > 0, a
+        ``sampling-time`` that is not a finite number in ``(0, time-horizon]``.
     """
     values = _values(text, source)
 
@@ -124,9 +136,31 @@ def parse_config(text: str, source: str = "<cfg>") -> SpaceExConfig:
             raise SpaceExError(f"{source}:{line}: time-horizon", value, "a finite time > 0 [s]",
                                "write e.g. time-horizon = 10")
     outputs = tuple(v.strip() for v in values.get("output-variables", ("", 0))[0].split(",") if v.strip())
+    scenario = values.get("scenario", ("", 0))[0].strip().strip('"').lower()
+    sampling = None if scenario in STEP_FREE_SCENARIOS else _sampling_time(values, horizon, source)
+    ignored = tuple(k for k in values if k not in USED_KEYS or (k == "sampling-time" and sampling is None))
     return SpaceExConfig(system=values["system"][0].strip() if "system" in values else None,
                          initially=tree("initially"), forbidden=tree("forbidden"), horizon=horizon, outputs=outputs,
-                         ignored=tuple(k for k in values if k not in USED_KEYS), source=source)
+                         ignored=ignored, source=source, sampling_time=sampling)
+
+
+def _sampling_time(values: dict[str, tuple[str, int]], horizon: float | None, source: str) -> float | None:
+    """``sampling-time`` [s] checked: a finite number ``0 < value <= time-horizon`` (``None`` when absent)."""
+    if "sampling-time" not in values:
+        return None
+    value, line = values["sampling-time"]
+    try:
+        step = float(value)
+    except ValueError:
+        step = math.nan
+    top = math.inf if horizon is None else horizon
+    if not (math.isfinite(step) and 0.0 < step <= top):
+        bound = "" if horizon is None else f" <= time-horizon = {horizon!r}"
+        example = 0.01 if horizon is None else horizon / 1000.0
+        raise SpaceExError(f"{source}:{line}: sampling-time", value, f"a finite time step 0 < sampling-time{bound} [s]",
+                           f"write e.g. sampling-time = {example!r}, or remove the line (the steps are then chosen "
+                           "from the dynamics)")
+    return step
 
 
 def _conjuncts(tree: Any) -> tuple[Any, ...]:

@@ -21,10 +21,18 @@ from collections.abc import Mapping
 from typing import Any
 
 __all__ = ["AUTO_NORM_STEPS", "AUTO_MAX_STEPS", "AUTO_STORED", "AUTO_JUMP_CLUSTER", "mode_norms", "auto_options",
-           "auto_choices"]
+           "auto_choices", "chosen_text", "AUTO_INPUT_STEPS"]
 
 AUTO_NORM_STEPS = (3.9, 0.4)
 """The bounds ``κ`` of ``‖A_aug‖∞ δ`` tried in turn (below the series' 4; then a step ten times finer)."""
+AUTO_INPUT_STEPS = (3.9, 0.4, 0.1)
+"""The bounds ``κ`` tried in turn for a model with bounded non-deterministic inputs (``ẋ = Ax + c + Bu``).
+
+The input's spread enters each step as ``V = δ B U₀ ⊕ box(S |B U₀|)``, ``S = Σ_{k>=1} |A|^k δ^{k+1}/(k+1)!``
+(:mod:`analysis.reach.flowpipe`); for a stable scalar mode ``ẋ = −a x + u`` that is ``δ (e^κ − 1)/κ`` per unit of
+input against the exact ``δ (1 − e^{−κ})/κ``, ``κ = aδ``: the input's reach set is over-approximated by the factor
+``e^κ`` (49 at ``κ = 3.9``, 1.49 at 0.4, 1.105 at 0.1), whereas the input-free part is exact up to the interpolation
+error.  So a model with inputs gets a third, finer choice (within :data:`AUTO_MAX_STEPS`)."""
 AUTO_MAX_STEPS = 100_000
 """A choice whose smallest step needs more steps than this over the window is not tried."""
 AUTO_STORED = 2_000
@@ -94,3 +102,17 @@ def auto_choices(model: Any, end: float, step: float, engine: Mapping[str, Any],
         kappa, last = out[-1]
         out.append((kappa, {**last, "jump_cluster": AUTO_JUMP_CLUSTER}))
     return out
+
+
+def chosen_text(kappa: float | None, options: Mapping[str, Any], given: Mapping[str, Any] | None = None) -> str:
+    """`` (steps chosen from the dynamics, ‖A‖·step <= κ: 'mode' δ s, ...[, jump_cluster n])``, or ``""`` when the
+    choice chose no step (the modes in ``given["mode_time_steps"]`` and a given ``jump_cluster`` are the caller's)."""
+    given = dict(given or {})
+    mine = {k: v for k, v in dict(options.get("mode_time_steps") or {}).items()
+            if k not in dict(given.get("mode_time_steps") or {})}
+    if kappa is None or not mine:
+        return ""
+    text = ", ".join(f"{k!r} {v:.4g} s" for k, v in sorted(mine.items()))
+    cut = f", jump_cluster {options['jump_cluster']}" if "jump_cluster" in options and "jump_cluster" not in given \
+        else ""
+    return f" (steps chosen from the dynamics, ‖A‖·step <= {kappa:g}: {text}{cut})"

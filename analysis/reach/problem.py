@@ -18,14 +18,23 @@ on it (:func:`analysis.reach.verdict.decide`), re-checking every decision that h
     the flowpipe is inconclusive (a blow-up, a limit, the jump bound) or a deadlock is possible;
 ``not_in_fragment``
     reachability does not decide this formula (the reason says why).
+
+Steps: an explicit ``time_step`` is used as it is (no other step).  Without one, the run is scheduled as
+``visnav verify`` schedules its proofs (:func:`analysis.reach.verdict.reach_proof`): the problem's own
+``reach_options`` (``time_step``, e.g. a SpaceEx ``sampling-time``; ``max_jumps``; ``mode_time_steps``,
+``jump_cluster``, ``merge_segments``) and the steps of fast modes chosen from the dynamics
+(:func:`analysis.reach.autostep.auto_choices`), one choice after the other until every requirement in the
+fragment is proven (re-checked); the flowpipes and verdicts of the first such choice are kept, else those of the
+choice with the most proven requirements (the first of equals).  :attr:`ProblemReach.options` and
+:attr:`ProblemReach.steps_chosen` name the steps of the kept flowpipes.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
@@ -35,7 +44,8 @@ from .parameters import ReachSetup, Start, initial_modes, reach_setup
 from .engine import reach
 from .recheck import recheck_flowpipe
 from .result import ReachResult
-from .verdict import MAX_SEGMENTS, decide, default_max_jumps, scaled_fragment
+from .autostep import AUTO_NORM_STEPS, auto_choices, chosen_text
+from .verdict import ENGINE_OPTIONS, MAX_SEGMENTS, decide, default_max_jumps, scaled_fragment
 
 __all__ = ["STATUSES", "RequirementReach", "ProblemReach", "problem_reach"]
 
@@ -70,6 +80,11 @@ class ProblemReach:
         In the problem's time [s].  With a time scale (``scale_text``), the flowpipes are in the time
         ``τ = m(p)·t`` up to ``horizon·scale``.
     runs : tuple of (mode, box, ReachResult)
+    options : mapping
+        The engine options of the flowpipes (``mode_time_steps`` in the flowpipes' time [s], ``jump_cluster``,
+        ``merge_segments``); empty with the base step alone.
+    steps_chosen : str
+        How the steps were chosen, in words (``""`` with an explicit step).
     """
 
     problem: str
@@ -79,6 +94,8 @@ class ProblemReach:
     max_jumps: int
     runs: tuple[tuple[str, tuple[tuple[str, float, float], ...], ReachResult], ...]
     requirements: tuple[RequirementReach, ...]
+    options: Mapping[str, Any] = field(default_factory=dict)
+    steps_chosen: str = ""
 
     @property
     def complete(self) -> bool:
@@ -90,6 +107,7 @@ class ProblemReach:
         s = self.setup
         data = {"format": FORMAT, "version": 1, "problem": self.problem, "horizon": self.horizon,
                 "time_step": self.time_step, "max_jumps": self.max_jumps, "complete": self.complete,
+                "options": dict(self.options), "steps_chosen": self.steps_chosen,
                 "state_names": list(s.model.state_names), "parameters_as_states": list(s.parameters),
                 "time_scale": None if not s.scale_text else {"factor": s.scale_text, "max": float(s.scale),
                                                              "flowpipe_time": "tau = factor * t"},
@@ -127,9 +145,11 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
     horizon : float or None
         [s]; default the problem's horizon.
     time_step : float or None
-        ``0 < δ <= horizon`` [s]; default ``horizon / 1000``.
+        ``0 < δ <= horizon`` [s], used alone; default: the problem's ``reach_options`` and steps chosen from the
+        dynamics (see the module), from the base step ``reach_options["time_step"]`` or ``horizon / 1000``.
     max_jumps : int or None
-        Default :func:`analysis.reach.verdict.default_max_jumps` of the horizon.
+        Default the problem's ``reach_options["max_jumps"]``, else
+        :func:`analysis.reach.verdict.default_max_jumps` of the horizon.
     progress : callable or None
         ``progress(share)`` with the share of the work done in ``[0, 1]`` (time reached over the horizon,
         summed over the start modes).
@@ -151,9 +171,12 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
                          "and jump maps, ...)")
     end = _checked("horizon", problem.horizon if horizon is None else horizon, lambda v: v > 0,
                    "a finite horizon > 0 [s]", "give a horizon in seconds, e.g. 10")
-    step = _checked("time_step", end / 1000.0 if time_step is None else time_step, lambda v: 0 < v <= end,
+    given = {} if time_step is not None else dict(getattr(sim, "reach_options", None) or {})
+    base = given.get("time_step")
+    step = _checked("time_step", end / 1000.0 if time_step is None and base is None else
+                    time_step if time_step is not None else min(float(base), end), lambda v: 0 < v <= end,
                     f"a finite step 0 < time_step <= horizon = {end:g} [s]", f"give e.g. {end / 1000.0:g}")
-    jumps = default_max_jumps(end) if max_jumps is None else max_jumps
+    jumps = max_jumps if max_jumps is not None else given.get("max_jumps", default_max_jumps(end))
     if isinstance(jumps, bool) or not isinstance(jumps, int) or jumps < 0:
         raise ReachError("max_jumps", jumps, "a whole number >= 0", "give e.g. 100")
     fixed = sim.fixed_system
@@ -161,14 +184,32 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
                         builder=fixed is None)
     probe = fixed if fixed is not None else sim.build({p.name: p.at(0.0) for p in problem.parameters})
     starts = initial_modes(setup, sim.initial_mode, bool(probe.automaton.initial_mode_given))
-    runs = _flowpipes(setup, starts, end, step, jumps, progress)
-    verdicts = tuple(_requirement(p, problem.requirements[i], setup, runs) for i, p in enumerate(problem.parsed))
+    engine = {k: given[k] for k in ENGINE_OPTIONS if given.get(k) is not None}
+    if "mode_time_steps" in engine:  # in the flowpipes' time, as the step
+        engine["mode_time_steps"] = {k: float(v) * float(setup.scale) for k, v in engine["mode_time_steps"].items()}
+    choices: list[tuple[float | None, dict[str, Any]]] = [(None, engine)]
+    if time_step is None:
+        kappas = AUTO_NORM_STEPS if base is None and "mode_time_steps" not in engine else AUTO_NORM_STEPS[:1]
+        tau_end = _up(Fraction(end) * setup.scale)
+        choices = auto_choices(setup.model, tau_end, min(float(Fraction(step) * setup.scale), tau_end), engine,
+                               kappas, MAX_SEGMENTS) or choices
+    best = None
+    for kappa, options in choices:
+        runs = _flowpipes(setup, starts, end, step, jumps, progress, options)
+        verdicts = tuple(_requirement(p, problem.requirements[i], setup, runs) for i, p in enumerate(problem.parsed))
+        text = chosen_text(kappa, options, engine).strip()[1:-1]
+        proven = sum(v.status == "proven" for v in verdicts)
+        if best is None or proven > best[0]:
+            best = (proven, runs, verdicts, options, text)
+        if all(v.status in ("proven", "not_in_fragment") for v in verdicts):
+            break
+    _, runs, verdicts, options, text = best
     return ProblemReach(problem=problem.name, setup=setup, horizon=end, time_step=step, max_jumps=jumps,
-                        runs=runs, requirements=verdicts)
+                        runs=runs, requirements=verdicts, options=options, steps_chosen=text)
 
 
 def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: float, jumps: int,
-               progress: Callable[[float], None] | None) -> tuple[Any, ...]:
+               progress: Callable[[float], None] | None, options: Mapping[str, Any]) -> tuple[Any, ...]:
     scale = setup.scale
     tau_end = _up(Fraction(end) * scale)
     tau_step = min(float(Fraction(step) * scale), tau_end)
@@ -178,12 +219,15 @@ def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: f
     if not tau_step > 0.0:
         raise ReachError("time_step", step, f"a step 0 < time_step <= horizon = {end:g} [s] that stays > 0 {scaled}",
                          f"give e.g. time_step = {end / 1000.0:g}")
+    options = dict(options)
+    if "mode_time_steps" in options:
+        options["mode_time_steps"] = {k: min(float(v), tau_end) for k, v in options["mode_time_steps"].items()}
     out = []
     for i, (mode, box) in enumerate(starts):
         report = None if progress is None else (
             lambda t, i=i: progress((i + min(t / tau_end, 1.0)) / len(starts)))
         result = reach(setup.model, {n: (lo, hi) for n, lo, hi in box}, horizon=tau_end, time_step=tau_step,
-                       initial_mode=mode, max_jumps=jumps, max_segments=MAX_SEGMENTS, progress=report)
+                       initial_mode=mode, max_jumps=jumps, max_segments=MAX_SEGMENTS, progress=report, **options)
         out.append((mode, box, result))
     if progress is not None:
         progress(1.0)

@@ -31,7 +31,7 @@ import numpy as np
 
 from analysis.verify.verification import Proof
 
-from .autostep import AUTO_NORM_STEPS, auto_choices
+from .autostep import AUTO_NORM_STEPS, auto_choices, chosen_text
 from .engine import reach
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .model import affine_model
@@ -254,14 +254,9 @@ def _decide_mode(system: Any, fragment: SafetyFragment, initial: Mapping[str, tu
     outcome = None
     for kappa, options in auto_choices(model, end, min(step, end), dict(engine or {}), tuple(kappas), MAX_SEGMENTS):
         outcome = _attempt(system, fragment, initial, mode, step, jumps, cache, options)
-        chosen = {k: v for k, v in options.get("mode_time_steps", {}).items() if k not in (engine or {}).get(
-            "mode_time_steps", {})}
-        if chosen:
-            text = ", ".join(f"{k!r} {v:.4g} s" for k, v in sorted(chosen.items()))
-            cut = f", jump_cluster {options['jump_cluster']}" if "jump_cluster" not in (engine or {}) and \
-                "jump_cluster" in options else ""
-            outcome = (replace(outcome[0], reason=f"{outcome[0].reason} (steps chosen from the dynamics, "
-                                                  f"‖A‖·step <= {kappa:g}: {text}{cut})"), *outcome[1:])
+        text = chosen_text(kappa, options, engine)
+        if text:
+            outcome = (replace(outcome[0], reason=f"{outcome[0].reason}{text}"), *outcome[1:])
         if outcome[0].holds and outcome[1] is not None and outcome[1].passed:
             break
     return outcome if outcome is not None else _attempt(system, fragment, initial, mode, step, jumps, cache, engine)

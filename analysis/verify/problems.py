@@ -251,7 +251,8 @@ def _point_values(point: Mapping[str, float], spec: Mapping[str, Parameter | flo
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class HybridSimulation:
-    """The simulator of :func:`hybrid_problem` (picklable when ``build`` is)."""
+    """The simulator of :func:`hybrid_problem` (picklable when ``build`` is); ``reach_options`` are the problem's
+    reachability options (:func:`hybrid_problem`), read again by :func:`analysis.reach.problem.problem_reach`."""
 
     build: Callable[[Mapping[str, float]], HybridSystem]
     initial: Mapping[str, Parameter | float]
@@ -261,6 +262,7 @@ class HybridSimulation:
     sample_period: float | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
     final_stops: tuple[str, ...] = ()
+    reach_options: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def fixed_system(self) -> HybridSystem | None:
@@ -434,7 +436,8 @@ def hybrid_problem(
     variables = tuple(v for v in a.variables if v not in probe.state_names) if probe.output is not None else ()
     simulate = HybridSimulation(build=build, initial=dict(initial), state_names=probe.state_names,
                                 horizon=float(horizon), initial_mode=initial_mode, sample_period=sample_period,
-                                options=dict(options or {}), final_stops=_names(final_stops, "final_stops", name))
+                                options=dict(options or {}), final_stops=_names(final_stops, "final_stops", name),
+                                reach_options=dict(reach_options or {}))
     problem = VerificationProblem(
         name=name, simulate=simulate, parameters=box, horizon=horizon, requirements=tuple(requirements),
         signals=(*probe.state_names, *memory, *variables), labels={"mode": a.mode_names},

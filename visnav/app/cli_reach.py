@@ -41,7 +41,9 @@ def add_parser(sub: Any) -> None:
     cmd.add_argument("--horizon", type=positive_seconds, default=None, metavar="S",
                      help="time horizon in seconds (default: the problem's)")
     cmd.add_argument("--time-step", type=positive_seconds, default=None, metavar="S",
-                     help="flowpipe step in seconds, 0 < step <= horizon (default: horizon / 1000)")
+                     help="flowpipe step in seconds, 0 < step <= horizon, used alone (default: as `visnav verify`: "
+                          "the problem's step, e.g. a SpaceEx sampling-time, else horizon / 1000, with the steps "
+                          "of fast modes chosen from the dynamics; docs/reachability.md)")
     cmd.add_argument("--max-jumps", type=non_negative_int, default=None, metavar="N",
                      help="jump bound (default: max(50, 10 per second of horizon))")
     cmd.add_argument("--json", action="store_true", help="print one JSON object (flowpipes and verdicts)")
@@ -222,6 +224,11 @@ def _human(result: Any, written: list[str]) -> str:
     lines = [f"reach {result.problem}: {status} ({len(result.runs)} start mode(s) "
              f"{', '.join(m for m, _, _ in result.runs)}; {segments} segments, {jumps} jumps; horizon "
              f"{result.horizon:g} s, step {result.time_step:g} s, jump bound {result.max_jumps})"]
+    if result.steps_chosen:
+        lines.append(f"  {result.steps_chosen}")
+    elif result.options.get("mode_time_steps"):
+        lines.append("  the problem's steps: " + ", ".join(f"{k!r} {v:.4g} s" for k, v in
+                                                          sorted(result.options["mode_time_steps"].items())))
     if s.parameters:
         lines.append(f"  parameters as constant states: {', '.join(s.parameters)}")
     if s.scale_text:
