@@ -27,8 +27,7 @@ from analysis.verify.falsification_book import Evaluation, Search
 from analysis.verify.verification import Parameter, VerificationProblem
 
 __all__ = ["SENSITIVITIES", "FINITE_DIFFERENCES", "gradient_source", "unit_slope", "unit_gradients",
-           "simulate_with_gradient", "gradient_of", "sensitivity_gradient", "differentiate_restart",
-           "bundle_gradient"]
+           "simulate_with_gradient", "gradient_of", "sensitivity_gradient", "differentiate_restart"]
 
 SENSITIVITIES = "sensitivities"
 """:attr:`Outcome.gradient_method` of a gradient from the model's sensitivities."""
@@ -125,17 +124,3 @@ def differentiate_restart(search: Search, restart: np.ndarray) -> bool:
     if search.problem.sensitivities is not None:
         sensitivity_gradient(search, 0, np.clip(restart, -1.0, 1.0), phase="start")
     return True
-
-
-def bundle_gradient(g: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
-    """The gradient a descent step follows (shape ``(k,)``) from ``g`` and ``previous``, the gradient at the
-    previous centre of the descent (``None`` at a restart): where they
-    point against each other (the side of a ``min``/``max`` that decides the robustness switched between the two
-    centres), the least-norm point of the segment between them (a two-element bundle: a descent direction of the
-    ``max`` of the two sides' linearisations), else ``g``."""
-    if previous is None or previous.shape != g.shape or float(np.dot(g, previous)) >= 0.0:
-        return g
-    diff = g - previous
-    lam = float(np.clip(-np.dot(diff, previous) / max(float(np.dot(diff, diff)), 1e-300), 0.0, 1.0))
-    combined = previous + lam * diff
-    return combined if float(np.max(np.abs(combined))) > 1e-9 * float(np.max(np.abs(g))) else g

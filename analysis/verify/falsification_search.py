@@ -178,7 +178,6 @@ class _Book:
     cursor: int = 0
     fold: np.ndarray | None = None
     stalled: bool = False
-    previous: np.ndarray | None = None
 
 
 def focus(search: Search, open_: Sequence[int], books: dict[int, _Book]) -> int:
@@ -483,8 +482,8 @@ def central_gradient(search: Search, r: int, x: np.ndarray, step: float = _FD_ST
 def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart: np.ndarray) -> bool:
     """One projected-gradient step with Armijo backtracking on requirement ``r``.  Returns whether the
     descent stalled and ``restart`` was taken as the new centre."""
-    from analysis.verify.falsification_gradient import (bundle_gradient, differentiate_restart,
-                                                         sensitivity_gradient, simulate_with_gradient)
+    from analysis.verify.falsification_gradient import (differentiate_restart, sensitivity_gradient,
+                                                         simulate_with_gradient)
 
     k = search.problem.dimension
     if book.center is None:
@@ -506,15 +505,12 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
         return False
     norm = 0.0 if g is None else float(np.max(np.abs(g)))
     if f0 is None or g is None or not math.isfinite(norm) or norm == 0.0:
-        book.center, book.sigma, book.previous = tuple(float(v) for v in restart), _SIGMA0, None
+        book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
         book.stalled = search.problem.sensitivities is not None  # the caller restarts with a group
         return differentiate_restart(search, restart) if not book.stalled else True
-    sens = how.endswith("(sensitivities)")
-    if sens:
-        g, book.previous = bundle_gradient(g, book.previous), g
-        norm = float(np.max(np.abs(g)))
     direction = -g / norm
     alpha = book.sigma
+    sens = how.endswith("(sensitivities)")
     vertex = sens  # first the box's vertex that minimises the linearisation (Frank-Wolfe)
     while alpha >= _SIGMA_MIN:
         y = np.clip(x - np.sign(g), -1.0, 1.0) if vertex else np.clip(x + alpha * direction, -1.0, 1.0)
@@ -534,7 +530,7 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
             vertex = False
             continue
         alpha *= 0.5
-    book.center, book.sigma, book.previous = tuple(float(v) for v in restart), _SIGMA0, None
+    book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
     if sens:  # no step along a non-zero gradient decreased the robustness: the caller restarts with a group
         book.stalled = True
         return True
@@ -568,7 +564,7 @@ def _restart_group(search: Search, r: int, book: _Book, restart: np.ndarray, fal
     fresh = [(f, e.unit not in search.differentiated, e.index) for e in search.evaluations[first:]
              if (f := _rho(e, r)) is not None]
     center = search.evaluations[min(fresh)[2]].unit if fresh else tuple(float(v) for v in np.clip(restart, -1, 1))
-    book.center, book.sigma, book.previous = tuple(float(v) for v in center), _SIGMA0, None
+    book.center, book.sigma = tuple(float(v) for v in center), _SIGMA0
 
 
 def whitebox_search(search: Search, seed: int, falsified: dict) -> None:

@@ -206,17 +206,3 @@ def test_the_same_seed_gives_byte_identical_json_and_a_resumed_search_replays_it
     assert json.dumps(resumed.as_dict(evaluations=True), sort_keys=True) == text
     explained = 1 if resumed.requirements[0].counterexample is not None else 0
     assert counter.calls == len(journal) - len(half) + explained
-
-
-def test_the_bundle_of_two_opposed_gradients_is_the_least_norm_point_between_them():
-    from analysis.verify.falsification_gradient import bundle_gradient as _bundle
-
-    g, previous = np.array([1.0, 2.0]), np.array([-3.0, 1.0])
-    # independent route: the least Euclidean norm over a fine grid of the segment
-    grid = np.linspace(0.0, 1.0, 100001)
-    points = previous[None, :] + grid[:, None] * (g - previous)[None, :]
-    expected = points[np.argmin(np.linalg.norm(points, axis=1))]
-    assert np.allclose(_bundle(g, previous), expected, atol=1e-4)
-    # both sides agree (or no previous gradient): the gradient itself
-    assert np.array_equal(_bundle(g, np.array([1.0, 0.5])), g)
-    assert np.array_equal(_bundle(g, None), g)
