@@ -27,7 +27,9 @@ the cache, the journal's evaluations) and share one design:
    segments) where an isotropic step arrives late.  ``whitebox`` runs the whole start first, then
    projected gradient descent with an Armijo backtracking line search, the gradient of the robustness
    by central finite differences (:func:`central_gradient`, ``2k`` simulations per gradient, one
-   batch) and restarts the same way.
+   batch) and restarts the same way.  With the model's sensitivities (one simulation per gradient) it
+   descends from the nominal point at once, and a descent that stalls (a zero gradient: a flat robustness;
+   or no step decreased it) restarts with a group of the start at the next Sobol point (:func:`_restart_group`).
 
 Every simulation evaluates every requirement, so points spent on one requirement serve the others,
 and a violation of any requirement still holding is recorded at once.  The same seed gives the same
@@ -175,6 +177,7 @@ class _Book:
     flipped: np.ndarray | None = None
     cursor: int = 0
     fold: np.ndarray | None = None
+    stalled: bool = False
 
 
 def focus(search: Search, open_: Sequence[int], books: dict[int, _Book]) -> int:
@@ -363,6 +366,7 @@ def _allocate(search: Search, seed: int, falsified: dict, step: str, skip: int) 
     restarts = space_filling(k, 64, seed, skip) if k else np.zeros((0, 0))
     used_restarts = 0
     chunk = max(2, k)
+    groups = {r: _Book() for r in range(len(search.problem.requirements))}
     while _open(search, falsified) and search.used < search.budget:
         open_ = _open(search, falsified)
         r = focus(search, open_, books)
@@ -374,7 +378,11 @@ def _allocate(search: Search, seed: int, falsified: dict, step: str, skip: int) 
             collapsed = _es_chunk(search, r, books[r], rng, falsified, chunk, restart)
         else:
             collapsed = _descent_chunk(search, r, books[r], falsified, restart)
-        if collapsed:
+        if collapsed and books[r].stalled:  # a descent with sensitivities stalled: a group, not the bare point
+            used_restarts += 1
+            books[r].stalled = False
+            _restart_group(search, r, books[r], restart, falsified, groups)
+        elif collapsed:
             used_restarts += 1
             _try(search, restart, "start", falsified, "space-filling restart")
         if search.used == before and not collapsed:  # nothing new to simulate near this centre
@@ -498,7 +506,8 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
     norm = 0.0 if g is None else float(np.max(np.abs(g)))
     if f0 is None or g is None or not math.isfinite(norm) or norm == 0.0:
         book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
-        return differentiate_restart(search, restart)
+        book.stalled = search.problem.sensitivities is not None  # the caller restarts with a group
+        return differentiate_restart(search, restart) if not book.stalled else True
     direction = -g / norm
     alpha = book.sigma
     sens = how.endswith("(sensitivities)")
@@ -522,7 +531,40 @@ def _descent_chunk(search: Search, r: int, book: _Book, falsified: dict, restart
             continue
         alpha *= 0.5
     book.center, book.sigma = tuple(float(v) for v in restart), _SIGMA0
+    if sens:  # no step along a non-zero gradient decreased the robustness: the caller restarts with a group
+        book.stalled = True
+        return True
     return differentiate_restart(search, restart)
+
+
+def _restart_group(search: Search, r: int, book: _Book, restart: np.ndarray, falsified: dict,
+                   books: dict[int, _Book]) -> None:
+    """Where a descent with the model's sensitivities stalled, a group of the space-filling start at ``restart``
+    (shape ``(k,)``) instead of the bare point: the vertex of its orthant and the point, each simulated with its
+    sensitivities, between them two surrogate steps (:func:`surrogate_minimum`, plain runs; the ``whitebox``
+    start without sensitivities, :func:`_start`).  The descent goes on from the lowest of them for ``r``, a point
+    with its gradient at a tie.
+
+    A descent stalls where the gradient is zero (a flat robustness: discrete atoms, e.g. a gear, make it piecewise
+    constant; the gradient says nothing, and the global surrogate of the values seen is the only guide) or where
+    no step along it decreased the robustness (a local minimum; or the side of a ``min``/``max`` that decides
+    switches from one iterate to the next, so the gradient of one side is undone by another)."""
+    from analysis.verify.falsification_gradient import simulate_with_gradient
+
+    how, first = "space-filling restart", search.used
+    for kind in ("vertex", "surrogate", "surrogate", "point"):
+        if not _open(search, falsified):
+            return
+        if kind == "surrogate":
+            _surrogate_step(search, falsified, books, how)
+            continue
+        y = np.where(restart >= 0.0, 1.0, -1.0) if kind == "vertex" else restart
+        simulate_with_gradient(search, y, "start")
+        _record(search, falsified, how)
+    fresh = [(f, e.unit not in search.differentiated, e.index) for e in search.evaluations[first:]
+             if (f := _rho(e, r)) is not None]
+    center = search.evaluations[min(fresh)[2]].unit if fresh else tuple(float(v) for v in np.clip(restart, -1, 1))
+    book.center, book.sigma = tuple(float(v) for v in center), _SIGMA0
 
 
 def whitebox_search(search: Search, seed: int, falsified: dict) -> None:

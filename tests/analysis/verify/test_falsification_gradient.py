@@ -135,3 +135,51 @@ def test_the_same_seed_gives_byte_identical_json_and_a_resumed_search_replays_it
     assert json.dumps(resumed.as_dict(evaluations=True), sort_keys=True) == text
     explained = 1 if resumed.requirements[0].counterexample is not None else 0
     assert problem.sensitivities.calls == 0 and problem.simulate.calls == explained
+
+
+def _corner_problem():
+    """A discrete signal (a mode, like a gear): ``g = 1`` only where ``x0 > 2.8`` and ``k < 0.6``, a corner of the box
+    of area 0.25 % of it; its sensitivity is 0 everywhere, so the robustness of ``g < 0.5`` (``+-0.5``) is flat."""
+    def run(p):
+        g = 1.0 if p["x0"] > 2.8 and p["k"] < 0.6 else 0.0
+        return SignalTrace(times=T, signals={"g": np.full(T.size, g)})
+
+    return VerificationProblem(name="corner", simulate=run, parameters=PARAMS, horizon=1.0, signals=("g",),
+                               requirements=(Requirement(name="mode", formula="always[0, 1] (g < 0.5)"),),
+                               sensitivities=lambda p: (run(p), {"g": np.zeros((T.size, 2))}))
+
+
+def test_a_flat_robustness_restarts_with_a_group_that_reaches_a_corner_soon():
+    # a zero gradient says nothing: the descent restarts with a group of the space-filling start (the vertex of the
+    # next point's orthant, two surrogate steps, the point), so the corner is a vertex tried within the first
+    # groups (the Sobol points' orthants are stratified: 4 groups of at most 4 simulations cover the 4 vertices,
+    # plus the nominal point and its gradient).  The descent that restarted from bare Sobol points (one simulation
+    # each) needed 25 simulations on seed 0.
+    for seed in range(5):
+        search, falsified = falsify(_corner_problem(), budget=200, seed=seed, method="whitebox")
+        first = next(e.index + 1 for e in search.evaluations if e.violates(0))
+        assert first <= 2 + 4 * 4, (seed, first)
+        assert search.evaluations[first - 1].unit == (1.0, -1.0)
+        assert {e.phase for e in search.evaluations[:first]} <= {"nominal", "gradient", "start", "surrogate"}
+
+
+def test_the_group_restart_is_deterministic_and_resumes_from_the_journal():
+    journal = []
+    first = verify(_corner_problem(), budget=60, seed=2, method="whitebox", on_evaluation=journal.append)
+    text = json.dumps(first.as_dict(evaluations=True), sort_keys=True)
+    assert text == json.dumps(verify(_corner_problem(), budget=60, seed=2, method="whitebox")
+                              .as_dict(evaluations=True), sort_keys=True)
+    assert any(e.phase == "start" and e.outcome.gradient_method == "sensitivities" for e in journal)
+    cache = {}
+    for e in journal:
+        back = Evaluation.from_dict(json.loads(json.dumps(e.as_dict())))
+        cache[back.unit] = back.outcome
+    calls = []
+    problem = _corner_problem()
+    simulate, sens = problem.simulate, problem.sensitivities
+    problem = VerificationProblem(name="corner", simulate=lambda p: calls.append(1) or simulate(p),
+                                  parameters=PARAMS, horizon=1.0, signals=("g",), requirements=problem.requirements,
+                                  sensitivities=lambda p: calls.append(2) or sens(p))
+    resumed = verify(problem, budget=60, seed=2, method="whitebox", cache=cache)
+    assert json.dumps(resumed.as_dict(evaluations=True), sort_keys=True) == text
+    assert calls.count(2) == 0
