@@ -1,7 +1,7 @@
 """Reachability benchmark: visnav's sound zonotope flowpipes beside Hylaa and the ARCH-COMP published results.
 
 Run: ``PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_reach.py [--quick] [--json] [--repeats N]
-[--soundness N] [--no-peers]``; with the peers (Hylaa 2.0.2 and a compatible swiglpk, see README
+[--soundness N [--closed-form]] [--no-peers]``; with the peers (Hylaa 2.0.2 and a compatible swiglpk, see README
 "Benchmarks"): ``PYTHONPATH=$PWD:$PWD/.peers-swig:$PWD/.peers``.
 
 Per instance (``reach_instances.py``): our verdict (``safe`` when the flowpipe is complete and the requirement
@@ -102,7 +102,7 @@ def _nln_rows(quick: bool, repeats: int) -> tuple[list[dict[str, Any]], str | No
     return rows, None
 
 
-def run(names: list[str], *, repeats: int, soundness: int, peers: bool) -> dict[str, Any]:
+def run(names: list[str], *, repeats: int, soundness: int, peers: bool, closed_form: bool = False) -> dict[str, Any]:
     """Every instance's row (see the module docstring)."""
     from reach_soundness import planted, simulations_inside
 
@@ -119,7 +119,8 @@ def run(names: list[str], *, repeats: int, soundness: int, peers: bool) -> dict[
         if soundness > 0:
             row["planted"] = planted(instance, result)
             if result.status == "complete":
-                row["simulations"] = simulations_inside(instance, result, soundness, seed=sum(map(ord, name)))
+                row["simulations"] = simulations_inside(instance, result, soundness, seed=sum(map(ord, name)),
+                                                         closed_form=closed_form)
         rows.append(row)
     return {"rows": rows}
 
@@ -173,11 +174,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="runs per instance (median time)")
     parser.add_argument("--soundness", type=int, default=0, metavar="N",
                         help="N executor runs per instance against the flowpipe, and the planted sets")
+    parser.add_argument("--closed-form", action="store_true",
+                        help="--soundness runs with the executor's closed form of affine modes instead of RK45")
     parser.add_argument("--no-peers", action="store_true", help="do not run Hylaa")
     parser.add_argument("--only", action="append", choices=list(ri.BUILDERS), help="run this instance (repeatable)")
     args = parser.parse_args(argv)
     names = args.only or (list(ri.QUICK) if args.quick else list(ri.BUILDERS))
-    doc = run(names, repeats=args.repeats, soundness=args.soundness, peers=not args.no_peers)
+    doc = run(names, repeats=args.repeats, soundness=args.soundness, peers=not args.no_peers,
+              closed_form=args.closed_form)
     nln, note = _nln_rows(args.quick, args.repeats)
     doc["rows"].extend(nln)
     doc["nln_note"] = note

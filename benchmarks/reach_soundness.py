@@ -7,7 +7,10 @@
   the support in the directions of its generators and of 16 seeded random directions (for ``n <= 2``: every facet
   normal, so exact).  A point failing any test is outside (a real failure); for ``n > 2`` passing is a
   necessary condition only.  Tolerance ``1e-6·max(1, |x|)`` in state and ``1e-6`` s in time: the executor's error
-  over these horizons is around ``1e-8`` relative.
+  over these horizons is around ``1e-8`` relative.  ``closed_form=True``: the executor's closed form of affine modes
+  (:mod:`hybrid.closed_form`: exact solution pieces, events located by the same rules to ``1e-12`` s) instead of
+  RK45; a mode without one (``affine_flow`` gives ``None``) keeps RK45.  Long resumable runs:
+  ``reach_soundness_long.py``.
 * ``planted``: the instance's unsafe sets placed 0.01 inside the true reach set (closed forms) must never be
   proven; those placed 0.01 outside are reported (proven or not: precision, not soundness).
 """
@@ -19,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["simulations_inside", "planted"]
+__all__ = ["simulations_inside", "planted", "starts", "run_points", "outside_points", "example"]
 
 TOL = 1e-6
 
@@ -47,9 +50,9 @@ def _inside(segment: Any, points: np.ndarray, rng: np.random.Generator) -> np.nd
     return ok & np.all(np.abs((points - z.center) @ d.T) <= reach + slack, axis=1)
 
 
-def _runs(instance: Any, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    from hybrid.continuous import simulate_continuous
-
+def starts(instance: Any, count: int, seed: int) -> np.ndarray:
+    """The ``count`` seeded initial states, shape ``(max(count, 1), n)``: up to 16 corners of the initial box, then
+    uniform points in it (run ``i`` is the same whatever ``count >= i`` or the chunking)."""
     names = instance.system.state_names
     lo = np.array([instance.box[s][0] for s in names], dtype=float)
     hi = np.array([instance.box[s][1] for s in names], dtype=float)
@@ -61,24 +64,32 @@ def _runs(instance: Any, count: int, seed: int) -> tuple[np.ndarray, np.ndarray,
         for i, b in zip(wide, bits):
             c[i] = hi[i] if b else lo[i]
         corners.append(c)
-    starts = np.vstack([np.array(corners), rng.uniform(lo, hi, size=(max(count - len(corners), 0), lo.size))])
-    starts = starts[:max(count, 1)]
+    points = np.vstack([np.array(corners), rng.uniform(lo, hi, size=(max(count - len(corners), 0), lo.size))])
+    return points[:max(count, 1)]
+
+
+def run_points(instance: Any, initial: np.ndarray, closed_form: bool = False
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The step points (both sides of every jump) of one executor run per row of ``initial``: times ``(m,)`` [s],
+    modes ``(m,)`` and states ``(m, n)``.  ``closed_form``: the executor's exact solution of affine modes
+    (:mod:`hybrid.closed_form`, events located by the same rules to ``1e-12`` s) instead of RK45."""
+    from hybrid.continuous import simulate_continuous
+
     times, modes, points = [], [], []
     kwargs = dict(instance.simulation)
     duration = kwargs.pop("duration")
-    for x0 in starts:
+    for x0 in initial:
         tr = simulate_continuous(instance.system, tuple(x0), duration=duration, rtol=1e-10, atol=1e-12,
-                                 initial_mode=instance.initial_mode, **kwargs)
+                                 initial_mode=instance.initial_mode, closed_form=closed_form, **kwargs)
         times.append(np.asarray(tr.times))
         modes.extend(tr.modes)
         points.append(np.asarray(tr.states))
-    return np.concatenate(times), np.array(modes), np.concatenate(points), len(starts)
+    return np.concatenate(times), np.array(modes), np.concatenate(points)
 
 
-def simulations_inside(instance: Any, result: Any, count: int, seed: int = 0) -> dict[str, Any]:
-    """Executor runs against the flowpipe: ``{"runs", "points", "outside", "example"}``."""
-    times, modes, points, runs = _runs(instance, count, seed)
-    rng = np.random.default_rng(seed + 1)
+def outside_points(result: Any, times: np.ndarray, modes: np.ndarray, points: np.ndarray,
+                   rng: np.random.Generator) -> np.ndarray:
+    """Indices of the points in no stored segment of their mode whose time interval holds their time."""
     covered = np.zeros(times.size, dtype=bool)
     order = np.argsort(times, kind="stable")
     t_sorted = times[order]
@@ -89,13 +100,25 @@ def simulations_inside(instance: Any, result: Any, count: int, seed: int = 0) ->
         rows = rows[(modes[rows] == s.mode) & ~covered[rows]]
         if rows.size:
             covered[rows] = _inside(s, points[rows], rng)
-    missing = np.nonzero(~covered)[0]
-    example = None
-    if missing.size:
-        i = int(missing[0])
-        example = {"t": float(times[i]), "mode": str(modes[i]), "x": [float(v) for v in points[i]]}
-    return {"runs": int(runs), "points": int(times.size), "outside": int(missing.size),
-            "example": example}
+    return np.nonzero(~covered)[0]
+
+
+def example(times: np.ndarray, modes: np.ndarray, points: np.ndarray, missing: np.ndarray) -> dict[str, Any] | None:
+    """The first point outside (``None`` when there is none)."""
+    if not missing.size:
+        return None
+    i = int(missing[0])
+    return {"t": float(times[i]), "mode": str(modes[i]), "x": [float(v) for v in points[i]]}
+
+
+def simulations_inside(instance: Any, result: Any, count: int, seed: int = 0, closed_form: bool = False
+                       ) -> dict[str, Any]:
+    """Executor runs against the flowpipe: ``{"runs", "points", "outside", "example"}``."""
+    initial = starts(instance, count, seed)
+    times, modes, points = run_points(instance, initial, closed_form)
+    missing = outside_points(result, times, modes, points, np.random.default_rng(seed + 1))
+    return {"runs": int(len(initial)), "points": int(times.size), "outside": int(missing.size),
+            "example": example(times, modes, points, missing)}
 
 
 def planted(instance: Any, result: Any) -> dict[str, Any]:
