@@ -46,12 +46,14 @@ divisor (multiply through, or write ``ite``, otherwise).
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
 from typing import Any
 
+from .interval_kernels import mul_bounds, pow_bounds, trig_bounds
+from .interval_kernels import round_down as _down
+from .interval_kernels import round_up as _up
 from .symbolic_core import (
     ARITY,
     Apply,
@@ -359,40 +361,12 @@ ARITY["inv"] = 1
 
 
 # ====================================================================== interval enclosure
-def _down(x: float) -> float:
-    return math.nextafter(x, -math.inf) if math.isfinite(x) else x
-
-
-def _up(x: float) -> float:
-    return math.nextafter(x, math.inf) if math.isfinite(x) else x
-
-
 Interval = tuple[float, float]
 _MAX = 1.7976931348623157e308  # the largest finite float
 
 
 def _mul_iv(a: Interval, b: Interval) -> Interval:
-    products = []
-    for x, y in itertools.product(a, b):
-        if (x == 0.0 and math.isinf(y)) or (y == 0.0 and math.isinf(x)):
-            products.append(0.0)
-        else:
-            products.append(x * y)
-    return _down(min(products)), _up(max(products))
-
-
-def _trig_iv(op: str, a: Interval) -> Interval:
-    lo, hi = a
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi - lo >= 2.0 * math.pi:
-        return -1.0, 1.0
-    f = math.sin if op == "sin" else math.cos
-    shift = 0.5 * math.pi if op == "sin" else 0.0  # extremes of f at shift + k pi
-    values = [f(lo), f(hi)]
-    k = math.ceil((lo - shift) / math.pi - 1e-12)
-    while shift + k * math.pi <= hi + 1e-12:
-        values.append(f(shift + k * math.pi))
-        k += 1
-    return max(-1.0, _down(min(values)) - 1e-15), min(1.0, _up(max(values)) + 1e-15)
+    return mul_bounds(a[0], a[1], b[0], b[1])
 
 
 def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[str, Interval] | None = None,
@@ -458,13 +432,6 @@ def enclose(node: Expr, bounds: Mapping[str, Interval], memory_bounds: Mapping[s
     return lo, hi
 
 
-def _pow_or_inf(x: float, k: int) -> float:
-    try:
-        return x ** k
-    except OverflowError:
-        return -math.inf if (x < 0.0 and k % 2 == 1) else math.inf
-
-
 def _apply_iv(n: Apply, a: list[Interval]) -> Interval:
     op = n.op
     if op == "add":
@@ -491,19 +458,13 @@ def _apply_iv(n: Apply, a: list[Interval]) -> Interval:
             return -hi, -lo
         return 0.0, max(-lo, hi)
     if op == "pow":
-        k = int(n.args[1].value)  # type: ignore[attr-defined]
-        lo, hi = a[0]
-        if k == 0:
-            return 1.0, 1.0
-        ends = [_pow_or_inf(lo, k), _pow_or_inf(hi, k)]
-        low = 0.0 if (k % 2 == 0 and lo <= 0.0 <= hi) else min(ends)
-        return _down(_down(low)), _up(_up(max(ends)))
+        return pow_bounds(a[0][0], a[0][1], int(n.args[1].value))  # type: ignore[attr-defined]
     if op == "min":
         return min(x[0] for x in a), min(x[1] for x in a)
     if op == "max":
         return max(x[0] for x in a), max(x[1] for x in a)
     if op in ("sin", "cos"):
-        return _trig_iv(op, a[0])
+        return trig_bounds(op, a[0][0], a[0][1])
     if op == "exp":
         lo, hi = a[0]  # math.exp overflows (OverflowError) above ~709.78
         low = 0.0 if lo <= -745.0 else max(0.0, _down(_down(math.exp(min(lo, 709.0)))))

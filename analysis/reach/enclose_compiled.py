@@ -35,6 +35,11 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from hybrid.interval_kernels import mul_bounds as _mul
+from hybrid.interval_kernels import pow_bounds as _pow
+from hybrid.interval_kernels import round_down as _dn
+from hybrid.interval_kernels import round_up as _un
+from hybrid.interval_kernels import trig_bounds as _trig
 from hybrid.symbolic import Apply, Const, Coordinate
 
 __all__ = ["CompiledEnclosure", "compile_enclosure"]
@@ -44,55 +49,8 @@ _INF = math.inf
 _OPS = ("add", "sub", "neg", "mul", "div", "pow", "sin", "cos")
 
 
-def _dn(x: float) -> float:
-    return math.nextafter(x, -_INF) if math.isfinite(x) else x
-
-
-def _un(x: float) -> float:
-    return math.nextafter(x, _INF) if math.isfinite(x) else x
-
-
-def _corner(x: float, y: float) -> float:
-    if (x == 0.0 and math.isinf(y)) or (y == 0.0 and math.isinf(x)):
-        return 0.0
-    return x * y
-
-
-def _mul(al: float, ah: float, bl: float, bh: float) -> tuple[float, float]:
-    p = (_corner(al, bl), _corner(al, bh), _corner(ah, bl), _corner(ah, bh))
-    return _dn(min(p)), _un(max(p))
-
-
 def _div(al: float, ah: float, c: float) -> tuple[float, float]:
     return _mul(al, ah, _dn(1.0 / c), _un(1.0 / c))
-
-
-def _power(x: float, k: int) -> float:
-    try:
-        return x ** k
-    except OverflowError:
-        return -_INF if (x < 0.0 and k % 2 == 1) else _INF
-
-
-def _pow(lo: float, hi: float, k: int) -> tuple[float, float]:
-    if k == 0:
-        return 1.0, 1.0
-    ends = (_power(lo, k), _power(hi, k))
-    low = 0.0 if (k % 2 == 0 and lo <= 0.0 <= hi) else min(ends)
-    return _dn(_dn(low)), _un(_un(max(ends)))
-
-
-def _trig(op: str, lo: float, hi: float) -> tuple[float, float]:
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi - lo >= 2.0 * math.pi:
-        return -1.0, 1.0
-    f = math.sin if op == "sin" else math.cos
-    shift = 0.5 * math.pi if op == "sin" else 0.0
-    values = [f(lo), f(hi)]
-    k = math.ceil((lo - shift) / math.pi - 1e-12)
-    while shift + k * math.pi <= hi + 1e-12:
-        values.append(f(shift + k * math.pi))
-        k += 1
-    return max(-1.0, _dn(min(values)) - 1e-15), min(1.0, _un(max(values)) + 1e-15)
 
 
 class _Unsupported(Exception):
