@@ -34,7 +34,7 @@ from hybrid.system import HybridSystem
 
 from analysis.verify.verification import Proof
 
-__all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs", "MAX_FLOWPIPES"]
+__all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs", "MAX_FLOWPIPES", "input_flowpipe"]
 
 MAX_FLOWPIPES = 16
 """Flowpipes of one input proof (one per jump set): arbitrary switching (PLAA01's guards always hold) would
@@ -74,6 +74,41 @@ def input_reach_model(system: HybridSystem, input_flows: Mapping[str, Any],
     return zero, matrices
 
 
+def input_flowpipe(system: Any, matrices: Mapping[str, Any], initial: Mapping[str, tuple[float, float]], *,
+                   horizon: float, time_step: float, initial_mode: str, max_jumps: int, options: Mapping[str, Any],
+                   progress: Any = None) -> Any:
+    """The flowpipe of an input-free model with its bounded inputs: the one engine call of the input route.
+
+    Parameters
+    ----------
+    system : HybridSystem or AffineHybridModel
+        The model with every input at 0 (:func:`input_reach_model`).
+    matrices : mapping {mode: ModeInput}
+        ``B`` and the input box per mode (:func:`input_reach_model`).
+    initial : mapping {state: (lo, hi)}
+        The initial box over the model's states.
+    horizon, time_step : float
+        [s], ``0 < time_step <= horizon``.
+    initial_mode : str
+    max_jumps : int
+    options : mapping
+        Further engine options (``mode_time_steps``, ``jump_cluster``, ``merge_segments``).
+    progress : callable or None
+        ``progress(t)`` with the time reached [s].
+
+    Returns
+    -------
+    analysis.reach.result.ReachResult
+        At most :data:`MAX_FLOWPIPES` flowpipes and ``analysis.reach.verdict.MAX_SEGMENTS`` segments.
+    """
+    from analysis.reach import reach
+    from analysis.reach.verdict import MAX_SEGMENTS
+
+    return reach(system, dict(initial), horizon=horizon, time_step=time_step, initial_mode=initial_mode,
+                 max_jumps=max_jumps, inputs=dict(matrices), max_segments=MAX_SEGMENTS, max_flowpipes=MAX_FLOWPIPES,
+                 progress=progress, **dict(options))
+
+
 @dataclass(frozen=True, kw_only=True, slots=True)
 class InputReachProof:
     """``() -> Proof`` of one requirement by a flowpipe with the model's inputs, re-checked with them (see module)."""
@@ -91,7 +126,6 @@ class InputReachProof:
         """The proof (never raises: what reachability cannot handle gives a proof that does not hold)."""
         from hybrid.errors import ModelDefinitionError, ParameterError
 
-        from analysis.reach import reach
         from analysis.reach.affine import AffineError
         from analysis.reach.model import affine_model
         from analysis.reach.recheck import recheck_flowpipe
@@ -108,9 +142,8 @@ class InputReachProof:
             kappas = AUTO_INPUT_STEPS if self.time_step is None else AUTO_INPUT_STEPS[:1]
             choices = auto_choices(affine_model(zero), end, step, {}, kappas, MAX_SEGMENTS) or [(None, {})]
             for kappa, options in choices:
-                result = reach(zero, dict(initial), horizon=end, time_step=step, initial_mode=self.initial_mode,
-                               max_jumps=jumps, inputs=matrices, max_segments=MAX_SEGMENTS,
-                               max_flowpipes=MAX_FLOWPIPES, **options)
+                result = input_flowpipe(zero, matrices, initial, horizon=end, time_step=step,
+                                        initial_mode=self.initial_mode, max_jumps=jumps, options=options)
                 holds, margin, reason = decide(result, self.fragment, affine_model(zero), initial)
                 check = recheck_flowpipe(result.to_json(), zero, initial, self.fragment,
                                          initial_mode=self.initial_mode, inputs=matrices) if holds else None

@@ -27,6 +27,13 @@ Steps: an explicit ``time_step`` is used as it is (no other step).  Without one,
 fragment is proven (re-checked); the flowpipes and verdicts of the first such choice are kept, else those of the
 choice with the most proven requirements (the first of equals).  :attr:`ProblemReach.options` and
 :attr:`ProblemReach.steps_chosen` name the steps of the kept flowpipes.
+
+Inputs: a SpaceEx problem with bounded non-deterministic inputs (:func:`analysis.spaceex.spaceex_problem`) is read
+as ``visnav verify`` reads it (:func:`analysis.spaceex_route.problem_input_route`): the model with every input at 0,
+each input ``u(t) ∈ [low, high]`` entering as ``B u`` (any measurable signal, not the simulated pieces), the
+flowpipes of :func:`analysis.spaceex_reach.input_flowpipe` and the re-check with the inputs.  The steps follow the
+same schedule with the ladder :data:`analysis.reach.autostep.AUTO_INPUT_STEPS`; :attr:`ProblemReach.inputs` names
+the bounds.
 """
 
 from __future__ import annotations
@@ -44,7 +51,7 @@ from .parameters import ReachSetup, Start, initial_modes, reach_setup
 from .engine import reach
 from .recheck import recheck_flowpipe
 from .result import ReachResult
-from .autostep import AUTO_NORM_STEPS, auto_choices, chosen_text
+from .autostep import AUTO_INPUT_STEPS, AUTO_NORM_STEPS, auto_choices, chosen_text
 from .verdict import ENGINE_OPTIONS, MAX_SEGMENTS, decide, default_max_jumps, scaled_fragment
 
 __all__ = ["STATUSES", "RequirementReach", "ProblemReach", "problem_reach"]
@@ -85,6 +92,8 @@ class ProblemReach:
         ``merge_segments``); empty with the base step alone.
     steps_chosen : str
         How the steps were chosen, in words (``""`` with an explicit step).
+    inputs : tuple of (name, low, high)
+        The bounded non-deterministic inputs the flowpipes cover (any signal within the bounds); empty without.
     """
 
     problem: str
@@ -96,6 +105,7 @@ class ProblemReach:
     requirements: tuple[RequirementReach, ...]
     options: Mapping[str, Any] = field(default_factory=dict)
     steps_chosen: str = ""
+    inputs: tuple[tuple[str, float, float], ...] = ()
 
     @property
     def complete(self) -> bool:
@@ -114,6 +124,9 @@ class ProblemReach:
                 "starts": [{"mode": m, "box": [[n, lo, hi] for n, lo, hi in box], "flowpipe": json.loads(r.to_json())}
                            for m, box, r in self.runs],
                 "requirements": [q.as_dict() for q in self.requirements]}
+        if self.inputs:  # absent without inputs: the JSON of other problems is unchanged
+            data["inputs"] = [{"name": n, "low": lo, "high": hi, "signal": "any measurable signal within the bounds"}
+                              for n, lo, hi in self.inputs]
         return json.dumps(data, sort_keys=True, allow_nan=False, default=_plain)
 
 
@@ -159,7 +172,8 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
     ReachError
         A bad option, or a problem that is not a continuous-time hybrid problem.
     analysis.reach.affine.AffineError, analysis.reach.parameters.ParameterRoute
-        The model cannot be read (not symbolic, not affine, parameters that are not constant states).
+        The model cannot be read (not symbolic, not affine — an input times a state —, parameters that are not
+        constant states).
     """
     from analysis.verify.problems import HybridSimulation
 
@@ -179,24 +193,24 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
     jumps = max_jumps if max_jumps is not None else given.get("max_jumps", default_max_jumps(end))
     if isinstance(jumps, bool) or not isinstance(jumps, int) or jumps < 0:
         raise ReachError("max_jumps", jumps, "a whole number >= 0", "give e.g. 100")
-    fixed = sim.fixed_system
-    setup = reach_setup(fixed if fixed is not None else sim.build, sim.initial, problem.parameters,
-                        builder=fixed is None)
-    probe = fixed if fixed is not None else sim.build({p.name: p.at(0.0) for p in problem.parameters})
+    setup, probe, route = _setup(problem, sim)
+    matrices = None if route is None else route.matrices
     starts = initial_modes(setup, sim.initial_mode, bool(probe.automaton.initial_mode_given))
     engine = {k: given[k] for k in ENGINE_OPTIONS if given.get(k) is not None}
     if "mode_time_steps" in engine:  # in the flowpipes' time, as the step
         engine["mode_time_steps"] = {k: float(v) * float(setup.scale) for k, v in engine["mode_time_steps"].items()}
     choices: list[tuple[float | None, dict[str, Any]]] = [(None, engine)]
     if time_step is None:
-        kappas = AUTO_NORM_STEPS if base is None and "mode_time_steps" not in engine else AUTO_NORM_STEPS[:1]
+        ladder = AUTO_NORM_STEPS if route is None else AUTO_INPUT_STEPS
+        kappas = ladder if base is None and "mode_time_steps" not in engine else ladder[:1]
         tau_end = _up(Fraction(end) * setup.scale)
         choices = auto_choices(setup.model, tau_end, min(float(Fraction(step) * setup.scale), tau_end), engine,
                                kappas, MAX_SEGMENTS) or choices
     best = None
     for kappa, options in choices:
-        runs = _flowpipes(setup, starts, end, step, jumps, progress, options)
-        verdicts = tuple(_requirement(p, problem.requirements[i], setup, runs) for i, p in enumerate(problem.parsed))
+        runs = _flowpipes(setup, starts, end, step, jumps, progress, options, matrices)
+        verdicts = tuple(_requirement(p, problem.requirements[i], setup, runs, matrices)
+                         for i, p in enumerate(problem.parsed))
         text = chosen_text(kappa, options, engine).strip()[1:-1]
         proven = sum(v.status == "proven" for v in verdicts)
         if best is None or proven > best[0]:
@@ -205,11 +219,28 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
             break
     _, runs, verdicts, options, text = best
     return ProblemReach(problem=problem.name, setup=setup, horizon=end, time_step=step, max_jumps=jumps,
-                        runs=runs, requirements=verdicts, options=options, steps_chosen=text)
+                        runs=runs, requirements=verdicts, options=options, steps_chosen=text,
+                        inputs=() if route is None else tuple((i.name, i.low, i.high) for i in route.inputs))
+
+
+def _setup(problem: Any, sim: Any) -> tuple[ReachSetup, Any, Any]:
+    """``(setup, probe system, input route or None)``: a model with inputs is read without them (its ``B u``
+    apart), its parameters of the simulated signals left out; others as the problem gives them."""
+    from analysis.spaceex_route import problem_input_route
+
+    route = problem_input_route(problem)
+    if route is not None:
+        return reach_setup(route.system, sim.initial, (), builder=False), route.system, route
+    fixed = sim.fixed_system
+    setup = reach_setup(fixed if fixed is not None else sim.build, sim.initial, problem.parameters,
+                        builder=fixed is None)
+    probe = fixed if fixed is not None else sim.build({p.name: p.at(0.0) for p in problem.parameters})
+    return setup, probe, None
 
 
 def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: float, jumps: int,
-               progress: Callable[[float], None] | None, options: Mapping[str, Any]) -> tuple[Any, ...]:
+               progress: Callable[[float], None] | None, options: Mapping[str, Any],
+               matrices: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
     scale = setup.scale
     tau_end = _up(Fraction(end) * scale)
     tau_step = min(float(Fraction(step) * scale), tau_end)
@@ -226,15 +257,23 @@ def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: f
     for i, (mode, box) in enumerate(starts):
         report = None if progress is None else (
             lambda t, i=i: progress((i + min(t / tau_end, 1.0)) / len(starts)))
-        result = reach(setup.model, {n: (lo, hi) for n, lo, hi in box}, horizon=tau_end, time_step=tau_step,
-                       initial_mode=mode, max_jumps=jumps, max_segments=MAX_SEGMENTS, progress=report, **options)
+        initial = {n: (lo, hi) for n, lo, hi in box}
+        if matrices is None:
+            result = reach(setup.model, initial, horizon=tau_end, time_step=tau_step, initial_mode=mode,
+                           max_jumps=jumps, max_segments=MAX_SEGMENTS, progress=report, **options)
+        else:
+            from analysis.spaceex_reach import input_flowpipe
+
+            result = input_flowpipe(setup.model, matrices, initial, horizon=tau_end, time_step=tau_step,
+                                    initial_mode=mode, max_jumps=jumps, options=options, progress=report)
         out.append((mode, box, result))
     if progress is not None:
         progress(1.0)
     return tuple(out)
 
 
-def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...]) -> RequirementReach:
+def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...],
+                 matrices: Mapping[str, Any] | None = None) -> RequirementReach:
     def verdict(status: str, reason: str, margin: float | None = None, again: float | None = None) -> RequirementReach:
         return RequirementReach(name=req.name, formula=req.formula, status=status, margin=margin,
                                 recheck_margin=again, reason=reason)
@@ -259,11 +298,13 @@ def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...]
             return verdict("met" if met else "inconclusive", where + reason,
                            margin if math.isfinite(margin) else None)
         margins.append(margin)
-        checks.append(recheck_flowpipe(result.to_json(), setup.model, initial, fragment, initial_mode=mode))
+        checks.append(recheck_flowpipe(result.to_json(), setup.model, initial, fragment, initial_mode=mode,
+                                       inputs=matrices))
     margin = min(margins)
     failed = next((c for c in checks if not c.passed), None)
     if failed is not None:
         return verdict("not_rechecked", f"the producer decided it, the re-check FAILED: {failed.failure}", margin)
     again = min(float(c.margin) for c in checks if c.margin is not None) if any(
         c.margin is not None for c in checks) else None
-    return verdict("proven", f"holds on every segment of {len(runs)} flowpipe(s), re-checked", margin, again)
+    inputs = "" if matrices is None else " with the inputs"
+    return verdict("proven", f"holds on every segment of {len(runs)} flowpipe(s), re-checked{inputs}", margin, again)

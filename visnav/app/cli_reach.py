@@ -3,7 +3,8 @@
 ``SPEC`` is ``package.module:OBJECT``, ``path/to/file.py:OBJECT`` (a problem of
 :func:`analysis.verify.problems.hybrid_problem` with a symbolic system, or a function of the parameters
 building one: the parameters become constant states) or a SpaceEx model ``FILE.xml[:COMPONENT]``
-with ``--config FILE.cfg`` (as ``visnav verify`` loads them).  The computation is
+with ``--config FILE.cfg`` (as ``visnav verify`` loads them; its bounded inputs taken as any signal within
+their bounds, as ``verify``'s proofs take them, and named in the table and the JSON).  The computation is
 :func:`analysis.reach.problem.problem_reach`; ``docs/reachability.md`` explains it.
 
 Exit codes: 0 every flowpipe complete and every requirement proven (re-checked); 1 a flowpipe meets a
@@ -229,6 +230,9 @@ def _human(result: Any, written: list[str]) -> str:
     elif result.options.get("mode_time_steps"):
         lines.append("  the problem's steps: " + ", ".join(f"{k!r} {v:.4g} s" for k, v in
                                                           sorted(result.options["mode_time_steps"].items())))
+    if result.inputs:
+        bounds = [f"{n} in [{lo:g}, {hi:g}]" for n, lo, hi in result.inputs]
+        lines.append(f"  inputs (any signal within the bounds): {', '.join(bounds)}")
     if s.parameters:
         lines.append(f"  parameters as constant states: {', '.join(s.parameters)}")
     if s.scale_text:
