@@ -209,7 +209,7 @@ def problem_reach(problem: Any, *, horizon: float | None = None, time_step: floa
     best = None
     for kappa, options in choices:
         runs = _flowpipes(setup, starts, end, step, jumps, progress, options, matrices)
-        verdicts = tuple(_requirement(p, problem.requirements[i], setup, runs, matrices)
+        verdicts = tuple(_requirement(p, problem.requirements[i], setup, runs, route)
                          for i, p in enumerate(problem.parsed))
         text = chosen_text(kappa, options, engine).strip()[1:-1]
         proven = sum(v.status == "proven" for v in verdicts)
@@ -272,8 +272,10 @@ def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: f
     return tuple(out)
 
 
-def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...],
-                 matrices: Mapping[str, Any] | None = None) -> RequirementReach:
+def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...], route: Any = None
+                 ) -> RequirementReach:
+    """The verdict of one requirement; with an input route, re-checked as ``verify`` re-checks it: from the
+    input-free system itself (read again by the re-checker) with the inputs."""
     def verdict(status: str, reason: str, margin: float | None = None, again: float | None = None) -> RequirementReach:
         return RequirementReach(name=req.name, formula=req.formula, status=status, margin=margin,
                                 recheck_margin=again, reason=reason)
@@ -298,13 +300,13 @@ def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...]
             return verdict("met" if met else "inconclusive", where + reason,
                            margin if math.isfinite(margin) else None)
         margins.append(margin)
-        checks.append(recheck_flowpipe(result.to_json(), setup.model, initial, fragment, initial_mode=mode,
-                                       inputs=matrices))
+        checks.append(recheck_flowpipe(result.to_json(), setup.model if route is None else route.system, initial,
+                                       fragment, initial_mode=mode, inputs=None if route is None else route.matrices))
     margin = min(margins)
     failed = next((c for c in checks if not c.passed), None)
     if failed is not None:
         return verdict("not_rechecked", f"the producer decided it, the re-check FAILED: {failed.failure}", margin)
     again = min(float(c.margin) for c in checks if c.margin is not None) if any(
         c.margin is not None for c in checks) else None
-    inputs = "" if matrices is None else " with the inputs"
+    inputs = "" if route is None else " with the inputs"
     return verdict("proven", f"holds on every segment of {len(runs)} flowpipe(s), re-checked{inputs}", margin, again)

@@ -79,3 +79,27 @@ def test_the_platoon_is_proven_as_verify_proves_it():
     proof = problem.proofs["safe"]()
     assert proof.proven and "step 0.02 s" in proof.evidence
     assert req.margin == proof.margin  # one engine call for both commands: the same flowpipe
+
+
+def test_the_recheck_is_given_the_inputs(tmp_path, monkeypatch):
+    # a re-check without the inputs would re-check the input-free system (the saved tube holds its runs too) and
+    # pass: only what it is given shows that the proof covers the inputs
+    import analysis.reach.problem as module
+
+    seen = []
+    original = module.recheck_flowpipe
+
+    def spy(saved, system, initial, fragment, **kwargs):
+        seen.append((system, kwargs.get("inputs")))
+        return original(saved, system, initial, fragment, **kwargs)
+
+    monkeypatch.setattr(module, "recheck_flowpipe", spy)
+    problem = _two(tmp_path, "x >= 0.105")
+    assert problem_reach(problem).requirements[0].status == "proven"
+    route = problem_input_route(problem)
+    assert len(seen) == 2 and all(system is not None and inputs is not None for system, inputs in seen)
+    for system, inputs in seen:
+        assert type(system).__name__ == "HybridSystem"  # read again by the re-checker, as verify's proof does
+        assert {m: (i.matrix, i.bounds) for m, i in inputs.items()} == {"a": ([[1.0]], ([-0.1], [0.1])),
+                                                                       "b": ([[1.0]], ([-0.1], [0.1]))}
+    assert set(route.matrices) == {"a", "b"}
