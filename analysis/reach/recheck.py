@@ -539,6 +539,8 @@ def recheck_flowpipe(saved: str | Mapping[str, Any], system: Any, initial: Mappi
         Default: the automaton's initial mode.
     inputs : mapping {mode: ModeInput or (B, (lo, hi))} or None
         The model's bounded inputs (:mod:`analysis.reach.recheck_inputs`); the saved JSON must carry them.
+        The re-check is about the system and the inputs given: a flowpipe saved with inputs, re-checked without
+        them, confirms the input-free system only (a caller proving a claim about the inputs must pass them).
 
     Returns
     -------
