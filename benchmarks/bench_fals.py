@@ -247,7 +247,33 @@ def render(table: dict[str, Any], methods: Sequence[str]) -> str:
         lines.append(f"{label:<26}" + "".join(cells) + f"   {pub}")
     short = shortfalls(table, [m for m in methods if m == "guided"])
     lines.append("where guided falls short of a published result: " + ("; ".join(short) if short else "nowhere"))
+    if "whitebox" in methods:
+        missed = whitebox_goal(table)
+        lines.append(f"where whitebox is not within {WHITEBOX_FACTOR:g}x of zlscheck 2020 (issue 29's goal): "
+                     + ("; ".join(missed) if missed else "nowhere"))
     return "\n".join(lines)
+
+
+WHITEBOX_FACTOR = 3.0
+"""Issue 29's goal for the white-box mode: a mean number of simulations within this factor of zlscheck 2020's."""
+
+
+def whitebox_goal(table: dict[str, Any]) -> list[str]:
+    """Requirements where ``whitebox`` misses :data:`WHITEBOX_FACTOR` times zlscheck 2020's mean (an upper bound
+    ``<=b`` taken as ``b``), or does not falsify every run."""
+    out = []
+    for label, row in table.items():
+        c, published = row.get("whitebox"), row["published"].get("zlscheck 2020")
+        if not c or not c["runs"] or published is None:
+            continue
+        mean = published[0]
+        bound = WHITEBOX_FACTOR * (float(mean[2:]) if isinstance(mean, str) else float(mean))
+        if c["falsified"] < c["runs"]:
+            out.append(f"{label} {c['falsified']}/{c['runs']} (mean {c['mean']:.1f} vs {bound:g})"
+                       if c["mean"] is not None else f"{label} 0/{c['runs']}")
+        elif c["mean"] > bound:
+            out.append(f"{label} mean {c['mean']:.1f} vs {bound:g}")
+    return out
 
 
 def _published(value: tuple[Any, int | None]) -> str:

@@ -35,3 +35,18 @@ def test_the_quick_run_falsifies_the_planted_bugs_and_resumes(tmp_path, capsys):
     again = bench.main(["--quick", "--workers", "1", "--results", str(results)])
     assert "0 to run" in capsys.readouterr().out
     assert again == table and results.read_text().splitlines() == lines
+
+
+def _cell(falsified: int, mean: float | None) -> dict:
+    return {"runs": 10, "falsified": falsified, "mean": mean, "median": mean}
+
+
+def test_the_whitebox_goal_is_three_times_zlschecks_mean_and_every_run_falsified():
+    bench = _bench()
+    zl = bench.PUBLISHED["zlscheck 2020"]
+    table = {"AT1": {"whitebox": _cell(10, 3 * 3.4), "published": {"zlscheck 2020": zl["AT1"]}},         # at the bound
+             "AT2": {"whitebox": _cell(10, 3 * 15.5 + 0.1), "published": {"zlscheck 2020": zl["AT2"]}},  # just above
+             "AT51": {"whitebox": _cell(9, 4.0), "published": {"zlscheck 2020": zl["AT51"]}},          # a run missed
+             "AT52": {"whitebox": _cell(10, 10.5), "published": {"zlscheck 2020": zl["AT52"]}},        # <=3.5 -> 10.5
+             "CC2": {"whitebox": _cell(10, 99.0), "published": {}}}                                   # no zlscheck figure
+    assert bench.whitebox_goal(table) == ["AT2 mean 46.6 vs 46.5", "AT51 9/10 (mean 4.0 vs 10.5)"]
