@@ -1,4 +1,5 @@
-"""Helpers of the report tests (``test_report.py``, ``test_report_committed.py``): running the console script."""
+"""Helpers of the CLI tests: ``cli`` (the command line in-process) and, for the report tests (``test_report.py``,
+``test_report_committed.py``), running the console script."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -44,6 +46,22 @@ def _assert_exit_is_the_verdicts(done: subprocess.CompletedProcess, out: Path) -
 def _counterexamples(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted((folder / "counterexamples").glob("*.json"))}
 
+
+
+@pytest.fixture
+def cli(capsys) -> Callable[..., tuple[int, str, str]]:
+    """``cli(*argv) -> (exit code, stdout, stderr)``: the command line run in-process by ``visnav.app.cli.main``.
+
+    ``main`` must return its exit code: a ``SystemExit`` (or anything else) escaping it is not caught here.
+    """
+    from visnav.app.cli import main
+
+    def run(*argv: object) -> tuple[int, str, str]:
+        code = main([str(a) for a in argv])
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
+    return run
 
 
 @pytest.fixture(scope="session")

@@ -62,14 +62,8 @@ def spec(tmp_path):
     return lambda name: f"{path}:{name}"
 
 
-def _run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def test_a_proven_requirement_exits_0_with_its_margin_and_json(spec, capsys):
-    code, out, err = _run(capsys, "reach", "--problem", spec("safe"), "--json")
+def test_a_proven_requirement_exits_0_with_its_margin_and_json(spec, cli):
+    code, out, err = cli("reach", "--problem", spec("safe"), "--json")
     assert code == 0, err
     data = json.loads(out)
     assert data["format"] == "visnav-reach" and data["complete"] is True
@@ -82,42 +76,42 @@ def test_a_proven_requirement_exits_0_with_its_margin_and_json(spec, capsys):
     # the saved flowpipe reaches the true maximum and stays below the bound
     tops = [seg["box"][1][0] for seg in start["flowpipe"]["segments"]]
     assert TRUE_MAX - 1e-9 <= max(tops) < 1.99
-    again = _run(capsys, "reach", "--problem", spec("safe"), "--json")[1]
+    again = cli("reach", "--problem", spec("safe"), "--json")[1]
     assert again == out  # deterministic: no timings in the JSON
 
 
-def test_an_unsafe_set_the_flowpipe_meets_exits_1(spec, capsys):
-    code, out, err = _run(capsys, "reach", "--problem", spec("unsafe"))
+def test_an_unsafe_set_the_flowpipe_meets_exits_1(spec, cli):
+    code, out, err = cli("reach", "--problem", spec("unsafe"))
     assert code == 1, err
     assert "unsafe set met" in out and "not a counterexample" in out
 
 
-def test_a_requirement_outside_the_fragment_leaves_the_run_incomplete(spec, capsys):
-    code, out, err = _run(capsys, "reach", "--problem", spec("mixed"))
+def test_a_requirement_outside_the_fragment_leaves_the_run_incomplete(spec, cli):
+    code, out, err = cli("reach", "--problem", spec("mixed"))
     assert code == 5, err
     assert "proven" in out and "not decided" in out and "later" in out
 
 
-def test_a_jump_bound_reached_is_inconclusive(tmp_path, capsys):
+def test_a_jump_bound_reached_is_inconclusive(tmp_path, cli):
     from pathlib import Path
 
     example = Path(__file__).resolve().parents[3] / "examples" / "thermostat.py"
-    code, out, err = _run(capsys, "reach", "--problem", f"{example}:problem", "--horizon", "10", "--max-jumps", "3")
+    code, out, err = cli("reach", "--problem", f"{example}:problem", "--horizon", "10", "--max-jumps", "3")
     assert code == 5, err
     assert "jump bound" in out and "inconclusive" in out
 
 
-def test_out_writes_the_json_and_figures_and_owns_them(spec, tmp_path, capsys):
+def test_out_writes_the_json_and_figures_and_owns_them(spec, tmp_path, cli):
     folder = tmp_path / "o"
-    code, out, err = _run(capsys, "reach", "--problem", spec("safe"), "--out", folder, "--plot", "x,p")
+    code, out, err = cli("reach", "--problem", spec("safe"), "--out", folder, "--plot", "x,p")
     assert code == 0, err
     for name in ("reach.json", "figures/sets_x.png", "figures/sets_p.png", "figures/phase_x_p.png"):
         assert (folder / name).is_file() and str(folder / name) in out
     assert (folder / "figures" / "phase_x_p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((folder / "reach.json").read_text())["requirements"][0]["status"] == "proven"
-    assert _run(capsys, "reach", "--problem", spec("safe"), "--out", folder)[0] == 0  # its own files: rewritten
+    assert cli("reach", "--problem", spec("safe"), "--out", folder)[0] == 0  # its own files: rewritten
     (folder / "reach.json").write_text("mine")
-    code, _, err = _run(capsys, "reach", "--problem", spec("safe"), "--out", folder)
+    code, _, err = cli("reach", "--problem", spec("safe"), "--out", folder)
     assert code == 2 and "not written by visnav" in err and (folder / "reach.json").read_text() == "mine"
 
 
@@ -139,14 +133,14 @@ def test_bad_options_exit_2_with_a_message(spec, capsys, extra, words):
     assert code == 2 and words in err and "Traceback" not in err
 
 
-def test_a_model_that_is_not_symbolic_is_bad_input_with_what_to_write(spec, capsys):
-    code, out, err = _run(capsys, "reach", "--problem", spec("not_symbolic"))
+def test_a_model_that_is_not_symbolic_is_bad_input_with_what_to_write(spec, cli):
+    code, out, err = cli("reach", "--problem", spec("not_symbolic"))
     assert code == 2 and "Traceback" not in err
     assert "reachability needs a symbolic" in err and "flow_map" in err
 
 
-def test_a_missing_problem_is_bad_input(tmp_path, capsys):
-    code, _, err = _run(capsys, "reach", "--problem", f"{tmp_path / 'nope.py'}:problem")
+def test_a_missing_problem_is_bad_input(tmp_path, cli):
+    code, _, err = cli("reach", "--problem", f"{tmp_path / 'nope.py'}:problem")
     assert code == 2 and "nope.py" in err and "Traceback" not in err
 
 
@@ -154,10 +148,10 @@ THERMOSTAT = str(__import__("pathlib").Path(__file__).resolve().parents[3] / "ex
 
 
 @pytest.mark.parametrize("extra, horizon", [((), "120"), (("--horizon", "60"), "60")])
-def test_a_step_lost_on_the_time_scale_is_refused_as_typed(capsys, extra, horizon):
+def test_a_step_lost_on_the_time_scale_is_refused_as_typed(cli, extra, horizon):
     """The thermostat runs on τ = rate·t (rate <= 0.2): 5e-324 s × 0.2 rounds to 0.  The message names the
     step the user typed and the horizon the user gave (or the problem's), never the scaled ones."""
-    code, _, err = _run(capsys, "reach", "--time-step", "5e-324", *extra, "--problem", THERMOSTAT)
+    code, _, err = cli("reach", "--time-step", "5e-324", *extra, "--problem", THERMOSTAT)
     assert code == 2 and "Traceback" not in err
     assert "--time-step 5e-324:" in err and f"--horizon {horizon} [s]" in err
     assert "--time-step 0.0:" not in err and "24.000000000000004" not in err and "time_step =" not in err

@@ -28,7 +28,6 @@ from pathlib import Path
 
 import pytest
 
-from visnav.app.cli import main
 
 HEAD = '<?xml version="1.0"?>\n<sspaceex xmlns="http://www-verimag.imag.fr/xml-namespaces/sspaceex" version="0.2">\n'
 PARAMS = "".join(f'<param name="{p}" type="real" local="false" d1="1" d2="1" dynamics="any"/>\n' for p in "xu")
@@ -47,21 +46,12 @@ def _model(tmp_path: Path, flow: str, low: float, high: float, forbidden: str, h
     return str(tmp_path / "m.xml"), str(tmp_path / "m.cfg")
 
 
-def _run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as stop:
-        code = stop.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
 LAG_MAX = 0.1 * (1.0 - math.exp(-5.0))
 
 
-def test_a_bound_that_holds_with_a_margin_is_proven_with_the_inputs(tmp_path, capsys):
+def test_a_bound_that_holds_with_a_margin_is_proven_with_the_inputs(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-x + u", -0.1, 0.1, "x >= 0.105", 5.0)
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg, "--json")
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg, "--json")
     assert code == 0, out + err
     data = json.loads(out)
     assert data["inputs"] == [{"name": "u", "low": -0.1, "high": 0.1,
@@ -73,25 +63,25 @@ def test_a_bound_that_holds_with_a_margin_is_proven_with_the_inputs(tmp_path, ca
     assert data["starts"][0]["flowpipe"]["inputs"], "the saved flowpipe carries B and U (the re-check reads them)"
 
 
-def test_an_unsafe_set_just_inside_the_reach_set_is_not_proven(tmp_path, capsys):
+def test_an_unsafe_set_just_inside_the_reach_set_is_not_proven(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-x + u", -0.1, 0.1, "x >= 0.099", 5.0)
     assert 0.099 < LAG_MAX  # the yardstick: u = 0.1 reaches it
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg)
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg)
     assert code == 1, out + err
     assert "unsafe set met" in out and "proven " not in out
     assert "inputs (any signal within the bounds): u in [-0.1, 0.1]" in out
 
 
-def test_the_input_is_not_dropped(tmp_path, capsys):
+def test_the_input_is_not_dropped(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-x + u", -0.1, 0.1, "x >= 0.05", 5.0)  # u = 0 would keep x = 0
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg, "--json")
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg, "--json")
     assert code == 1, out + err
     assert json.loads(out)["requirements"][0]["status"] == "met"
 
 
-def test_without_a_step_the_input_ladder_is_used(tmp_path, capsys):
+def test_without_a_step_the_input_ladder_is_used(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-5000*x + u", -1.0, 1.0, "x >= 0.00025", 0.1)
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg, "--json")
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg, "--json")
     assert code == 0, out + err
     data = json.loads(out)
     assert "‖A‖·step <= 0.1: 'a' 2e-05 s" in data["steps_chosen"]  # 0.1 / 5001
@@ -99,17 +89,17 @@ def test_without_a_step_the_input_ladder_is_used(tmp_path, capsys):
     assert 0.0 < data["requirements"][0]["margin"] <= 0.00025 - 2e-4 + 1e-12
 
 
-def test_an_explicit_step_is_used_alone(tmp_path, capsys):
+def test_an_explicit_step_is_used_alone(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-5000*x + u", -1.0, 1.0, "x >= 0.00025", 0.1)
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg, "--json", "--time-step", "0.0001")
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg, "--json", "--time-step", "0.0001")
     data = json.loads(out)
     assert data["time_step"] == 0.0001 and data["steps_chosen"] == "" and data["options"] == {}
     assert code == 1, out + err  # e^0.5 · 2e-4 = 3.3e-4 > 2.5e-4: the coarse step's tube meets it
 
 
-def test_a_flowpipe_that_blows_up_is_inconclusive_naming_where(tmp_path, capsys):
+def test_a_flowpipe_that_blows_up_is_inconclusive_naming_where(tmp_path, cli):
     xml, cfg = _model(tmp_path, "x + u", 0.5, 1.0, "x >= 1e12", 20.0)
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg)
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg)
     assert code == 5, out + err
     assert "INCONCLUSIVE" in out
     found = [line for line in out.splitlines() if "blew up at t = " in line]
@@ -120,16 +110,16 @@ def test_a_flowpipe_that_blows_up_is_inconclusive_naming_where(tmp_path, capsys)
     assert latest - math.log(1.5) < t <= latest + delta + 1e-9
 
 
-def test_out_writes_the_figures_and_the_inputs(tmp_path, capsys):
+def test_out_writes_the_figures_and_the_inputs(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-x + u", -0.1, 0.1, "x >= 0.105", 5.0)
     out_dir = tmp_path / "out"
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg, "--out", out_dir)
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg, "--out", out_dir)
     assert code == 0, out + err
     assert (out_dir / "figures" / "sets_x.png").stat().st_size > 1000
     assert json.loads((out_dir / "reach.json").read_text())["inputs"][0]["name"] == "u"
 
 
-def test_a_flow_with_an_input_times_a_state_is_bad_input(tmp_path, capsys):
+def test_a_flow_with_an_input_times_a_state_is_bad_input(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-x*u", 0.5, 1.0, "x >= 2", 1.0, initially="x==1")
-    code, out, err = _run(capsys, "reach", "--problem", xml, "--config", cfg)
+    code, out, err = cli("reach", "--problem", xml, "--config", cfg)
     assert code == 2 and "affine" in err and "Traceback" not in err, err

@@ -18,7 +18,6 @@ from pathlib import Path
 
 import pytest
 
-from visnav.app.cli import main
 
 ROOT = Path(__file__).resolve().parents[3]
 BALL = ROOT / "tests" / "data" / "spaceex" / "spaceexparser" / "bball" / "bball.xml"
@@ -47,19 +46,10 @@ def fast(tmp_path):
     return f"{path}:problem"
 
 
-def _run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as stop:
-        code = stop.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def test_reach_without_a_step_chooses_the_steps_verify_chooses(fast, capsys):
+def test_reach_without_a_step_chooses_the_steps_verify_chooses(fast, cli):
     from analysis.verify.loading import load_problem
 
-    code, out, err = _run(capsys, "reach", "--problem", fast, "--json")
+    code, out, err = cli("reach", "--problem", fast, "--json")
     assert code == 0, err
     data = json.loads(out)
     (step,) = data["options"]["mode_time_steps"].values()
@@ -71,8 +61,8 @@ def test_reach_without_a_step_chooses_the_steps_verify_chooses(fast, capsys):
     assert proof.holds and proof.rechecked and data["steps_chosen"] in proof.evidence
 
 
-def test_an_explicit_step_is_used_alone_as_before(fast, capsys):
-    code, _, err = _run(capsys, "reach", "--problem", fast, "--time-step", "0.00205")
+def test_an_explicit_step_is_used_alone_as_before(fast, cli):
+    code, _, err = cli("reach", "--problem", fast, "--time-step", "0.00205")
     assert code == 2 and "--time-step 0.00205" in err and "‖A‖" in err and "Traceback" not in err
 
 
@@ -82,11 +72,11 @@ def _cfg(tmp_path, extra):
     return path
 
 
-def test_the_sampling_time_is_the_step_the_engine_reports(tmp_path, capsys):
+def test_the_sampling_time_is_the_step_the_engine_reports(tmp_path, cli):
     from analysis.spaceex import spaceex_problem
 
     cfg = _cfg(tmp_path, "sampling-time = 0.05\n")
-    code, out, err = _run(capsys, "reach", "--problem", BALL, "--config", cfg, "--json")
+    code, out, err = cli("reach", "--problem", BALL, "--config", cfg, "--json")
     assert code == 0, err
     data = json.loads(out)
     assert data["time_step"] == 0.05 and data["steps_chosen"] == "" and data["options"] == {}
@@ -94,16 +84,16 @@ def test_the_sampling_time_is_the_step_the_engine_reports(tmp_path, capsys):
     proof = spaceex_problem(BALL, cfg).proofs["safe"]()  # verify's proof: the same step
     assert proof.holds and proof.rechecked and "step 0.05 s" in proof.evidence
     assert 0.0 < proof.margin <= 0.3 + 1e-9  # the ball's slack
-    code, out, _ = _run(capsys, "reach", "--problem", BALL, "--config", cfg, "--json", "--time-step", "0.02")
+    code, out, _ = cli("reach", "--problem", BALL, "--config", cfg, "--json", "--time-step", "0.02")
     assert code == 0 and json.loads(out)["time_step"] == 0.02  # an explicit step wins
-    code, out, _ = _run(capsys, "reach", "--problem", BALL, "--config", _cfg(tmp_path, ""), "--json")
+    code, out, _ = cli("reach", "--problem", BALL, "--config", _cfg(tmp_path, ""), "--json")
     assert code == 0 and json.loads(out)["time_step"] == 8.0 / 1000.0  # none: the default base step
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "8.5"])
 @pytest.mark.parametrize("command", ["reach", "verify"])
-def test_a_bad_sampling_time_exits_2_naming_it(tmp_path, capsys, value, command):
+def test_a_bad_sampling_time_exits_2_naming_it(tmp_path, cli, value, command):
     cfg = _cfg(tmp_path, f"sampling-time = {value}\n")
     argv = ["reach", "--problem", BALL] if command == "reach" else ["verify", BALL, "--out", tmp_path / "v"]
-    code, _, err = _run(capsys, *argv, "--config", cfg)
+    code, _, err = cli(*argv, "--config", cfg)
     assert code == 2 and "sampling-time" in err and value in err and "Traceback" not in err

@@ -24,7 +24,6 @@ import pytest
 from analysis.counterexamples import CounterexampleFormat
 from analysis.verify.loading import load_problem
 
-from visnav.app.cli import main
 from visnav.app.cli_replay import same_problem
 from visnav.app.cli_types import EXIT_BAD_INPUT, EXIT_MODEL_ERROR, EXIT_OK, EXIT_TASK_FAILED
 from visnav.app.cli_verify import COUNTEREXAMPLE_FORMAT, replay_command
@@ -74,36 +73,30 @@ def _counterexample(tmp_path: Path, spec: str, requirement: str, unit: tuple[flo
     return path
 
 
-def _run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 # --------------------------------------------------------------------------- the problem run is the command line's
 
 
-def test_a_file_naming_a_python_file_does_not_run_it(tmp_path, capsys):
+def test_a_file_naming_a_python_file_does_not_run_it(tmp_path, cli):
     marker = tmp_path / "ran"
     evil = tmp_path / "evil.py"
     evil.write_text(f"open({str(marker)!r}, 'w').write('x')\nproblem = None\n")
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "big", (1.0,), named=f"{evil}:problem")
-    code, out, err = _run(capsys, "replay", str(path))
+    code, out, err = cli("replay", str(path))
     assert code == EXIT_BAD_INPUT and out == ""
     assert f"this counterexample names problem '{evil}:problem'; re-run with --problem {evil}:problem to confirm" in err
-    code, _, err = _run(capsys, "replay", str(path), "--problem", spec)  # another problem given: refused too
+    code, _, err = cli("replay", str(path), "--problem", spec)  # another problem given: refused too
     assert code == EXIT_BAD_INPUT and f"not '{spec}' (--problem)" in err
     assert not marker.exists()
 
 
-def test_a_file_naming_a_module_function_does_not_call_it(tmp_path, capsys, monkeypatch):
+def test_a_file_naming_a_module_function_does_not_call_it(tmp_path, cli, monkeypatch):
     spec = _module(tmp_path)
     made = tmp_path / "temp"
     made.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(made))
     path = _counterexample(tmp_path, spec, "big", (1.0,), named="tempfile:mkdtemp")
-    code, _, err = _run(capsys, "replay", str(path))
+    code, _, err = cli("replay", str(path))
     assert code == EXIT_BAD_INPUT and "re-run with --problem tempfile:mkdtemp to confirm" in err
     assert list(made.iterdir()) == []
 
@@ -118,19 +111,19 @@ def test_a_file_naming_os_abort_does_not_kill_the_process(tmp_path):
     assert "Traceback" not in done.stderr
 
 
-def test_the_problem_confirmed_on_the_command_line_is_replayed_twice_alike(tmp_path, capsys, monkeypatch):
+def test_the_problem_confirmed_on_the_command_line_is_replayed_twice_alike(tmp_path, cli, monkeypatch):
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "big", (-1.0,))  # x0 = 0.5: min 0.5 e^-2 = 0.068 < 0.2, violated
-    first = _run(capsys, "replay", str(path), "--problem", spec, "--json")
+    first = cli("replay", str(path), "--problem", spec, "--json")
     assert first[0] == EXIT_TASK_FAILED, first[2]
     data = json.loads(first[1])
     assert data["violated"] is True and data["point"] == {"x0": 0.5}
     assert data["robustness"] == pytest.approx(0.5 * 2.718281828459045 ** -2 - 0.2, rel=1e-12)
-    assert _run(capsys, "replay", str(path), "--problem", spec, "--json") == first
+    assert cli("replay", str(path), "--problem", spec, "--json") == first
     # the same file given by another path is the same problem (paths resolved, nothing imported to compare)
     monkeypatch.chdir(tmp_path)
     assert same_problem(spec, "./decay_problem.py:problem")
-    assert _run(capsys, "replay", str(path), "--problem", "decay_problem.py:problem")[0] == EXIT_TASK_FAILED
+    assert cli("replay", str(path), "--problem", "decay_problem.py:problem")[0] == EXIT_TASK_FAILED
     assert not same_problem(spec, "decay_problem.py:other") and not same_problem("a.b:problem", "a.c:problem")
 
 
@@ -139,16 +132,16 @@ def test_replay_commands_name_the_problem_to_confirm():
     assert replay_command("out/c x.json", "my pkg.py:p") == "visnav replay 'out/c x.json' --problem 'my pkg.py:p'"
 
 
-def test_verify_prints_and_writes_the_replay_command_with_the_problem(tmp_path, capsys):
+def test_verify_prints_and_writes_the_replay_command_with_the_problem(tmp_path, cli):
     spec = _module(tmp_path)
     out = tmp_path / "o"
-    code, printed, err = _run(capsys, "verify", spec, "--budget", "12", "--requirement", "big", "--out", str(out),
+    code, printed, err = cli("verify", spec, "--budget", "12", "--requirement", "big", "--out", str(out),
                               "--json")
     assert code == EXIT_TASK_FAILED, err
     cx = json.loads(printed)["requirements"][0]["counterexample"]
     assert cx["replay"] == replay_command(cx["file"], spec)
     assert json.loads(Path(cx["file"]).read_text())["replay"] == f"visnav replay <this file> --problem {spec}"
-    assert _run(capsys, "replay", cx["file"], "--problem", spec)[0] == EXIT_TASK_FAILED
+    assert cli("replay", cx["file"], "--problem", spec)[0] == EXIT_TASK_FAILED
 
 
 # --------------------------------------------------------------------------- the rest of the file checked first
@@ -158,7 +151,7 @@ def test_verify_prints_and_writes_the_replay_command_with_the_problem(tmp_path, 
     ("nan", "unit[0] = 'nan'"), ("inf", "unit[0] = 'inf'"), ("-inf", "unit[0] = '-inf'"), (1.5, "unit[0] = 1.5"),
     (-1.0000001, "unit[0] = -1.0000001"),
 ])
-def test_unit_coordinates_outside_the_box_are_refused_not_clamped(tmp_path, capsys, unit, shown):
+def test_unit_coordinates_outside_the_box_are_refused_not_clamped(tmp_path, cli, unit, shown):
     spec = _module(tmp_path)
 
     def edit(fields):
@@ -166,25 +159,25 @@ def test_unit_coordinates_outside_the_box_are_refused_not_clamped(tmp_path, caps
         fields["point"] = {"x0": 2.0 if unit in ("inf", 1.5) else 0.5}  # what clamping would replay
 
     path = _counterexample(tmp_path, spec, "big", (0.0,), edit=edit)
-    code, out, err = _run(capsys, "replay", str(path), "--problem", spec)
+    code, out, err = cli("replay", str(path), "--problem", spec)
     assert code == EXIT_BAD_INPUT and out == ""
     assert shown in err and "expected a finite number in [-1, 1]" in err and "not clamped" in err
 
 
-def test_a_point_that_disagrees_with_its_unit_coordinates_is_refused(tmp_path, capsys):
+def test_a_point_that_disagrees_with_its_unit_coordinates_is_refused(tmp_path, cli):
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "big", (0.0,), edit=lambda f: f.update(point={"x0": 0.5}))
-    code, _, err = _run(capsys, "replay", str(path), "--problem", spec)
+    code, _, err = cli("replay", str(path), "--problem", spec)
     assert code == EXIT_BAD_INPUT
     assert "point.x0 = 0.5 disagrees with unit coordinate 0.0, which gives 1.25 in the box [0.5, 2.0]" in err
     path = _counterexample(tmp_path, spec, "big", (0.0,), edit=lambda f: f.update(point={"y": 1.25}))
-    assert _run(capsys, "replay", str(path), "--problem", spec)[0] == EXIT_BAD_INPUT
+    assert cli("replay", str(path), "--problem", spec)[0] == EXIT_BAD_INPUT
 
 
-def test_options_a_users_problem_does_not_take_are_refused(tmp_path, capsys):
+def test_options_a_users_problem_does_not_take_are_refused(tmp_path, cli):
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "big", (0.0,), options={"variant": "paper"})
-    code, _, err = _run(capsys, "replay", str(path), "--problem", spec)
+    code, _, err = cli("replay", str(path), "--problem", spec)
     assert code == EXIT_BAD_INPUT and "options: unknown key 'variant'" in err and "the accepted keys are: none" in err
 
 
@@ -198,25 +191,25 @@ def _paper_problem():
     ({"evil": 1}, "options: unknown key 'evil' for problem 'paper'; the accepted keys are: scenario, variant"),
     ({"variant": 5}, "options.variant = 5: expected a string, found an integer"),
 ])
-def test_options_the_paper_problem_does_not_take_are_refused_not_exit_4(tmp_path, capsys, options, shown):
+def test_options_the_paper_problem_does_not_take_are_refused_not_exit_4(tmp_path, cli, options, shown):
     problem = _paper_problem()
     path = _counterexample(tmp_path, "paper", "no_collision", (0.0,) * len(problem.parameters), options=options,
                            problem=problem)
-    code, _, err = _run(capsys, "replay", str(path))
+    code, _, err = cli("replay", str(path))
     assert code == EXIT_BAD_INPUT and shown in err
 
 
-def test_the_paper_problem_replays_without_problem(tmp_path, capsys):
+def test_the_paper_problem_replays_without_problem(tmp_path, cli):
     problem = _paper_problem()
     path = _counterexample(tmp_path, "paper", "no_collision", (0.0,) * len(problem.parameters), problem=problem,
                            options={"variant": "resolved"})
-    code, out, err = _run(capsys, "replay", str(path), "--json")
+    code, out, err = cli("replay", str(path), "--json")
     assert code == EXIT_OK, err  # the nominal run does not collide (clearance > 0)
     assert json.loads(out)["violated"] is False and json.loads(out)["robustness"] > 0
-    assert _run(capsys, "replay", str(path), "--problem", "paper", "--json")[:2] == (code, out)
+    assert cli("replay", str(path), "--problem", "paper", "--json")[:2] == (code, out)
 
 
-def test_a_hostile_label_pattern_in_the_scenario_a_file_points_at_does_not_hang(tmp_path, capsys):
+def test_a_hostile_label_pattern_in_the_scenario_a_file_points_at_does_not_hang(tmp_path, cli):
     # matches the *OCCLUDED modes; the old regex backtracked ~C(L + 30, 30) steps on a mode of L characters
     # that does not end in D (1.4 s for 13 stars on APPROACH|RELEASE, x2.2 per star)
     hostile = '"' + "*" * 30 + 'D"'
@@ -231,7 +224,7 @@ def test_a_hostile_label_pattern_in_the_scenario_a_file_points_at_does_not_hang(
     path = _counterexample(tmp_path, "paper", "hostile", (0.0,) * len(problem.parameters), problem=problem,
                            options={"scenario": str(scenario)})
     start = time.perf_counter()
-    code, out, err = _run(capsys, "replay", str(path), "--json")
+    code, out, err = cli("replay", str(path), "--json")
     assert time.perf_counter() - start < 30.0  # a paper run takes about 0.2 s; the old regex took hours
     assert code == EXIT_OK, err
     assert json.loads(out)["violated"] is False
@@ -240,20 +233,20 @@ def test_a_hostile_label_pattern_in_the_scenario_a_file_points_at_does_not_hang(
 # --------------------------------------------------------------------------- failures of the replayed run
 
 
-def test_a_formula_dividing_by_zero_names_the_requirement_and_the_instant(tmp_path, capsys):
+def test_a_formula_dividing_by_zero_names_the_requirement_and_the_instant(tmp_path, cli):
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "ratio", (0.0,))
-    code, out, err = _run(capsys, "replay", str(path), "--problem", spec)
+    code, out, err = cli("replay", str(path), "--problem", spec)
     assert code == EXIT_BAD_INPUT and out == ""
     assert ("requirement ratio: formula 'always[0, 2] (1 / (x - x) > 0)': expression (1 / (x - x)) at sample 0 "
             "(t = 0 s) = inf") in err
     assert "Traceback" not in err and "simulator" not in err
 
 
-def test_a_simulator_raising_is_a_model_error_with_its_traceback(tmp_path, capsys):
+def test_a_simulator_raising_is_a_model_error_with_its_traceback(tmp_path, cli):
     spec = _module(tmp_path)
     path = _counterexample(tmp_path, spec, "big", (1.0,))  # x0 = 2.0 > 1.9: the user's bug
-    code, out, err = _run(capsys, "replay", str(path), "--problem", spec)
+    code, out, err = cli("replay", str(path), "--problem", spec)
     assert code == EXIT_MODEL_ERROR and out == ""
     assert "your simulator raised RuntimeError: user bug at the top of the box at {'x0': 2.0}" in err
     assert "decay_problem.py" in err  # the user's own frame, to fix their code
@@ -262,7 +255,7 @@ def test_a_simulator_raising_is_a_model_error_with_its_traceback(tmp_path, capsy
 # --------------------------------------------------------------------------- fuzz counterexamples name no code
 
 
-def test_a_fuzz_counterexample_names_only_registered_properties(tmp_path, capsys):
+def test_a_fuzz_counterexample_names_only_registered_properties(tmp_path, cli):
     from visnav.fuzzing.counterexamples import COUNTEREXAMPLE_FORMAT as FUZZ_FORMAT
 
     text = FUZZ_FORMAT.dumps({"property": "os:abort", "variant": "tempfile:mkdtemp", "kind": "signals",
@@ -270,15 +263,15 @@ def test_a_fuzz_counterexample_names_only_registered_properties(tmp_path, capsys
                              rows_key="measurements", rows=[[0.0]])
     path = tmp_path / "fuzz.json"
     path.write_text(text)
-    code, _, err = _run(capsys, "replay", str(path))
+    code, _, err = cli("replay", str(path))
     assert code == EXIT_BAD_INPUT and "unknown property 'os:abort'; known:" in err
     text = text.replace('"os:abort"', '"mu_range"')
     path.write_text(text)
-    code, _, err = _run(capsys, "replay", str(path))
+    code, _, err = cli("replay", str(path))
     assert code == EXIT_BAD_INPUT and "unknown variant 'tempfile:mkdtemp'; known:" in err
 
 
-def test_problem_is_refused_for_a_fuzz_counterexample(tmp_path, capsys):
+def test_problem_is_refused_for_a_fuzz_counterexample(tmp_path, cli):
     from visnav.fuzzing import counterexample_to_json
     from visnav.fuzzing.counterexamples import Counterexample
     from visnav.fuzzing.space import MeasurementSpace
@@ -288,6 +281,6 @@ def test_problem_is_refused_for_a_fuzz_counterexample(tmp_path, capsys):
                         details={}, space=space, measurements=(tuple(0.5 for _ in space.names),))
     path = tmp_path / "fuzz.json"
     path.write_text(counterexample_to_json(cx))
-    code, _, err = _run(capsys, "replay", str(path), "--problem", "os:abort")
+    code, _, err = cli("replay", str(path), "--problem", "os:abort")
     assert code == EXIT_BAD_INPUT and "names property 'mu_range' of visnav fuzz, not a problem; drop --problem" in err
-    assert _run(capsys, "replay", str(path))[0] in (EXIT_OK, EXIT_TASK_FAILED)
+    assert cli("replay", str(path))[0] in (EXIT_OK, EXIT_TASK_FAILED)

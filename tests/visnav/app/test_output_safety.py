@@ -21,7 +21,6 @@ import pytest
 
 from analysis.counterexamples import MAX_FILE_BYTES
 from visnav.app import report_files
-from visnav.app.cli import main
 
 ROOT = Path(__file__).resolve().parents[3]
 THERMOSTAT = f"{ROOT / 'examples' / 'thermostat.py'}:zero_band"
@@ -64,12 +63,6 @@ def _module(folder: Path, stem: str, *, name: str = "decay", requirement: str = 
     path.write_text(MODULE.replace("NAME", repr(name)).replace("REQUIREMENT", repr(requirement))
                     .replace("PRELUDE", prelude).replace("DURING", during))
     return f"{path}:problem"
-
-
-def _run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 def _plant(folder: Path, names=tuple(USER_FILES)) -> dict[Path, bytes]:
@@ -119,26 +112,26 @@ def _look_alike(parent: Path, name: str) -> dict[Path, bytes]:
 
 @pytest.mark.parametrize("name", ["report.md", "report.json", "report.html", "figures/thesis.png",
                                   "counterexamples/mine.json"])
-def test_report_out_holding_a_users_file_named_as_a_reports_is_refused_untouched(tmp_path, capsys, name):
+def test_report_out_holding_a_users_file_named_as_a_reports_is_refused_untouched(tmp_path, cli, name):
     out = tmp_path / "d"
     planted = _plant(out, [name])
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 2, err
     _assert_unchanged(planted)
     assert sorted(_tree(out)) == [name]
     assert name in err and "choose another --out" in err and "move them" in err
 
 
-def test_report_replaces_only_the_folder_it_wrote_as_its_manifest_lists_it(tmp_path, capsys):
+def test_report_replaces_only_the_folder_it_wrote_as_its_manifest_lists_it(tmp_path, cli):
     out = tmp_path / "d"
     beside = _plant(tmp_path, ["notes.txt"]) | _look_alike(tmp_path, "d")
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 1, err  # the example's min_dwell requirement is falsified
     first = _tree(out)
     manifest = json.loads(first[".visnav-manifest.json"])
     assert manifest["tool"] == "visnav" and manifest["command"] == "report"
     assert sorted(manifest["files"]) == sorted(k for k in first if k != ".visnav-manifest.json")
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 1, err
     assert _tree(out) == first  # its own folder replaced (same seed: the same bytes)
     _assert_unchanged(beside)  # the look-alike partial folder and file beside it are kept
@@ -150,23 +143,23 @@ def test_report_replaces_only_the_folder_it_wrote_as_its_manifest_lists_it(tmp_p
         else:
             (out / ".visnav-manifest.json").write_text("{}")
         kept = _tree(out)
-        code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+        code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
         assert code == 2 and "not part of a visnav report" in err, (change, err)
         assert _tree(out) == kept, change
     _assert_unchanged(beside)
 
 
-def test_a_look_alike_partial_folder_and_file_beside_out_are_kept(tmp_path, capsys):
+def test_a_look_alike_partial_folder_and_file_beside_out_are_kept(tmp_path, cli):
     planted = _look_alike(tmp_path, "d")  # named as an interrupted report's would be, writer ended, an hour old
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(tmp_path / "d"))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(tmp_path / "d"))
     assert code == 1, err
     _assert_unchanged(planted)
 
 
-def test_the_default_report_folder_holding_a_users_report_is_refused(tmp_path, capsys, monkeypatch):
+def test_the_default_report_folder_holding_a_users_report_is_refused(tmp_path, cli, monkeypatch):
     monkeypatch.chdir(tmp_path)
     planted = _plant(tmp_path / "reports" / "thermostat-band-0", ["report.md"])
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick")
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick")
     assert code == 2 and "report.md" in err, err
     _assert_unchanged(planted)
 
@@ -185,16 +178,16 @@ def evil_scenario(tmp_path: Path) -> Path:
     return path
 
 
-def test_a_scenario_name_with_dot_dot_cannot_write_outside_the_reports_folder(tmp_path, capsys, monkeypatch,
+def test_a_scenario_name_with_dot_dot_cannot_write_outside_the_reports_folder(tmp_path, cli, monkeypatch,
                                                                              evil_scenario):
     monkeypatch.chdir(tmp_path)
     planted = _plant(tmp_path / "victim", ["report.md", "notes.txt"])
-    code, _, err = _run(capsys, "report", "--scenario", str(evil_scenario), "--quick")
+    code, _, err = cli("report", "--scenario", str(evil_scenario), "--quick")
     assert code == 2, err
     assert "'../victim'" in err and "name" in err and "path separator" in err
     _assert_unchanged(planted)
     assert sorted(_tree(tmp_path / "victim")) == ["notes.txt", "report.md"]
-    code, _, err = _run(capsys, "verify", "paper", "--scenario", str(evil_scenario), "--budget", "1")
+    code, _, err = cli("verify", "paper", "--scenario", str(evil_scenario), "--budget", "1")
     assert code == 2 and "'../victim'" in err, err
     assert not (tmp_path / "out").exists() and not (tmp_path / "victim" / "verification.json").exists()
     _assert_unchanged(planted)
@@ -203,24 +196,24 @@ def test_a_scenario_name_with_dot_dot_cannot_write_outside_the_reports_folder(tm
 @pytest.mark.parametrize("name, problem", [("../escape", "path separator"), ("a/b", "path separator"),
                                            (".hidden", "starts with a dot"), ("x" * 101, "101 bytes"),
                                            ("a\nb", "control character")])
-def test_a_problem_name_that_is_no_plain_file_name_is_refused_before_any_work(tmp_path, capsys, monkeypatch,
+def test_a_problem_name_that_is_no_plain_file_name_is_refused_before_any_work(tmp_path, cli, monkeypatch,
                                                                               name, problem):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
     spec = _module(tmp_path, "named", name=name)
-    code, _, err = _run(capsys, "verify", spec, "--budget", "2")
+    code, _, err = cli("verify", spec, "--budget", "2")
     assert code == 2 and problem in err and "VerificationProblem.name" in err, err
-    code, _, err = _run(capsys, "report", "--problem", spec, "--quick")
+    code, _, err = cli("report", "--problem", spec, "--quick")
     assert code == 2 and problem in err, err
     written = sorted(p.name for p in tmp_path.rglob("*") if "__pycache__" not in p.parts)
     assert written == ["named.py", "work"]  # nothing written anywhere
 
 
-def test_a_requirement_name_too_long_for_a_file_is_refused_before_the_search(tmp_path, capsys):
+def test_a_requirement_name_too_long_for_a_file_is_refused_before_the_search(tmp_path, cli):
     spec = _module(tmp_path, "long_requirement", requirement="r" * 300)
     out = tmp_path / "o"
-    code, _, err = _run(capsys, "verify", spec, "--budget", "4", "--out", str(out))
+    code, _, err = cli("verify", spec, "--budget", "4", "--out", str(out))
     assert code == 2 and "requirement name" in err and "300 bytes" in err, err
     assert not (out / "evaluations.jsonl").exists()  # no simulation was run
 
@@ -228,9 +221,9 @@ def test_a_requirement_name_too_long_for_a_file_is_refused_before_the_search(tmp
 # ---------------------------------------------------------------------------------- 3. during the run
 
 
-def test_a_file_saved_into_the_report_folder_during_the_run_refuses_the_swap(tmp_path, capsys, monkeypatch):
+def test_a_file_saved_into_the_report_folder_during_the_run_refuses_the_swap(tmp_path, cli, monkeypatch):
     out = tmp_path / "d"
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 1, err
     before = _tree(out)
     real_figures_png = report_files.figures_png
@@ -240,15 +233,15 @@ def test_a_file_saved_into_the_report_folder_during_the_run_refuses_the_swap(tmp
         return real_figures_png(figures)
 
     monkeypatch.setattr(report_files, "figures_png", saving_meanwhile)
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 2 and "notes.txt" in err, err
     assert _tree(out) == {**before, "notes.txt": USER_FILES["notes.txt"]}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d"]  # no partial folder left beside it
 
 
-def test_a_file_saved_between_the_last_check_and_the_swap_is_put_back(tmp_path, capsys, monkeypatch):
+def test_a_file_saved_between_the_last_check_and_the_swap_is_put_back(tmp_path, cli, monkeypatch):
     out = tmp_path / "d"
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 1, err
     before = _tree(out)
     real_swap_in = report_files._swap_in
@@ -258,19 +251,19 @@ def test_a_file_saved_between_the_last_check_and_the_swap_is_put_back(tmp_path, 
         return real_swap_in(staging, real)
 
     monkeypatch.setattr(report_files, "_swap_in", late)
-    code, _, err = _run(capsys, "report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
+    code, _, err = cli("report", "--problem", THERMOSTAT, "--quick", "--out", str(out))
     assert code == 2 and "notes.txt" in err and "nothing was deleted" in err, err
     assert _tree(out) == {**before, "notes.txt": USER_FILES["notes.txt"]}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d"]
 
 
-def test_verify_never_overwrites_a_users_file_before_or_during_the_search(tmp_path, capsys):
+def test_verify_never_overwrites_a_users_file_before_or_during_the_search(tmp_path, cli):
     out = tmp_path / "o"
     planted = _plant(out, ["notes.txt"])
     (out / "verification.json").write_bytes(b'{"mine": 1}\n')
     planted[out / "verification.json"] = b'{"mine": 1}\n'
     spec = _module(tmp_path, "verify_user")
-    code, _, err = _run(capsys, "verify", spec, "--budget", "4", "--out", str(out))
+    code, _, err = cli("verify", spec, "--budget", "4", "--out", str(out))
     assert code == 2 and "verification.json" in err and "choose another --out" in err, err
     _assert_unchanged(planted)
     assert not (out / "evaluations.jsonl").exists()
@@ -287,17 +280,17 @@ def test_verify_never_overwrites_a_users_file_before_or_during_the_search(tmp_pa
                 open({str(saved)!r}, "x").write("mine")
         """)
     spec = _module(tmp_path, "verify_during", prelude=prelude, during="_user_saves()")
-    code, _, err = _run(capsys, "verify", spec, "--budget", "4", "--out", str(out))
+    code, _, err = cli("verify", spec, "--budget", "4", "--out", str(out))
     assert code == 2 and "counterexamples/above.json" in err and "resumes" in err, err
     assert saved.read_text() == "mine" and not (out / "verification.json").exists()
     assert (out / "evaluations.jsonl").is_file()  # the search is kept: the next run resumes it
     _assert_unchanged(planted)
     saved.unlink()
-    code, out_text, err = _run(capsys, "verify", spec, "--budget", "4", "--out", str(out), "--json")
+    code, out_text, err = cli("verify", spec, "--budget", "4", "--out", str(out), "--json")
     assert code == 1, err
     manifest = json.loads((out / ".visnav-manifest.json").read_text())
     assert sorted(manifest["files"]) == ["counterexamples/above.json", "evaluations.jsonl", "verification.json"]
-    code, _, err = _run(capsys, "verify", spec, "--budget", "4", "--out", str(out))  # its own files: rewritten
+    code, _, err = cli("verify", spec, "--budget", "4", "--out", str(out))  # its own files: rewritten
     assert code == 1, err
     _assert_unchanged(planted)
 
@@ -305,14 +298,14 @@ def test_verify_never_overwrites_a_users_file_before_or_during_the_search(tmp_pa
 # ---------------------------------------------------------------------------------- 4. chdir in user code
 
 
-def test_a_simulator_that_changes_the_folder_moves_no_output(tmp_path, capsys, monkeypatch):
+def test_a_simulator_that_changes_the_folder_moves_no_output(tmp_path, cli, monkeypatch):
     work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
     work.mkdir()
     elsewhere.mkdir()
     monkeypatch.chdir(work)
     spec = _module(tmp_path, "wanders", prelude=f"os.chdir({str(elsewhere)!r})",
                    during=f"os.chdir({str(elsewhere)!r})")
-    code, out, err = _run(capsys, "verify", spec, "--budget", "4", "--json")
+    code, out, err = cli("verify", spec, "--budget", "4", "--json")
     assert code == 1, err
     found = work / "out" / "verify" / "decay" / "guided-seed0-budget4"
     assert sorted(_tree(found)) == [".visnav-manifest.json", "counterexamples/above.json", "evaluations.jsonl",
@@ -320,7 +313,7 @@ def test_a_simulator_that_changes_the_folder_moves_no_output(tmp_path, capsys, m
     assert json.loads(out)["requirements"][0]["counterexample"]["file"] == (
         "out/verify/decay/guided-seed0-budget4/counterexamples/above.json")  # shown as before: relative
     os.chdir(work)
-    code, _, err = _run(capsys, "verify", spec, "--budget", "4", "--out", "rel")
+    code, _, err = cli("verify", spec, "--budget", "4", "--out", "rel")
     assert code == 1, err
     assert (work / "rel" / "verification.json").is_file()
     assert list(elsewhere.iterdir()) == []
@@ -350,11 +343,11 @@ problem = VerificationProblem(name="long", simulate=simulate,
 """x0 - 0.5 exp(-((t - 6.1234)/0.01)^2) > 0.8 fails for x0 < 1.3 (the nominal 1.15 among them), at t = 6.1234 s (a sample: 6.1234 = 183702 dt)."""
 
 
-def test_a_long_trace_is_decimated_to_what_replay_reads_keeping_the_point(tmp_path, capsys):
+def test_a_long_trace_is_decimated_to_what_replay_reads_keeping_the_point(tmp_path, cli):
     path = tmp_path / "long_trace.py"
     path.write_text(textwrap.dedent(LONG))
     out = tmp_path / "o"
-    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "3", "--out", str(out))
+    code, _, err = cli("verify", f"{path}:problem", "--budget", "3", "--out", str(out))
     assert code == 1, err
     file = out / "counterexamples" / "above.json"
     assert file.stat().st_size <= MAX_FILE_BYTES // 5  # a fifth of replay's limit (the full trace: ~13 MB)
@@ -372,14 +365,14 @@ def test_a_long_trace_is_decimated_to_what_replay_reads_keeping_the_point(tmp_pa
         assert k * dt in times and (k - 1) * dt in times
     assert [r[1] for r in rows] == sorted(r[1] for r in rows) and {r[1] for r in rows} == {0, 1, 2}
     assert data["point"] == {"x0": pytest.approx(data["point"]["x0"])} and data["requirement"] == "above"
-    code, text, err = _run(capsys, "replay", str(file), "--problem", f"{path}:problem")
+    code, text, err = cli("replay", str(file), "--problem", f"{path}:problem")
     assert code == 1 and "VIOLATED" in text, err
 
 
 # ---------------------------------------------------------------------------------- the harness contract
 
 
-def test_no_user_file_around_or_inside_the_outputs_changes_in_any_case(tmp_path, capsys, monkeypatch, evil_scenario):
+def test_no_user_file_around_or_inside_the_outputs_changes_in_any_case(tmp_path, cli, monkeypatch, evil_scenario):
     """The harness: user files everywhere a writer goes; after each case, every one of them has its bytes."""
     work = tmp_path / "work"
     monkeypatch.chdir(tmp_path)
@@ -400,7 +393,7 @@ def test_no_user_file_around_or_inside_the_outputs_changes_in_any_case(tmp_path,
     ]
     expected = [1, 1, 2, 2, 1, 1, 1]
     for argv, code_wanted in zip(cases, expected):
-        code, _, err = _run(capsys, *argv)
+        code, _, err = cli(*argv)
         assert code == code_wanted, (argv, err)
         _assert_unchanged(planted)
     assert sorted(_tree(work / "mine")) == sorted([*USER_FILES, ".visnav-manifest.json", "counterexamples/above.json",

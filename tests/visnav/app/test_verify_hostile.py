@@ -11,7 +11,6 @@ import time
 
 import pytest
 
-from visnav.app.cli import main
 
 MODULE = '''
 import numpy as np
@@ -40,32 +39,26 @@ def _module(tmp_path, body="pass", factory="pass", name="user_mod.py"):
     return path
 
 
-def _run(capsys, *argv):
-    code = main(list(argv))
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
 @pytest.mark.parametrize("body", ["import sys; sys.exit(0)", "import sys; sys.exit('msg')", "import sys; sys.exit(3)",
                                   "raise GeneratorExit()"])
-def test_sys_exit_in_the_simulator_is_a_model_error_never_our_exit_code(tmp_path, capsys, body):
+def test_sys_exit_in_the_simulator_is_a_model_error_never_our_exit_code(tmp_path, cli, body):
     path = _module(tmp_path, body=body)
-    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    code, out, err = cli("verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
     assert code == 6, (out, err)
     assert "MODEL ERROR" in out and ("SystemExit" in err or "GeneratorExit" in err)
 
 
 @pytest.mark.parametrize("factory", ["import sys; sys.exit(0)", "import sys; sys.exit(3)", "raise GeneratorExit()"])
-def test_sys_exit_in_a_problem_factory_is_bad_input(tmp_path, capsys, factory):
+def test_sys_exit_in_a_problem_factory_is_bad_input(tmp_path, cli, factory):
     path = _module(tmp_path, factory=factory)
-    code, _, err = _run(capsys, "verify", f"{path}:factory", "--budget", "2", "--out", str(tmp_path / "o"))
+    code, _, err = cli("verify", f"{path}:factory", "--budget", "2", "--out", str(tmp_path / "o"))
     assert code == 2 and "fix the error in your code" in err
 
 
-def test_a_simulator_that_hangs_is_stopped_and_the_verdict_is_incomplete(tmp_path, capsys):
+def test_a_simulator_that_hangs_is_stopped_and_the_verdict_is_incomplete(tmp_path, cli):
     path = _module(tmp_path, body="import time; time.sleep(60)")
     start = time.monotonic()
-    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--sim-timeout", "0.3",
+    code, out, err = cli("verify", f"{path}:problem", "--budget", "2", "--sim-timeout", "0.3",
                           "--out", str(tmp_path / "o"), "--json")
     assert time.monotonic() - start < 20
     assert code == 5, err
@@ -85,13 +78,13 @@ def test_a_looping_simulator_is_stopped_in_the_process_pool_too(tmp_path):
     assert {d["status"] for d in json.loads(done.stdout)["ended_early"]} == {"timeout"}
 
 
-def test_a_journal_of_an_edited_model_is_refused_naming_the_file(tmp_path, capsys):
+def test_a_journal_of_an_edited_model_is_refused_naming_the_file(tmp_path, cli):
     path = _module(tmp_path)
     out = str(tmp_path / "o")
-    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", out)
+    code, _, err = cli("verify", f"{path}:problem", "--budget", "4", "--out", out)
     assert code == 0, err
     path.write_text(path.read_text().replace("p[\"x0\"] * np.exp(-t)", "p[\"x0\"] * np.exp(-t) - 1.0"))
-    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", out)
+    code, _, err = cli("verify", f"{path}:problem", "--budget", "4", "--out", out)
     assert code == 2 and "another campaign" in err and "user_mod.py changed" in err
     # the same command on a fresh folder (a new process: this one keeps the module it imported) sees the edit
     done = subprocess.run([sys.executable, "-m", "visnav.app.cli", "verify", f"{path}:problem", "--budget", "4",
@@ -99,9 +92,9 @@ def test_a_journal_of_an_edited_model_is_refused_naming_the_file(tmp_path, capsy
     assert done.returncode == 1, done.stderr
 
 
-def test_json_stdout_holds_the_json_alone_when_the_model_prints(tmp_path, capsys):
+def test_json_stdout_holds_the_json_alone_when_the_model_prints(tmp_path, cli):
     path = _module(tmp_path, body="print('chatty model')")
-    code, out, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"),
+    code, out, err = cli("verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"),
                           "--json")
     assert code == 0 and json.loads(out)["verdict"] == "not_falsified"
     assert "chatty model" in err
@@ -115,12 +108,12 @@ def test_json_stdout_holds_the_json_alone_when_the_model_prints(tmp_path, capsys
     lambda r: r.update(satisfied=[]),  # no truth value: IndexError before
     lambda r: r.update(satisfied=["yes"]),  # not a boolean
 ])
-def test_forged_journal_lines_with_a_valid_checksum_are_dropped_with_a_warning(tmp_path, capsys, forge):
+def test_forged_journal_lines_with_a_valid_checksum_are_dropped_with_a_warning(tmp_path, cli, forge):
     from visnav.app.campaign_store import canonical_json, line_checksum
 
     path = _module(tmp_path)
     out = tmp_path / "o"
-    code, first, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", str(out), "--json")
+    code, first, err = cli("verify", f"{path}:problem", "--budget", "4", "--out", str(out), "--json")
     assert code == 0, err
     journal = out / "evaluations.jsonl"
     lines = journal.read_text().splitlines()
@@ -129,7 +122,7 @@ def test_forged_journal_lines_with_a_valid_checksum_are_dropped_with_a_warning(t
     line["sha256"] = line_checksum(line["result"])
     lines[2] = canonical_json(line)
     journal.write_text("\n".join(lines) + "\n")
-    code, again, err = _run(capsys, "verify", f"{path}:problem", "--budget", "4", "--out", str(out), "--json")
+    code, again, err = cli("verify", f"{path}:problem", "--budget", "4", "--out", str(out), "--json")
     assert code == 0, err
     assert "dropped 1 bad line" in err
     assert json.loads(again)["requirements"] == json.loads(first)["requirements"]  # re-simulated: the same answer
@@ -155,10 +148,10 @@ def test_a_forking_simulator_does_not_multiply_the_search(tmp_path, capsys):
     assert len(lines) == 1 + 6  # the header and one line per simulation of the budget
 
 
-def test_a_formula_that_divides_by_zero_is_bad_input_naming_the_formula_not_the_simulator(tmp_path, capsys):
+def test_a_formula_that_divides_by_zero_is_bad_input_naming_the_formula_not_the_simulator(tmp_path, cli):
     path = _module(tmp_path)
     path.write_text(path.read_text().replace('formula="always[0, 2] (x > 0)"', 'formula="always[0, 2] (x / (x - x) > 0)"'))
-    code, _, err = _run(capsys, "verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
+    code, _, err = cli("verify", f"{path}:problem", "--budget", "2", "--out", str(tmp_path / "o"))
     assert code == 2 and "x / (x - x)" in err and "your simulator raised" not in err and "Traceback" not in err
 
 
@@ -173,10 +166,10 @@ problem = hybrid_problem(
 '''
 
 
-def test_report_of_a_zeno_model_is_incomplete_never_a_pass(tmp_path, capsys):
+def test_report_of_a_zeno_model_is_incomplete_never_a_pass(tmp_path, cli):
     path = tmp_path / "ball.py"
     path.write_text(BALL)
-    code, out, err = _run(capsys, "report", "--problem", f"{path}:problem", "--quick", "--budget", "3",
+    code, out, err = cli("report", "--problem", f"{path}:problem", "--quick", "--budget", "3",
                           "--out", str(tmp_path / "r"), "--json")
     assert code == 5, err
     summary = json.loads(out)
@@ -186,8 +179,8 @@ def test_report_of_a_zeno_model_is_incomplete_never_a_pass(tmp_path, capsys):
     assert "INCOMPLETE" in (tmp_path / "r" / "report.md").read_text()
 
 
-def test_analyse_of_a_stability_it_cannot_decide_exits_5(tmp_path, capsys):
+def test_analyse_of_a_stability_it_cannot_decide_exits_5(tmp_path, cli):
     path = tmp_path / "ball.py"
     path.write_text(BALL)
-    code, out, _ = _run(capsys, "analyse", "--problem", f"{path}:problem")
+    code, out, _ = cli("analyse", "--problem", f"{path}:problem")
     assert code == 5 and "NOT DECIDED" in out
