@@ -42,12 +42,16 @@ class ReachSegment:
     lo: np.ndarray
     hi: np.ndarray
     entry: bool = False
+    step: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {"mode": self.mode, "t": [self.t_lo, self.t_hi], "jumps": self.jumps, "entry": self.entry,
-                "box": [self.lo.tolist(), self.hi.tolist()], "center": self.zonotope.center.tolist(),
-                "generators": self.zonotope.generators.tolist()}
+        """JSON-ready view (``"step"`` only for a segment of an adaptive step)."""
+        out = {"mode": self.mode, "t": [self.t_lo, self.t_hi], "jumps": self.jumps, "entry": self.entry,
+               "box": [self.lo.tolist(), self.hi.tolist()], "center": self.zonotope.center.tolist(),
+               "generators": self.zonotope.generators.tolist()}
+        if self.step is not None:
+            out["step"] = self.step
+        return out
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
