@@ -485,6 +485,19 @@ def _growth(ev: _Evaluator, start: Zonotope) -> float:
     return value if math.isfinite(value) else math.inf
 
 
+def _trend(found: tuple[np.ndarray, np.ndarray], last: tuple[np.ndarray, np.ndarray] | None
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The next step's first remainder box: ``found`` moved and widened as it moved and widened since ``last`` (a
+    guess only: the step checks whatever box it uses; a guess too small costs one more iteration, one too large
+    loosens the next set)."""
+    if last is None:
+        return found
+    mid, rad = 0.5 * found[0] + 0.5 * found[1], 0.5 * found[1] - 0.5 * found[0]
+    shift = mid - (0.5 * last[0] + 0.5 * last[1])
+    grow = np.maximum(rad - (0.5 * last[1] - 0.5 * last[0]), 0.0)
+    return np.minimum(found[0], mid + shift - rad - grow), np.maximum(found[1], mid + shift + rad + grow)
+
+
 def _next_level(level: int, rate: float, reference: float, ratio: float) -> int:
     """The next step's level: the largest ``j`` with ``2^j <= ratio · sqrt(reference / rate)``, at most one above
     ``level``, within :data:`ADAPTIVE_LEVELS`."""
@@ -505,7 +518,7 @@ def adaptive_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float,
     Every step is the sound step of :func:`smooth_segments` for its own ``δ_k`` (a float, ``step`` times a power
     of two: exact), so the choice of ``δ_k`` changes the precision and the cost, never the soundness."""
     ev = _Evaluator(flow)
-    current, guess, level, tau, reference = start, None, 0, Fraction(0), 0.0
+    current, guess, last, level, tau, reference = start, None, None, 0, Fraction(0), 0.0
     while True:
         while True:
             delta = math.ldexp(step, level)
@@ -517,7 +530,8 @@ def adaptive_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float,
         if isinstance(out, str):
             yield out
             return
-        tube, nxt, guess = out
+        tube, nxt, found = out
+        guess, last = _trend(found, last), found
         rate = _growth(ev, current)
         reference = reference if reference > 0.0 or not math.isfinite(rate) else rate
         yield _padded(tube, ev.n, ADAPTIVE_PADDING), tau, delta

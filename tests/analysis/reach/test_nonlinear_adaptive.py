@@ -12,6 +12,7 @@ import itertools
 import json
 import math
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -116,11 +117,11 @@ def test_adaptive_vdp_piece_holds_fine_runs_on_a_non_uniform_grid():
     for step in steps:
         ratio = step / options["time_step"]
         assert ratio == 2.0 ** round(math.log2(ratio))
-    local = 0.0
-    for seg, step in zip(result.segments[1:], steps):  # [t_lo, t_hi] holds [τ, τ + δ] (floats: rounded outward)
-        assert seg.t_lo <= local + 1e-12 and seg.t_hi >= local + step - 1e-12
-        local += step
-    assert local >= 7.0
+    local = Fraction(0)  # the exact local time: [t_lo, t_hi] must hold [τ, τ + δ] (rounded outward)
+    for seg, step in zip(result.segments[1:], steps):
+        assert Fraction(seg.t_lo) <= local and Fraction(seg.t_hi) >= local + Fraction(step)
+        local += Fraction(step)
+    assert local > 7
     _assert_covered(result, *_fine_runs(_vdp_rhs, piece, 7.0, 40, seed=27))
 
 
