@@ -50,7 +50,7 @@ def _fragment(text: str, names: tuple[str, ...]) -> Any:
 def build_vdp() -> tuple[Any, dict[str, tuple[float, float]], dict[str, Any], Any]:
     """Van der Pol, μ = 1: ``x' = y``, ``y' = μ (1 − x²) y − x``; ARCH's VDP initial box, T = 7 s, ``y < 2.75``.
 
-    Adaptive steps from 0.01 s (ratio 2, :func:`analysis.reach.nonlinear.adaptive_segments`), zonotope order 160,
+    Adaptive steps from 0.01 s (ratio 2.2, :func:`analysis.reach.nonlinear.adaptive_segments`), zonotope order 160,
     the box split in 4 along ``x`` (docs/reachability.md, "Adaptive step")."""
     from hybrid.symbolic import coordinates, flow_map
 
@@ -58,7 +58,7 @@ def build_vdp() -> tuple[Any, dict[str, tuple[float, float]], dict[str, Any], An
     x = coordinates(*names)
     system = _one_mode("vdp", flow_map(x.y, 1.0 * (1.0 - x.x ** 2) * x.y - x.x), names)
     box = {"x": (1.25, 1.55), "y": (2.35, 2.45)}
-    options = {"time_step": 0.01, "splits": {"x": 4}, "engine": {"adaptive_step": 2.0, "order": 160}}
+    options = {"time_step": 0.01, "splits": {"x": 4}, "engine": {"adaptive_step": 2.2, "order": 160}}
     return system, box, options, _fragment("always[0, 7] (y < 2.75)", names)
 
 

@@ -463,8 +463,12 @@ ADAPTIVE_LEVELS = (-3, 3)
 """The adaptive step is ``time_step · 2^j`` with ``j`` in this range (both ends included)."""
 
 ADAPTIVE_RATIO = 1.4
-"""The adaptive step's rule: ``δ_k ≈ ADAPTIVE_RATIO · time_step · sqrt(g_ref / g_k)`` (rounded down to a power of
-two times ``time_step``), ``g`` the growth rate of :func:`_growth`, ``g_ref`` its value at the flowpipe's start."""
+"""The adaptive step's rule: ``δ_k ≈ ratio · time_step · (g_ref / g_k)^ADAPTIVE_EXPONENT`` (rounded down to a power
+of two times ``time_step``), ``g`` the growth rate of :func:`_growth`, ``g_ref`` its value at the flowpipe's start;
+``ratio`` defaults to this."""
+
+ADAPTIVE_EXPONENT = 0.35
+"""The exponent of the adaptive step's rule (measured on VDP: docs/reachability.md, "Adaptive step")."""
 
 TIGHT_RETRIES = 5
 ADAPTIVE_PADDING = 0.02
@@ -499,12 +503,12 @@ def _trend(found: tuple[np.ndarray, np.ndarray], last: tuple[np.ndarray, np.ndar
 
 
 def _next_level(level: int, rate: float, reference: float, ratio: float) -> int:
-    """The next step's level: the largest ``j`` with ``2^j <= ratio · sqrt(reference / rate)``, at most one above
-    ``level``, within :data:`ADAPTIVE_LEVELS`."""
+    """The next step's level: the largest ``j`` with ``2^j <= ratio · (reference / rate)^ADAPTIVE_EXPONENT``, at most
+    one above ``level``, within :data:`ADAPTIVE_LEVELS`."""
     low, high = ADAPTIVE_LEVELS
     if not math.isfinite(rate):
         return low
-    want = high if rate <= 0.0 else math.floor(math.log2(ratio * math.sqrt(reference / rate)))
+    want = high if rate <= 0.0 else math.floor(math.log2(ratio * (reference / rate) ** ADAPTIVE_EXPONENT))
     return max(low, min(high, level + 1, want))
 
 

@@ -30,7 +30,9 @@ times covering the step's), every guard part in the ``before`` box of a saved ju
 ``after`` box must hold the exact reset image of ``before``; flowpipes ending at the horizon must reach it, those
 leaving the invariant must have their states there outside it; no deadlock at the exits and entries
 (:func:`exit_uncovered`, :func:`entry_uncovered`); the requirement's atoms are decided in exact rationals on the
-re-checker's own sets (box and zonotope).  Inputs are refused in a nonlinear mode.
+re-checker's own sets (box and zonotope).  Inputs are refused in a nonlinear mode.  A segment of an adaptive step
+saves its own step (``"step"``): the re-check reads it (a positive finite float, in a nonlinear mode only), sums the
+steps in rationals and checks the saved times and the horizon against those sums (:func:`_segment_step`).
 
 Anything failing fails the re-check, with the part and the place; it never passes by looseness.
 """

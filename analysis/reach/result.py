@@ -31,7 +31,9 @@ class ReachSegment:
     """States of ``mode`` at times ``[t_lo, t_hi]`` [s]: ``zonotope ∩ [lo, hi]`` (each shape ``(n,)``).
 
     ``entry`` marks the set a flowpipe starts from (the initial set or the image of a jump), which
-    is not clipped to the invariant (a jump may land outside it and jump again at once).
+    is not clipped to the invariant (a jump may land outside it and jump again at once).  ``step`` [s] is
+    the length of the segment's own step when it is an adaptive one (``reach(..., adaptive_step=...)``),
+    else ``None``.
     """
 
     mode: str
