@@ -28,11 +28,16 @@ there a solution of the affine flow with an input in ``U``: it lies in ``Ω(U) �
 (and the solution exists on the step, being bounded).  Hence every state of the step is in the tube,
 and the state at ``δ`` is in ``R_{k+1}``.
 
+**Adaptive step** (:func:`adaptive_segments`, ``reach(..., adaptive_step=...)``): the same step with
+``δ_k = δ · 2^j`` chosen per step from the remainder's growth with the step (:func:`_growth`), the local times
+kept exact (rationals), the remainder box kept tight (``_one_step(..., tight=...)``); every step is the
+fixed step above for its own ``δ_k``, so the choice changes precision and cost, never soundness.
+
 A step whose remainder does not converge, or whose numbers are not finite, ends the flowpipe
 inconclusively: the generator yields the reason (a string) instead of a zonotope, and the engine
 records ``"blow_up"`` with ``inconclusive: the over-approximation blew up at t = … s in mode …``.
 No splitting is done (neither of the step nor of the set): a run that does not converge is
-reported, not refined.
+reported, not refined (with adaptive steps a failing step is first retried shorter, down to ``δ/8``).
 """
 
 from __future__ import annotations
@@ -471,10 +476,11 @@ ADAPTIVE_EXPONENT = 0.35
 """The exponent of the adaptive step's rule (measured on VDP: docs/reachability.md, "Adaptive step")."""
 
 TIGHT_RETRIES = 5
+"""Tight retries of the adaptive step's remainder check (``_one_step(..., tight=...)``)."""
+
 ADAPTIVE_PADDING = 0.02
 """The stored tubes of adaptive steps are widened by this fraction of their radius (room for the independent
 re-check, whose own sets are not as tight as the producer's with its tight remainder boxes)."""
-"""Tight retries of the adaptive step's remainder check (``_one_step(..., tight=...)``)."""
 
 
 def _growth(ev: _Evaluator, start: Zonotope) -> float:
