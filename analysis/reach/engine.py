@@ -399,20 +399,24 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
     step = _step(run, work.mode)  # the mode's step, affine or smooth (``mode_time_steps``)
     pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)
-    local: Fraction | None = None  # the adaptive step's exact local time (None: k steps of ``step``)
+    unit = math.ldexp(step, ADAPTIVE_LEVELS[0])  # adaptive steps: local times a·unit, exactly (a an integer)
+    room = (Fraction(run.horizon) - Fraction(work.t_lo)) / Fraction(unit)  # local > room: past the horizon, exactly
+    local: int | None = None  # the adaptive step's local start in units (None: k steps of ``step``)
     delta = None
     for k, segment in enumerate(_mode_segments(run, work, step)):
-        if isinstance(segment, tuple):  # an adaptive step: (tube, τ, δ), local times [τ, τ + δ] exactly
-            segment, local, delta = segment
-            # float(τ) and the addition: two roundings to nearest, each within half an ulp of the sum
-            t_lo = math.nextafter(math.nextafter(work.t_lo + float(local), -math.inf), -math.inf)
-            t_hi = math.nextafter(math.nextafter(work.t_hi + float(local + Fraction(delta)), math.inf), math.inf)
+        if isinstance(segment, tuple):  # an adaptive step: (tube, a, b), local times [a·unit, b·unit]
+            segment, local, end = segment
+            delta = (end - local) * unit  # a power of two times unit: exact
+            # as for fixed steps: the product and the addition, two roundings, each within half an ulp of the sum
+            t_lo = math.nextafter(math.nextafter(work.t_lo + local * unit, -math.inf), -math.inf)
+            t_hi = math.nextafter(math.nextafter(work.t_hi + end * unit, math.inf), math.inf)
         elif local is not None:  # the adaptive generator's reason string: dated at the end of its last step
-            local, t_lo = local + Fraction(delta), work.t_lo + float(local + Fraction(delta))
+            local = end
+            t_lo = work.t_lo + local * unit
         else:
             t_lo = math.nextafter(math.nextafter(work.t_lo + k * step, -math.inf), -math.inf)
             t_hi = math.nextafter(math.nextafter(work.t_hi + (k + 1) * step, math.inf), math.inf)
-        stop, z, lo, hi = _stop_reason(run, work, k, segment, n, t_lo, local)
+        stop, z, lo, hi = _stop_reason(run, work, k, segment, n, t_lo, None if local is None else local > room)
         if stop is not None:
             run.terminations.append(stop)
             break
@@ -478,12 +482,13 @@ def _mode_segments(run: _Run, work: _Work, step: float) -> Any:
 
 
 def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int, t_lo: float,
-                 local: Fraction | None = None) -> tuple[Termination | None, Any, Any, Any]:
+                 late: bool | None = None) -> tuple[Termination | None, Any, Any, Any]:
     """Why the flowpipe stops at segment ``k`` (or ``None``), with the segment's projection and its box (once).
-    ``local``: the segment's exact local start time (adaptive steps; ``None``: ``k`` steps of the mode's step)."""
+    ``late``: whether the segment starts after the horizon, decided exactly (adaptive steps; ``None``: ``k`` steps of
+    the mode's step, compared in floats as before)."""
     where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
-    late = (Fraction(work.t_lo) + local > Fraction(run.horizon) if local is not None
-            else work.t_lo + k * _step(run, work.mode) > run.horizon)
+    if late is None:
+        late = work.t_lo + k * _step(run, work.mode) > run.horizon
     if late:
         return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
                                                     f"{work.mode!r}", **where), None, None, None

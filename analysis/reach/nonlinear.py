@@ -45,7 +45,6 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterator
-from fractions import Fraction
 
 import numpy as np
 
@@ -519,16 +518,17 @@ def _next_level(level: int, rate: float, reference: float, ratio: float) -> int:
 
 
 def adaptive_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float, order: int, *,
-                      ratio: float = ADAPTIVE_RATIO) -> Iterator[tuple[Zonotope, Fraction, float] | str]:
+                      ratio: float = ADAPTIVE_RATIO) -> Iterator[tuple[Zonotope, int, int] | str]:
     """Like :func:`smooth_segments` with the step ``δ_k = step · 2^j`` chosen per step (docs/reachability.md,
-    "Adaptive step"): yields ``(tube, τ_k, δ_k)``, the tube (augmented, dimension ``n + 1``) over the local times
-    ``[τ_k, τ_k + δ_k]``, ``τ_k = δ_0 + … + δ_{k−1}`` exactly (a rational); or, once, the reason a step failed at
-    every level down to the lowest (the caller ends the flowpipe inconclusively).
+    "Adaptive step"): yields ``(tube, a, b)``, the tube (augmented, dimension ``n + 1``) over the local times
+    ``[a·u, b·u]`` with ``u = step · 2^ADAPTIVE_LEVELS[0]`` (exact) and the integers ``a = (δ_0 + … + δ_{k−1})/u``,
+    ``b − a = δ_k/u`` (a power of two); or, once, the reason a step failed at every level down to the lowest (the
+    caller ends the flowpipe inconclusively).
 
     Every step is the sound step of :func:`smooth_segments` for its own ``δ_k`` (a float, ``step`` times a power
     of two: exact), so the choice of ``δ_k`` changes the precision and the cost, never the soundness."""
     ev = _Evaluator(flow)
-    current, guess, last, level, tau, reference = start, None, None, 0, Fraction(0), 0.0
+    current, guess, last, level, count, reference = start, None, None, 0, 0, 0.0
     while True:
         while True:
             delta = math.ldexp(step, level)
@@ -544,7 +544,8 @@ def adaptive_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float,
         guess, last = _trend(found, last), found
         rate = _growth(ev, current)
         reference = reference if reference > 0.0 or not math.isfinite(rate) else rate
-        yield _padded(tube, ev.n, ADAPTIVE_PADDING), tau, delta
-        tau += Fraction(delta)
+        span = 1 << (level - ADAPTIVE_LEVELS[0])
+        yield _padded(tube, ev.n, ADAPTIVE_PADDING), count, count + span
+        count += span
         current = nxt
         level = _next_level(level, rate, reference, ratio) if reference > 0.0 else level
