@@ -709,9 +709,12 @@ def _segment_step(seg: Mapping[str, Any], mode: Any, step: Fraction, index: int,
     if not isinstance(mode, _SmoothMode):
         raise _Fail(f"segments: flowpipe {index} segment {k} carries its own step in a mode with an affine flow "
                     "(adaptive steps are taken in nonlinear modes only)")
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+    number = math.nan
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        number = float(value) if isinstance(value, float) or abs(value) < 2 ** 1000 else math.inf
+    if not (math.isfinite(number) and number > 0):
         raise _Fail(f"segments: flowpipe {index} segment {k}: its step {value!r} is not a positive finite number")
-    return Fraction(float(value))
+    return Fraction(number)
 
 
 def _check_end(pipe: _Pipe, flowed: int, x: Any, elapsed: Fraction, horizon: Fraction, index: int,

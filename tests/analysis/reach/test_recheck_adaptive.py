@@ -89,7 +89,7 @@ def test_a_changed_or_removed_step_fails(saved):
     assert not _check(data).passed
 
 
-@pytest.mark.parametrize("value", [0.0, -0.01, float("nan"), "0.01", True])
+@pytest.mark.parametrize("value", [0.0, -0.01, float("nan"), float("inf"), 10 ** 400, "0.01", True, None])
 def test_a_step_that_is_not_a_positive_number_fails(saved, value):
     data = copy.deepcopy(saved)
     data["segments"][3]["step"] = value
