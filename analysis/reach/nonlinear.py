@@ -439,7 +439,9 @@ def _padded(tube: Zonotope, n: int, spread: float = 0.0) -> Zonotope:
     """``tube ⊕ [−ε, ε]`` on the state coordinates, ``ε = PADDING (|c| + radius) + spread · radius + 1e-14``
     (larger: still sound)."""
     lo, hi = interval_hull(tube.project(n))
-    eps = upper(PADDING * np.maximum(np.abs(lo), np.abs(hi)) + spread * (0.5 * hi - 0.5 * lo) + 1e-14, 5)
+    eps = upper(PADDING * np.maximum(np.abs(lo), np.abs(hi)) + 1e-14, 3)
+    if spread > 0.0:  # adaptive steps only (fixed steps keep the numbers above, bit for bit)
+        eps = upper(eps + spread * (0.5 * hi - 0.5 * lo), 3)
     pad = np.vstack([np.diag(eps), np.zeros((tube.dimension - n, n))])
     return Zonotope(center=tube.center, generators=np.hstack([tube.generators, pad]))
 
