@@ -33,7 +33,7 @@ import numpy as np
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
 from .model import AffineHybridModel, AffineTransition, affine_model
-from .nonlinear import smooth_segments
+from .nonlinear import ADAPTIVE_LEVELS, ADAPTIVE_RATIO, adaptive_segments, smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
 from .series import MAX_NORM_STEP
 from .sets import (UnsafeSet, box_position, clip_box, definitely_outside, halfspace_rows, polyhedra_to_float,
@@ -85,6 +85,7 @@ class _Run:
     mode_steps: Mapping[str, float]
     cluster: int | None
     merge: int
+    adaptive: float  # the adaptive step's ratio in smooth modes (0: fixed steps)
     inputs: Mapping[str, tuple[list[list[Fraction]], Zonotope]]
     dynamics: dict[str, tuple[ModeDynamics, float]]
     segments: list[ReachSegment]
@@ -97,7 +98,7 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
           max_jumps: int = 10, inputs: Mapping[str, ModeInput] | None = None, unsafe: Sequence[UnsafeSet] = (),
           order: int = 20, stored_order: int = 10, size_limit: float = 1e6, max_segments: int = 200_000,
           max_flowpipes: int = 1_000, mode_time_steps: Mapping[str, float] | None = None,
-          jump_cluster: int | None = None, merge_segments: int = 1,
+          jump_cluster: int | None = None, merge_segments: int = 1, adaptive_step: bool | float = False,
           progress: Callable[[float], None] | None = None) -> ReachResult:
     """An over-approximation of the states a symbolic hybrid system reaches.
 
@@ -141,6 +142,12 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
         ``m > 1``: each stored segment is the box hull of up to ``m`` consecutive flowed segments over
         the union of their times (the zonotope is that box): memory for long, high-dimensional runs.
         Guards, invariants and jumps still use every segment; only the stored result is coarser.
+    adaptive_step : bool or float
+        ``False`` (default): fixed steps.  ``True`` or a ratio ``r > 0``: in every nonlinear (smooth) mode the
+        step is chosen per step as ``δ·2^j`` (``δ`` the mode's step, ``j`` in ``ADAPTIVE_LEVELS``) by the rule of
+        :func:`analysis.reach.nonlinear.adaptive_segments` with the ratio ``r`` (``True``: ``ADAPTIVE_RATIO``);
+        each segment saves its step.  Affine modes keep their fixed step.  Sound either way; faster where the
+        set's remainder grows slowly with the step for part of the run (VDP), slower where it grows (LOVO).
     progress : callable or None
         ``progress(t)`` after each flowpipe, ``t`` [s] the latest time its segments reached so far.
 
@@ -155,6 +162,7 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     analysis.reach.affine.AffineError
         The system is not symbolic, or a flow neither affine nor smooth, or another part not affine (naming it).
     """
+    ratio = _adaptive_ratio(adaptive_step)
     _check_options(horizon, time_step, size_limit, jump_cluster,
                    (("max_jumps", max_jumps, 0), ("order", order, 2), ("stored_order", stored_order, 2),
                     ("merge_segments", merge_segments, 1), ("max_segments", max_segments, 1),
@@ -167,7 +175,8 @@ def reach(system: Any, initial: Any, *, horizon: float, time_step: float, initia
     start = initial_zonotope(initial, model.state_names)
     run = _Run(model=model, step=float(time_step), horizon=float(horizon), max_jumps=max_jumps, order=order,
                stored_order=stored_order, size_limit=float(size_limit), max_segments=max_segments,
-               mode_steps=steps, cluster=jump_cluster, merge=merge_segments, inputs=_inputs(inputs, model),
+               mode_steps=steps, cluster=jump_cluster, merge=merge_segments, adaptive=ratio,
+               inputs=_inputs(inputs, model),
                dynamics={}, segments=[], jumps=[], terminations=[], stored=[0])
     _explore(run, _Work(mode=mode, start=start, t_lo=0.0, t_hi=0.0, jumps=0), max_flowpipes, progress)
     result = ReachResult(system=model.name, state_names=model.state_names, horizon=run.horizon,
@@ -203,6 +212,19 @@ def _input_records(inputs: Mapping[str, ModeInput] | None, checked: Mapping[str,
             lo, hi = (np.asarray(v, dtype=float).reshape(-1) for v in given)
         out.append((mode, [[float(v) for v in row] for row in b], [float(v) for v in lo], [float(v) for v in hi]))
     return tuple(out)
+
+
+def _adaptive_ratio(value: Any) -> float:
+    """The adaptive step's ratio of ``adaptive_step`` (0.0: fixed steps)."""
+    if value is False:
+        return 0.0
+    if value is True:
+        return ADAPTIVE_RATIO
+    top = 2.0 ** ADAPTIVE_LEVELS[1]
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value <= top:
+        return float(value)
+    raise ReachError("adaptive_step", value, f"False, True or a ratio 0 < r <= {top:g}",
+                     "pass adaptive_step=True (the default ratio), a ratio such as 1.4, or False")
 
 
 def _check_options(horizon: Any, time_step: Any, size_limit: Any, jump_cluster: Any,
@@ -377,10 +399,24 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
     step = _step(run, work.mode)  # the mode's step, affine or smooth (``mode_time_steps``)
     pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)
+    unit = math.ldexp(step, ADAPTIVE_LEVELS[0])  # adaptive steps: local times a·unit, exactly (a an integer)
+    room = (Fraction(run.horizon) - Fraction(work.t_lo)) / Fraction(unit)  # local > room: past the horizon, exactly
+    local: int | None = None  # the adaptive step's local start in units (None: k steps of ``step``)
+    delta = None
     for k, segment in enumerate(_mode_segments(run, work, step)):
-        t_lo = math.nextafter(math.nextafter(work.t_lo + k * step, -math.inf), -math.inf)
-        t_hi = math.nextafter(math.nextafter(work.t_hi + (k + 1) * step, math.inf), math.inf)
-        stop, z, lo, hi = _stop_reason(run, work, k, segment, n, t_lo)
+        if isinstance(segment, tuple):  # an adaptive step: (tube, a, b), local times [a·unit, b·unit]
+            segment, local, end = segment
+            delta = (end - local) * unit  # a power of two times unit: exact
+            # as for fixed steps: the product and the addition, two roundings, each within half an ulp of the sum
+            t_lo = math.nextafter(math.nextafter(work.t_lo + local * unit, -math.inf), -math.inf)
+            t_hi = math.nextafter(math.nextafter(work.t_hi + end * unit, math.inf), math.inf)
+        elif local is not None:  # the adaptive generator's reason string: dated at the end of its last step
+            local = end
+            t_lo = work.t_lo + local * unit
+        else:
+            t_lo = math.nextafter(math.nextafter(work.t_lo + k * step, -math.inf), -math.inf)
+            t_hi = math.nextafter(math.nextafter(work.t_hi + (k + 1) * step, math.inf), math.inf)
+        stop, z, lo, hi = _stop_reason(run, work, k, segment, n, t_lo, None if local is None else local > room)
         if stop is not None:
             run.terminations.append(stop)
             break
@@ -390,7 +426,7 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
                 reason="left_invariant", mode=work.mode, time=t_lo, jumps=work.jumps,
                 detail=f"the flowpipe left the invariant of mode {work.mode!r} by t = {t_lo:.6g} s"))
             break
-        _store(run, work, pending, z, box, t_lo, t_hi)
+        _store(run, work, pending, z, box, t_lo, t_hi, delta)
         _collect(run, collected, flowed_guards, z, box[0], box[1], t_lo, t_hi, k)
     if pending:
         _flush(run, work, pending)
@@ -398,13 +434,14 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
 
 
 def _store(run: _Run, work: _Work, pending: list[Any], z: Zonotope, box: tuple[np.ndarray, np.ndarray],
-           t_lo: float, t_hi: float) -> None:
-    """Stores a flowed segment (``merge == 1``) or adds it to the pending merged one."""
+           t_lo: float, t_hi: float, step: float | None = None) -> None:
+    """Stores a flowed segment (``merge == 1``) or adds it to the pending merged one (``step``: the adaptive
+    step's length, saved with an unmerged segment)."""
     if run.merge == 1:
         kept = reduce_order(z, run.stored_order)
         run.stored[0] += kept.dimension * (kept.order + 3)
         run.segments.append(ReachSegment(mode=work.mode, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps,
-                                         zonotope=kept, lo=box[0], hi=box[1]))
+                                         zonotope=kept, lo=box[0], hi=box[1], step=step))
         return
     if not pending:
         pending.extend([box[0], box[1], t_lo, t_hi, 1])
@@ -435,6 +472,8 @@ def _mode_segments(run: _Run, work: _Work, step: float) -> Any:
         if run.inputs.get(work.mode) is not None:
             raise ReachError("inputs", work.mode, "inputs only in modes with affine flows",
                              "drop the input of this nonlinear mode (or add it to the flow as a state)")
+        if run.adaptive > 0:
+            return adaptive_segments(smooth, work.mode, work.start, step, run.order, ratio=run.adaptive)
         return smooth_segments(smooth, work.mode, work.start, step, run.order)
     dyn, scale = _dynamics(run, work.mode)
     if dyn.step != step:  # one step for the segments and their times (both from _step)
@@ -442,11 +481,15 @@ def _mode_segments(run: _Run, work: _Work, step: float) -> Any:
     return segments(dyn, _augment(work.start, scale), run.order)
 
 
-def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int, t_lo: float
-                 ) -> tuple[Termination | None, Any, Any, Any]:
-    """Why the flowpipe stops at segment ``k`` (or ``None``), with the segment's projection and its box (once)."""
+def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int, t_lo: float,
+                 late: bool | None = None) -> tuple[Termination | None, Any, Any, Any]:
+    """Why the flowpipe stops at segment ``k`` (or ``None``), with the segment's projection and its box (once).
+    ``late``: whether the segment starts after the horizon, decided exactly (adaptive steps; ``None``: ``k`` steps of
+    the mode's step, compared in floats as before)."""
     where = dict(mode=work.mode, time=t_lo, jumps=work.jumps)
-    if work.t_lo + k * _step(run, work.mode) > run.horizon:
+    if late is None:
+        late = work.t_lo + k * _step(run, work.mode) > run.horizon
+    if late:
         return Termination(reason="horizon", detail=f"time horizon {run.horizon:g} s reached in mode "
                                                     f"{work.mode!r}", **where), None, None, None
     if isinstance(segment, str):

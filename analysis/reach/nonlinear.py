@@ -28,11 +28,16 @@ there a solution of the affine flow with an input in ``U``: it lies in ``Ω(U) �
 (and the solution exists on the step, being bounded).  Hence every state of the step is in the tube,
 and the state at ``δ`` is in ``R_{k+1}``.
 
+**Adaptive step** (:func:`adaptive_segments`, ``reach(..., adaptive_step=...)``): the same step with
+``δ_k = δ · 2^j`` chosen per step from the remainder's growth with the step (:func:`_growth`), the local times
+kept exact (rationals), the remainder box kept tight (``_one_step(..., tight=...)``); every step is the
+fixed step above for its own ``δ_k``, so the choice changes precision and cost, never soundness.
+
 A step whose remainder does not converge, or whose numbers are not finite, ends the flowpipe
 inconclusively: the generator yields the reason (a string) instead of a zonotope, and the engine
 records ``"blow_up"`` with ``inconclusive: the over-approximation blew up at t = … s in mode …``.
 No splitting is done (neither of the step nor of the set): a run that does not converge is
-reported, not refined.
+reported, not refined (with adaptive steps a failing step is first retried shorter, down to ``δ/8``).
 """
 
 from __future__ import annotations
@@ -62,7 +67,8 @@ from .zonotope import (
     with_error,
 )
 
-__all__ = ["MAX_ITERATIONS", "QUADRATIC_GENERATORS", "smooth_segments", "remainder_box"]
+__all__ = ["MAX_ITERATIONS", "QUADRATIC_GENERATORS", "smooth_segments", "adaptive_segments", "remainder_box",
+           "ADAPTIVE_LEVELS", "ADAPTIVE_RATIO"]
 
 MAX_ITERATIONS = 12
 """Enlargements of the remainder box tried per step before the flowpipe is declared blown up."""
@@ -79,6 +85,9 @@ MEAN_VALUE_PIECES = 16
 
 _GROW = 1.5
 """Factor by which the remainder box's radius is enlarged after a failed iteration."""
+
+_TIGHT = 1.05
+"""Factor on the remainder found that gives the next box in a tight retry (``_one_step(..., tight=k)``)."""
 
 
 def _down(x: np.ndarray) -> np.ndarray:
@@ -374,8 +383,13 @@ def _tube(mode: str, lin: tuple[np.ndarray, ...], u_lo: np.ndarray, u_hi: np.nda
 
 
 def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: int,
-              guess: tuple[np.ndarray, np.ndarray] | None) -> tuple[Zonotope, Zonotope, tuple[np.ndarray, np.ndarray]] | str:
-    """(tube, next set, the remainder found) of one step, or the reason it failed."""
+              guess: tuple[np.ndarray, np.ndarray] | None, tight: int = 0
+              ) -> tuple[Zonotope, Zonotope, tuple[np.ndarray, np.ndarray]] | str:
+    """(tube, next set, the remainder found) of one step, or the reason it failed.
+
+    ``tight``: after a failed check, the first ``tight`` retries take the remainder found (widened by
+    :data:`_TIGHT`) as the next box instead of enlarging the last one by :data:`_GROW` (the accepted box, and so
+    the next set, stays close to the remainder: any box passing the check is sound)."""
     n = ev.n
     xstar, lin = _linearise(ev, start, step)
     if not (np.all(np.isfinite(xstar)) and all(np.all(np.isfinite(v)) for v in lin)):
@@ -385,7 +399,7 @@ def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: in
         return (f"the Jacobian's norm {norm:.3g} times the step {step:g} s exceeds {MAX_NORM_STEP:g} "
                 f"(use time_step <= {MAX_NORM_STEP / norm:.3g})")
     u_lo, u_hi = (lin[2], lin[3]) if guess is None else (np.minimum(guess[0], lin[2]), np.maximum(guess[1], lin[3]))
-    for _ in range(MAX_ITERATIONS):
+    for attempt in range(MAX_ITERATIONS):
         mid, rad = 0.5 * u_lo + 0.5 * u_hi, 0.5 * u_hi - 0.5 * u_lo
         rad = _up(rad * 1.05 + 1e-15 + 1e-12 * np.abs(mid))  # strictly inside needs room
         u_lo, u_hi = _down(mid - rad), _up(mid + rad)
@@ -403,6 +417,10 @@ def _one_step(ev: _Evaluator, mode: str, start: Zonotope, step: float, order: in
             gens = [image.generators, dyn.input_step.generators]
             nxt = with_error(Zonotope(center=image.center, generators=np.hstack(gens)), err).project(n)
             return tube, reduce_order(nxt, order), (l_lo, l_hi)
+        if attempt < tight:
+            mid, rad = 0.5 * l_lo + 0.5 * l_hi, _TIGHT * (0.5 * l_hi - 0.5 * l_lo)
+            u_lo, u_hi = np.minimum(lin[2], mid - rad), np.maximum(lin[3], mid + rad)
+            continue
         mid, rad = 0.5 * u_lo + 0.5 * u_hi, 0.5 * u_hi - 0.5 * u_lo
         u_lo = np.minimum(u_lo, mid - _GROW * rad - (l_hi - l_lo))
         u_lo = np.minimum(u_lo, l_lo)
@@ -417,10 +435,13 @@ PADDING = 1e-10
 then has room for the independent re-check's own rounding bounds, which differ from the producer's."""
 
 
-def _padded(tube: Zonotope, n: int) -> Zonotope:
-    """``tube ⊕ [−ε, ε]`` on the state coordinates, ``ε = PADDING (|c| + radius) + 1e-14`` (larger: still sound)."""
+def _padded(tube: Zonotope, n: int, spread: float = 0.0) -> Zonotope:
+    """``tube ⊕ [−ε, ε]`` on the state coordinates, ``ε = PADDING (|c| + radius) + spread · radius + 1e-14``
+    (larger: still sound)."""
     lo, hi = interval_hull(tube.project(n))
     eps = upper(PADDING * np.maximum(np.abs(lo), np.abs(hi)) + 1e-14, 3)
+    if spread > 0.0:  # adaptive steps only (fixed steps keep the numbers above, bit for bit)
+        eps = upper(eps + spread * (0.5 * hi - 0.5 * lo), 3)
     pad = np.vstack([np.diag(eps), np.zeros((tube.dimension - n, n))])
     return Zonotope(center=tube.center, generators=np.hstack([tube.generators, pad]))
 
@@ -442,3 +463,91 @@ def smooth_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float, o
         tube, current, found = out
         guess = found
         yield _padded(tube, ev.n)
+
+
+ADAPTIVE_LEVELS = (-3, 3)
+"""The adaptive step is ``time_step · 2^j`` with ``j`` in this range (both ends included)."""
+
+ADAPTIVE_RATIO = 1.4
+"""The adaptive step's rule: ``δ_k ≈ ratio · time_step · (g_ref / g_k)^ADAPTIVE_EXPONENT`` (rounded down to a power
+of two times ``time_step``), ``g`` the growth rate of :func:`_growth`, ``g_ref`` its value at the flowpipe's start;
+``ratio`` defaults to this."""
+
+ADAPTIVE_EXPONENT = 0.35
+"""The exponent of the adaptive step's rule (measured on VDP: docs/reachability.md, "Adaptive step")."""
+
+TIGHT_RETRIES = 5
+"""Tight retries of the adaptive step's remainder check (``_one_step(..., tight=...)``)."""
+
+ADAPTIVE_PADDING = 0.02
+"""The stored tubes of adaptive steps are widened by this fraction of their radius (room for the independent
+re-check, whose own sets are not as tight as the producer's with its tight remainder boxes)."""
+
+
+def _growth(ev: _Evaluator, start: Zonotope) -> float:
+    """``max_i Σ_jk |H_ijk| r_j |f_k(c)| / 2`` (``H`` the latest Hessian enclosure, ``r`` the set's radii, ``c`` its
+    centre): the rate at which the remainder grows with the step — the cross term of the quadratic form between
+    the set and its motion over the step.  A heuristic: it only chooses the next step."""
+    if ev.curvature is None:
+        return 0.0
+    fc = np.abs(np.array([f(start.center, {}) for f in ev.f_float], dtype=float))
+    radius = np.abs(start.generators).sum(axis=1)
+    value = 0.5 * float(np.max(np.einsum("ijk,j,k->i", ev.curvature, radius, fc)))
+    return value if math.isfinite(value) else math.inf
+
+
+def _trend(found: tuple[np.ndarray, np.ndarray], last: tuple[np.ndarray, np.ndarray] | None
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The next step's first remainder box: ``found`` moved and widened as it moved and widened since ``last`` (a
+    guess only: the step checks whatever box it uses; a guess too small costs one more iteration, one too large
+    loosens the next set)."""
+    if last is None:
+        return found
+    mid, rad = 0.5 * found[0] + 0.5 * found[1], 0.5 * found[1] - 0.5 * found[0]
+    shift = mid - (0.5 * last[0] + 0.5 * last[1])
+    grow = np.maximum(rad - (0.5 * last[1] - 0.5 * last[0]), 0.0)
+    return np.minimum(found[0], mid + shift - rad - grow), np.maximum(found[1], mid + shift + rad + grow)
+
+
+def _next_level(level: int, rate: float, reference: float, ratio: float) -> int:
+    """The next step's level: the largest ``j`` with ``2^j <= ratio · (reference / rate)^ADAPTIVE_EXPONENT``, at most
+    one above ``level``, within :data:`ADAPTIVE_LEVELS`."""
+    low, high = ADAPTIVE_LEVELS
+    if not math.isfinite(rate):
+        return low
+    want = high if rate <= 0.0 else math.floor(math.log2(ratio * (reference / rate) ** ADAPTIVE_EXPONENT))
+    return max(low, min(high, level + 1, want))
+
+
+def adaptive_segments(flow: SmoothFlow, mode: str, start: Zonotope, step: float, order: int, *,
+                      ratio: float = ADAPTIVE_RATIO) -> Iterator[tuple[Zonotope, int, int] | str]:
+    """Like :func:`smooth_segments` with the step ``δ_k = step · 2^j`` chosen per step (docs/reachability.md,
+    "Adaptive step"): yields ``(tube, a, b)``, the tube (augmented, dimension ``n + 1``) over the local times
+    ``[a·u, b·u]`` with ``u = step · 2^ADAPTIVE_LEVELS[0]`` (exact) and the integers ``a = (δ_0 + … + δ_{k−1})/u``,
+    ``b − a = δ_k/u`` (a power of two); or, once, the reason a step failed at every level down to the lowest (the
+    caller ends the flowpipe inconclusively).
+
+    Every step is the sound step of :func:`smooth_segments` for its own ``δ_k`` (a float, ``step`` times a power
+    of two: exact), so the choice of ``δ_k`` changes the precision and the cost, never the soundness."""
+    ev = _Evaluator(flow)
+    current, guess, last, level, count, reference = start, None, None, 0, 0, 0.0
+    while True:
+        while True:
+            delta = math.ldexp(step, level)
+            with np.errstate(over="ignore", invalid="ignore"):
+                out = _one_step(ev, mode, current, delta, order, guess, TIGHT_RETRIES)
+            if not isinstance(out, str) or level <= ADAPTIVE_LEVELS[0]:
+                break
+            level -= 1  # a step that does not converge is retried shorter
+        if isinstance(out, str):
+            yield out
+            return
+        tube, nxt, found = out
+        guess, last = _trend(found, last), found
+        rate = _growth(ev, current)
+        reference = reference if reference > 0.0 or not math.isfinite(rate) else rate
+        span = 1 << (level - ADAPTIVE_LEVELS[0])
+        yield _padded(tube, ev.n, ADAPTIVE_PADDING), count, count + span
+        count += span
+        current = nxt
+        level = _next_level(level, rate, reference, ratio) if reference > 0.0 else level

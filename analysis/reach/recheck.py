@@ -30,7 +30,9 @@ times covering the step's), every guard part in the ``before`` box of a saved ju
 ``after`` box must hold the exact reset image of ``before``; flowpipes ending at the horizon must reach it, those
 leaving the invariant must have their states there outside it; no deadlock at the exits and entries
 (:func:`exit_uncovered`, :func:`entry_uncovered`); the requirement's atoms are decided in exact rationals on the
-re-checker's own sets (box and zonotope).  Inputs are refused in a nonlinear mode.
+re-checker's own sets (box and zonotope).  Inputs are refused in a nonlinear mode.  A segment of an adaptive step
+saves its own step (``"step"``): the re-check reads it (a positive finite float, in a nonlinear mode only), sums the
+steps in rationals and checks the saved times and the horizon against those sums (:func:`_segment_step`).
 
 Anything failing fails the re-check, with the part and the place; it never passes by looseness.
 """
@@ -62,6 +64,9 @@ TAYLOR_ORDER = 4
 PICARD_TRIES = 40  # a chain of couplings from a point start widens one coordinate of the chain per try
 SUB_STEPS = (1, 2, 8)
 """Sub-steps tried per segment of a nonlinear mode (each a time piece) with the centred Taylor map."""
+SUB_STEP_FRACTION = 2
+"""A segment with its own (adaptive) step is re-checked with sub-steps of at most ``time_step / SUB_STEP_FRACTION``
+times each ``m`` of :data:`SUB_STEPS` and :data:`SLOPE_SUB_STEPS` (a power of two more)."""
 SLOPE_SUB_STEPS = (1, 4)
 """Sub-steps tried next with the slope form of the Taylor map (``recheck_smooth.SmoothStepper.slope_taylor``:
 wide sets); when these fail too the re-check fails (a bounded number of attempts)."""
@@ -367,11 +372,13 @@ def _hull_zono(start: SmoothSet, end: SmoothSet, bend: Sequence[Fraction]) -> _Z
 
 
 def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
-                 covered: Any) -> tuple[_Zono, list[tuple[Box, _Zono | None]]]:
+                 covered: Any, base: Fraction | None = None) -> tuple[_Zono, list[tuple[Box, _Zono | None]]]:
     """:func:`_step` for a nonlinear mode (:class:`~analysis.reach.recheck_smooth.SmoothStepper`): ``m`` sub-steps
     of ``δ/m`` (``m`` from :data:`SUB_STEPS` with the centred Taylor map, then from :data:`SLOPE_SUB_STEPS` with its
     slope form; the slope form first on a wide set), each a time piece: its box and the zonotope of
-    :func:`_hull_zono`."""
+    :func:`_hull_zono`.  ``base``: the run's step, given for a segment with its own (adaptive) step: every ``m`` is
+    multiplied by the least power of two ``p`` with ``step / p <= base / SUB_STEP_FRACTION`` (a precision choice:
+    any sub-steps are sound)."""
     first = SmoothSet(center=np.array([float(v) for v in z.center]),
                       gens=np.array([[float(v) for v in g] for g in z.gens]).T.reshape(len(z.center), -1),
                       err=np.array([float(v) for v in z.err]))
@@ -381,7 +388,11 @@ def _smooth_step(mode: _SmoothMode, z: _Zono, step: Fraction, saved: Box,
         attempts = [(m, False) for m in SUB_STEPS] + [(m, True) for m in SLOPE_SUB_STEPS]
         if mode.stepper.is_wide(whole):  # the slope form first (a precision choice: both forms are sound)
             attempts = attempts[len(SUB_STEPS):] + attempts[:len(SUB_STEPS)]
+        scale = 1
+        while base is not None and step / scale > base / SUB_STEP_FRACTION and scale < 2 ** 20:
+            scale *= 2
         for m, slope in attempts:
+            m *= scale
             h = float(step / m)  # exact: a float divided by a power of two (the sub-steps sum to δ exactly)
             if Fraction(h) * m != step:
                 raise StepFailed(f"the step {float(step)!r} s is not divisible by {m} in floating point")
@@ -425,7 +436,8 @@ def _widen(z: _Zono, carry: InputFlow | None) -> _Zono:
 
 
 def _step(mode: Any, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction, Any],
-          covered: Any, carry: InputFlow | None = None) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
+          covered: Any, carry: InputFlow | None = None, base: Fraction | None = None
+          ) -> tuple[_Zono, list[tuple[Box, _Zono]]]:
     """Check one segment (the tube inside the saved box, its guard parts covered by saved jumps);
     the set at the step's end (not clipped to the invariant: a superset of the states still flowing).
 
@@ -435,7 +447,7 @@ def _step(mode: Any, z: _Zono, step: Fraction, saved: Box, cache: dict[Fraction,
     if isinstance(mode, _SmoothMode):
         if carry is not None:  # refused in _run already; never re-check a nonlinear mode without its inputs
             raise _Fail("inputs in a nonlinear mode are not re-checked")
-        return _smooth_step(mode, z, step, saved, covered)
+        return _smooth_step(mode, z, step, saved, covered, base)
     start = _widen(z, carry)
     w = _picard(mode, _outward(start.hull()), step)
     fw = mode.f(w)
@@ -657,8 +669,10 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
         x = _Zono.of_box(pipe.before).mapped(t.r_matrix, t.r_offset)
     carry = None if flow is None else flow.start()
     cache: dict[Fraction, Any] = {}
+    local = Fraction(0)  # the exact local time of the segment's start: the sum of the steps before it
     for k, seg in enumerate(pipe.segments[1:]):
-        t_lo, t_hi = pipe.t_lo + k * step, pipe.t_hi + (k + 1) * step
+        own = _segment_step(seg, mode, step, index, k)
+        t_lo, t_hi = pipe.t_lo + local, pipe.t_hi + local + own
         if seg["mode"] != pipe.mode or Fraction(seg["t"][0]) > t_lo or Fraction(seg["t"][1]) < t_hi:
             raise _Fail(f"segments: flowpipe {index} segment {k}: mode or times do not cover "
                         f"[{float(t_lo):.9g}, {float(t_hi):.9g}] s")
@@ -672,26 +686,45 @@ def _segments(pipe: _Pipe, mode: _Mode, step: Fraction, horizon: Fraction, model
             return None
 
         try:
-            x, pieces = _step(mode, x, step, saved, cache, covered, carry)
+            x, pieces = _step(mode, x, own, saved, cache, covered, carry, step if "step" in seg else None)
         except _Fail as fail:
             raise _Fail(f"segments: flowpipe {index} (mode {pipe.mode!r}) segment {k}: {fail}") from None
         if carry is not None:
             carry.advance()
+        local += own
         yield k, pieces, Fraction(seg["t"][0]), Fraction(seg["t"][1])
-    _check_end(pipe, len(pipe.segments) - 1, _widen(x, carry), step, horizon, index, mode.invariant)
+    _check_end(pipe, len(pipe.segments) - 1, _widen(x, carry), local, horizon, index, mode.invariant)
     flowed = [_box_of(seg["box"]) for seg in pipe.segments[1:]]
     why = exit_uncovered(model, pipe.mode, None if pipe.termination["reason"] == "left_invariant" else flowed)
     if why:
         raise _Fail(f"ends: flowpipe {index}: {why}")
 
 
-def _check_end(pipe: _Pipe, flowed: int, x: Any, step: Fraction, horizon: Fraction, index: int,
+def _segment_step(seg: Mapping[str, Any], mode: Any, step: Fraction, index: int, k: int) -> Fraction:
+    """The step of a saved segment: its own ``"step"`` (an adaptive step, in a nonlinear mode only: a positive
+    finite float, read as the exact rational of that float), else the run's ``step``."""
+    if "step" not in seg:
+        return step
+    value = seg["step"]
+    if not isinstance(mode, _SmoothMode):
+        raise _Fail(f"segments: flowpipe {index} segment {k} carries its own step in a mode with an affine flow "
+                    "(adaptive steps are taken in nonlinear modes only)")
+    number = math.nan
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        number = float(value) if isinstance(value, float) or abs(value) < 2 ** 1000 else math.inf
+    if not (math.isfinite(number) and number > 0):
+        raise _Fail(f"segments: flowpipe {index} segment {k}: its step {value!r} is not a positive finite number")
+    return Fraction(number)
+
+
+def _check_end(pipe: _Pipe, flowed: int, x: Any, elapsed: Fraction, horizon: Fraction, index: int,
                invariant: Any) -> None:
+    """The flowpipe's end (``elapsed``: the exact sum of its steps) against its saved termination."""
     reason = pipe.termination["reason"]
     if reason == "horizon":
-        if pipe.t_lo + flowed * step <= horizon:
+        if pipe.t_lo + elapsed <= horizon:
             raise _Fail(f"ends: flowpipe {index} claims the horizon but its {flowed} steps end at "
-                        f"{float(pipe.t_lo + flowed * step):.9g} s <= {float(horizon):.9g} s")
+                        f"{float(pipe.t_lo + elapsed):.9g} s <= {float(horizon):.9g} s")
     elif reason == "left_invariant":
         if _clip_union(_outward(x.hull()), invariant) is not None:
             raise _Fail(f"ends: flowpipe {index} claims to leave the invariant of {pipe.mode!r} after {flowed} steps, "

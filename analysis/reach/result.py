@@ -31,7 +31,9 @@ class ReachSegment:
     """States of ``mode`` at times ``[t_lo, t_hi]`` [s]: ``zonotope ∩ [lo, hi]`` (each shape ``(n,)``).
 
     ``entry`` marks the set a flowpipe starts from (the initial set or the image of a jump), which
-    is not clipped to the invariant (a jump may land outside it and jump again at once).
+    is not clipped to the invariant (a jump may land outside it and jump again at once).  ``step`` [s] is
+    the length of the segment's own step when it is an adaptive one (``reach(..., adaptive_step=...)``),
+    else ``None``.
     """
 
     mode: str
@@ -42,12 +44,16 @@ class ReachSegment:
     lo: np.ndarray
     hi: np.ndarray
     entry: bool = False
+    step: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {"mode": self.mode, "t": [self.t_lo, self.t_hi], "jumps": self.jumps, "entry": self.entry,
-                "box": [self.lo.tolist(), self.hi.tolist()], "center": self.zonotope.center.tolist(),
-                "generators": self.zonotope.generators.tolist()}
+        """JSON-ready view (``"step"`` only for a segment of an adaptive step)."""
+        out = {"mode": self.mode, "t": [self.t_lo, self.t_hi], "jumps": self.jumps, "entry": self.entry,
+               "box": [self.lo.tolist(), self.hi.tolist()], "center": self.zonotope.center.tolist(),
+               "generators": self.zonotope.generators.tolist()}
+        if self.step is not None:
+            out["step"] = self.step
+        return out
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
