@@ -9,18 +9,18 @@ and the caller keeps its own route.
 
 **The relaxation.**  A run of the automaton inside the group is absolutely continuous (identity resets) and
 follows ``ẋ = A_σ(t) x + c_σ(t) + B u`` with ``σ`` piecewise constant, so it is a solution of
-``ẋ = A(t) x + c(t) + B u`` with the measurable ``A(t) ∈ [A] = [min_i A_i, max_i A_i]`` and
-``c(t) ∈ [c]`` (entrywise hulls, exact rationals): whatever the number of switches, Zeno included.  Conversely
-the solutions of the convexified inclusion ``ẋ ∈ conv{A_i x + c_i} + B U`` are limits of switched runs
-(Filippov–Ważewski relaxation theorem: Aubin & Cellina, *Differential Inclusions*, Springer 1984, §2.4), so the
-convexification itself loses nothing; the entrywise hull does (it drops the correlation between entries).
+``ẋ = A_c x + c_c + w(t) + B u`` with ``w(t) = Σ_i μ_i(t) (D_i x + d_i)``, ``μ(t)`` in the simplex,
+``A_c``, ``c_c`` the entrywise midpoints and ``D_i = A_i − A_c``, ``d_i = c_i − c_c`` (exact rationals): whatever
+the number of switches, Zeno included.  Conversely the solutions of the convexified inclusion
+``ẋ ∈ conv{A_i x + c_i} + B U`` are limits of switched runs (Filippov–Ważewski relaxation theorem: Aubin & Cellina,
+*Differential Inclusions*, Springer 1984, §2.4), so the convexification itself loses nothing.
 
-**The flowpipe.**  The augmented interval matrix ``[[A], [c]/s; 0, 0]`` (``s`` a power of two) is discretised by
-the interval Taylor series (:func:`analysis.reach.interval_series.interval_exp_enclosure`), the first-segment and
-input bounds by :func:`~analysis.reach.interval_series.interval_bloating`, and the engine's wrapping-free
-propagation (:func:`analysis.reach.flowpipe.segments`) runs with them: each of its linear maps takes the interval
-matrix, so every step may use a different ``A(t)``.  The segments are stored once per mode of the group (a label
-atom on the mode sees every mode), in a :class:`~analysis.reach.result.ReachResult` without jumps.
+**The flowpipe** (docs/reachability.md, "Arbitrary switching").  Per step ``δ``: a tube of the step from ``Z_k``
+(the Peano–Baker terms of ``A(t)`` bounded by ``M = |A_c| + A_r``), the disturbance ``w`` over the tube as a
+zonotope in the disturbed rows (two modes: ``λ (D_2 x + d_2)``, ``|λ| <= 1``; more: a box), and
+``Z_{k+1} = e^{A_c δ} Z_k ⊕ ∫₀^δ e^{A_c(δ−s)} (w + B u₀) ds`` with the integral's first- and second-order parts as
+generators (no ``O(δ²)`` box).  The segments are stored once per mode of the group (a label atom on the mode sees
+every mode), in a :class:`~analysis.reach.result.ReachResult` without jumps.
 """
 
 from __future__ import annotations
@@ -387,8 +387,8 @@ def relaxed_reach(model: AffineHybridModel, group: SwitchingGroup, initial: Mapp
     -------
     ReachResult
         One flowpipe per mode of the group (the same sets), no jumps; its terminations say ``"horizon"``, or
-        ``"blow_up"`` / ``"segment_limit"`` (inconclusive), or ``"left_invariant"`` when a segment is not proven
-        inside the common invariant (then the relaxed route decides nothing: the caller reads the termination).
+        ``"blow_up"`` / ``"segment_limit"`` / ``"invariant_undecided"`` (a segment not proven inside the common
+        invariant), all inconclusive: then nothing is decided.
     """
     names = model.state_names
     n = len(names)
@@ -418,15 +418,23 @@ def relaxed_reach(model: AffineHybridModel, group: SwitchingGroup, initial: Mapp
             stop = ("segment_limit", f"inconclusive: {max_segments} segments stored by t = {t_lo:.6g} s")
             break
         if box_position(s_lo, s_hi, poly) < 1:
-            stop = ("left_invariant", f"the relaxed flowpipe may leave the common invariant at t = {t_lo:.6g} s "
-                                      "(not followed: a possible deadlock)")
+            stop = ("invariant_undecided", f"inconclusive: the relaxed flowpipe may leave the common invariant at "
+                                           f"t = {t_lo:.6g} s (not followed: the runs may go on or deadlock)")
             break
         flowed.append((t_lo, t_hi, reduce_order(z, stored_order), s_lo, s_hi))
     assert stop is not None
+    return _result(model, group, start, (lo, hi), flowed, stop, horizon, time_step)
+
+
+def _result(model: AffineHybridModel, group: SwitchingGroup, start: Zonotope, box: tuple[np.ndarray, np.ndarray],
+            flowed: Sequence[tuple[float, float, Zonotope, np.ndarray, np.ndarray]], stop: tuple[str, str],
+            horizon: float, time_step: float) -> ReachResult:
+    """The segments once per mode of the group (an entry at t = 0, then the flowed ones), one termination each."""
     out: list[ReachSegment] = []
     ends: list[Termination] = []
     for mode in group.modes:
-        out.append(ReachSegment(mode=mode, t_lo=0.0, t_hi=0.0, jumps=0, zonotope=start, lo=lo, hi=hi, entry=True))
+        out.append(ReachSegment(mode=mode, t_lo=0.0, t_hi=0.0, jumps=0, zonotope=start, lo=box[0], hi=box[1],
+                                entry=True))
         out.extend(ReachSegment(mode=mode, t_lo=a, t_hi=b, jumps=0, zonotope=z, lo=l, hi=h)
                    for a, b, z, l, h in flowed)
         time = flowed[-1][1] if flowed else 0.0
@@ -436,6 +444,6 @@ def relaxed_reach(model: AffineHybridModel, group: SwitchingGroup, initial: Mapp
         u_lo, u_hi = interval_hull(group.input_set)
         b = [[float(q) for q in row] for row in group.input_matrix]
         inputs = tuple((m, b, u_lo.tolist(), u_hi.tolist()) for m in group.modes)
-    return ReachResult(system=model.name, state_names=names, horizon=horizon, max_jumps=0, time_step=time_step,
-                       segments=tuple(out), jumps=(), terminations=tuple(ends), inputs=inputs,
+    return ReachResult(system=model.name, state_names=model.state_names, horizon=horizon, max_jumps=0,
+                       time_step=time_step, segments=tuple(out), jumps=(), terminations=tuple(ends), inputs=inputs,
                        schedule=(("relaxed_group", list(group.modes)),))

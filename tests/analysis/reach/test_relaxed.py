@@ -39,10 +39,10 @@ HORIZON = 3.0
 STEP = 0.01
 
 
-def _switched(invariant_a=None, reset=None) -> HybridSystem:
+def _switched(invariant_a=None, reset=None, invariant_b=None) -> HybridSystem:
     v = coordinates("x", "y")
     automaton = HybridAutomaton(
-        name="switched", modes=(Mode(name="a", invariant=invariant_a), Mode(name="b")),
+        name="switched", modes=(Mode(name="a", invariant=invariant_a), Mode(name="b", invariant=invariant_b)),
         transitions=(Transition(name="ab", source="a", target="b", guard=Const(1.0)),
                      Transition(name="ba", source="b", target="a", guard=Const(1.0))),
         variables=("x", "y"), initial_mode="a")
@@ -189,6 +189,20 @@ def test_a_reset_that_is_not_the_identity_gives_no_group_and_the_route_says_why(
     check = recheck_relaxed({"time_step": 0.01, "schedule": {"relaxed_group": ["a", "b"]}}, system, INITIAL,
                             safety_fragment(parse_tree("always[0, 1] (x <= 9)"), ("x", "y")), inputs=INPUTS)
     assert not check.passed and "resets the state" in check.failure
+
+
+def test_a_flowpipe_not_proven_inside_the_common_invariant_decides_nothing():
+    X = coordinates("x", "y")
+    system = _switched(invariant_a=X.x <= 1.05, invariant_b=X.x <= 1.05)  # the initial box reaches x = 1.1
+    model = affine_model(system)
+    group = switching_group(model, INPUTS)
+    result = relaxed_reach(model, group, INITIAL, horizon=1.0, time_step=STEP)
+    fragment = safety_fragment(parse_tree("always[0, 1] (x <= 9)"), ("x", "y"))
+    assert not result.complete and result.terminations[0].reason == "invariant_undecided"
+    assert not decide(result, fragment, model, INITIAL)[0]
+    check = recheck_relaxed({"time_step": STEP, "schedule": {"relaxed_group": ["a", "b"]}}, system, INITIAL, fragment,
+                            inputs=INPUTS)
+    assert not check.passed and "may leave the invariant" in check.failure
 
 
 def test_inputs_that_differ_give_no_group():
