@@ -387,8 +387,8 @@ def relaxed_reach(model: AffineHybridModel, group: SwitchingGroup, initial: Mapp
     -------
     ReachResult
         One flowpipe per mode of the group (the same sets), no jumps; its terminations say ``"horizon"``, or
-        ``"blow_up"`` / ``"segment_limit"`` / ``"invariant_undecided"`` (a segment not proven inside the common
-        invariant), all inconclusive: then nothing is decided.
+        ``"blow_up"`` (also when a segment is not proven inside the common invariant: the detail says so) or
+        ``"segment_limit"``, both inconclusive: then nothing is decided.
     """
     names = model.state_names
     n = len(names)
@@ -418,8 +418,9 @@ def relaxed_reach(model: AffineHybridModel, group: SwitchingGroup, initial: Mapp
             stop = ("segment_limit", f"inconclusive: {max_segments} segments stored by t = {t_lo:.6g} s")
             break
         if box_position(s_lo, s_hi, poly) < 1:
-            stop = ("invariant_undecided", f"inconclusive: the relaxed flowpipe may leave the common invariant at "
-                                           f"t = {t_lo:.6g} s (not followed: the runs may go on or deadlock)")
+            # inconclusive (the runs may go on or deadlock): the set is too coarse for the invariant, as for a blow-up
+            stop = ("blow_up", f"inconclusive: the relaxed flowpipe may leave the common invariant at t = {t_lo:.6g} s "
+                               "(not followed: the runs may go on or deadlock)")
             break
         flowed.append((t_lo, t_hi, reduce_order(z, stored_order), s_lo, s_hi))
     assert stop is not None

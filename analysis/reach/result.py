@@ -22,9 +22,8 @@ from .zonotope import Zonotope
 
 __all__ = ["ReachSegment", "ReachJump", "Termination", "ReachResult", "INCONCLUSIVE", "zonotope_contains"]
 
-INCONCLUSIVE = ("blow_up", "segment_limit", "flowpipe_limit", "not_finite", "invariant_undecided")
-"""Termination reasons after which the flowpipe does not cover the horizon: the run decided nothing
-(``"invariant_undecided"``: a relaxed flowpipe not proven inside its invariant, :mod:`analysis.reach.relaxed`)."""
+INCONCLUSIVE = ("blow_up", "segment_limit", "flowpipe_limit", "not_finite")
+"""Termination reasons after which the flowpipe does not cover the horizon: the run decided nothing."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

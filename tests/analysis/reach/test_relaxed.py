@@ -198,7 +198,8 @@ def test_a_flowpipe_not_proven_inside_the_common_invariant_decides_nothing():
     group = switching_group(model, INPUTS)
     result = relaxed_reach(model, group, INITIAL, horizon=1.0, time_step=STEP)
     fragment = safety_fragment(parse_tree("always[0, 1] (x <= 9)"), ("x", "y"))
-    assert not result.complete and result.terminations[0].reason == "invariant_undecided"
+    end = result.terminations[0]
+    assert not result.complete and end.reason == "blow_up" and "may leave the common invariant" in end.detail
     assert not decide(result, fragment, model, INITIAL)[0]
     check = recheck_relaxed({"time_step": STEP, "schedule": {"relaxed_group": ["a", "b"]}}, system, INITIAL, fragment,
                             inputs=INPUTS)
