@@ -392,6 +392,13 @@ def relaxed_reach(model: AffineHybridModel, group: SwitchingGroup, initial: Mapp
     """
     names = model.state_names
     n = len(names)
+    if set(initial) != set(names) or not all(
+            len(v) == 2 and all(math.isfinite(float(e)) for e in v) and v[0] <= v[1] for v in initial.values()):
+        raise ReachError("initial", dict(initial), f"{{state: (lo, hi)}} with finite lo <= hi for exactly {list(names)}",
+                         "give a bounded box over the model's states")
+    if not (math.isfinite(horizon) and math.isfinite(time_step) and 0 < time_step <= horizon):
+        raise ReachError("time_step", time_step, f"0 < time_step <= horizon ({horizon!r}), both finite",
+                         "give a positive step no longer than the horizon")
     lo = np.array([float(initial[s][0]) for s in names])
     hi = np.array([float(initial[s][1]) for s in names])
     start = from_box(lo, hi)

@@ -206,6 +206,21 @@ def test_a_flowpipe_not_proven_inside_the_common_invariant_decides_nothing():
     assert not check.passed and "may leave the invariant" in check.failure
 
 
+def test_bad_boxes_and_steps_are_refused_by_name():
+    from hybrid.errors import ParameterError
+
+    model = affine_model(_switched())
+    group = switching_group(model, INPUTS)
+    with pytest.raises(ParameterError, match="initial"):
+        relaxed_reach(model, group, {"x": (0.0, 1.0)}, horizon=1.0, time_step=0.1)
+    with pytest.raises(ParameterError, match="initial"):
+        relaxed_reach(model, group, {"x": (1.0, 0.0), "y": (0.0, 0.0)}, horizon=1.0, time_step=0.1)
+    with pytest.raises(ParameterError, match="time_step"):
+        relaxed_reach(model, group, INITIAL, horizon=1.0, time_step=0.0)
+    with pytest.raises(ParameterError, match="time_step"):
+        relaxed_reach(model, group, INITIAL, horizon=10.0, time_step=5.0)  # ‖|A_c| + A_r‖ δ > 4
+
+
 def test_inputs_that_differ_give_no_group():
     other = dict(INPUTS, b=ModeInput(matrix=B.tolist(), bounds=([-0.5], [0.6])))
     with pytest.raises(NoGroup, match="inputs of mode 'b' differ"):
