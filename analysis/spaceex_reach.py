@@ -37,7 +37,8 @@ from analysis.verify.verification import Proof
 __all__ = ["input_reach_model", "InputReachProof", "NOT_RECHECKED", "input_proofs", "MAX_FLOWPIPES", "input_flowpipe"]
 
 MAX_FLOWPIPES = 16
-"""Flowpipes of one input proof (one per jump set): arbitrary switching (PLAA01's guards always hold) would
+"""Flowpipes of one input proof (one per jump set): arbitrary switching that is not a group of
+:func:`analysis.reach.relaxed.switching_group` (those take the relaxed route, :mod:`analysis.spaceex_relaxed`) would
 otherwise start one per segment up to the jump bound; beyond, the flowpipe is inconclusive and proves nothing."""
 
 NOT_RECHECKED = "not re-checked (the producer did not decide it: nothing to re-check)"
@@ -131,14 +132,23 @@ class InputReachProof:
         from analysis.reach.recheck import recheck_flowpipe
         from analysis.reach.autostep import AUTO_INPUT_STEPS, auto_choices, chosen_text
         from analysis.reach.verdict import MAX_SEGMENTS, METHOD, decide, default_max_jumps, default_time_step
+        from analysis.spaceex_relaxed import relaxed_outcome
 
         method = METHOD.replace(", re-checked", " with bounded non-deterministic inputs, re-checked")
         end = max(self.fragment.end, 1e-9)
         step = min(default_time_step(end) if self.time_step is None else self.time_step, end)
         jumps = default_max_jumps(end) if self.max_jumps is None else self.max_jumps
         initial = {k: (lo, hi) for k, lo, hi in self.initial}
+        bounds = ", ".join(f"{i.name} in [{i.low:g}, {i.high:g}]" for i in self.inputs)
+        assumptions = (f"the initial box {dict((k, (lo, hi)) for k, lo, hi in self.initial)}",
+                       f"the inputs {bounds} (any measurable signal)",
+                       f"the window [{self.fragment.start:g}, {self.fragment.end:g}] s")
         try:
             zero, matrices = input_reach_model(self.system, self.input_flows, self.inputs)
+            note = relaxed_outcome(zero, matrices, initial, self.fragment, self.initial_mode, step, method=method,
+                                   bounds=bounds, assumptions=assumptions)  # arbitrary switching (PLAA01)
+            if isinstance(note, Proof):
+                return note
             kappas = AUTO_INPUT_STEPS if self.time_step is None else AUTO_INPUT_STEPS[:1]
             choices = auto_choices(affine_model(zero), end, step, {}, kappas, MAX_SEGMENTS) or [(None, {})]
             for kappa, options in choices:
@@ -152,7 +162,6 @@ class InputReachProof:
         except (AffineError, ParameterError, ModelDefinitionError) as exc:
             return Proof(holds=False, method=method, evidence=f"not decided by reachability: {exc}", rechecked=False)
         reason += chosen_text(kappa, options)
-        bounds = ", ".join(f"{i.name} in [{i.low:g}, {i.high:g}]" for i in self.inputs)
         if check is None:
             again = NOT_RECHECKED
         elif check.passed:
@@ -163,10 +172,7 @@ class InputReachProof:
         evidence = (f"reachability with inputs {bounds}: {reason}"
                     + (f", margin {margin:.6g}" if math.isfinite(margin) else "")
                     + f"; {len(result.segments)} segments, {len(result.jumps)} jumps, step {step:g} s; "
-                    + again)  # no timing: the verdict JSON quoting it is byte-deterministic
-        assumptions = (f"the initial box {dict((k, (lo, hi)) for k, lo, hi in self.initial)}",
-                       f"the inputs {bounds} (any measurable signal)",
-                       f"the window [{self.fragment.start:g}, {self.fragment.end:g}] s")
+                    + again + note)  # no timing: the verdict JSON quoting it is byte-deterministic
         return Proof(holds=holds, method=method, evidence=evidence, rechecked=check is not None and check.passed,
                      assumptions=assumptions, margin=margin if math.isfinite(margin) else None)
 
