@@ -27,9 +27,10 @@ demo: $(STAMP)
 	test $$status -le 1
 
 # two workers (pytest-xdist), whole files per worker: the full report's regeneration
-# (tests/visnav/app/test_report_committed.py, ~4 min) runs beside the rest of the suite
+# (tests/visnav/app/test_report_committed.py, ~4 min) runs beside the rest of the suite; one BLAS thread per
+# worker (two workers on two cores: threaded products would contend, as the CLI's own pin avoids)
 test: $(STAMP)
-	$(PY) -m pytest -q -n 2 --dist loadfile
+	OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_paper_scenario.py
