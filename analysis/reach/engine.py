@@ -32,6 +32,7 @@ import numpy as np
 
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
+from .jumpsets import JUMP_ZONOTOPES, fold, reset_image, strip_meet
 from .model import AffineHybridModel, AffineTransition, affine_model
 from .nonlinear import smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
@@ -42,6 +43,10 @@ from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_orde
 
 __all__ = ["ReachError", "ModeInput", "reach"]
 
+
+ZONOTOPE_WIDER = 4.0
+"""A zonotope jump set is used unless its image's box hull is wider in total than this many times the box route's
+(the box route is then kept: a zonotope that loose would lose more than its correlations give)."""
 
 MAX_STORED_NUMBERS = 25_000_000
 """The stored segments hold at most this many floats (200 MB): memory stays bounded whatever the options."""
@@ -70,6 +75,7 @@ class _Work:
     t_lo: float
     t_hi: float
     jumps: int
+    box: tuple[np.ndarray, np.ndarray] | None = None  # a box holding the start set too (a zonotope jump set's)
 
 
 @dataclass(slots=True)
@@ -339,11 +345,14 @@ def _explore(run: _Run, first: _Work, max_flowpipes: int, progress: Callable[[fl
             continue
         for t in run.model.outgoing(work.mode):
             for cluster in collected.get(t.name, ()):
-                queue.append(_jump(run, work, t, *cluster[:4]))
+                queue.append(_jump(run, work, t, *cluster[:4], zono=cluster[6] if cluster[7] else None))
 
 
 def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.ndarray, t_lo: float,
-          t_hi: float) -> _Work:
+          t_hi: float, zono: Zonotope | None = None) -> _Work:
+    """The jump of a cluster: the box route (the guard part's box hull mapped by the reset), or with ``zono`` (the
+    cluster's zonotope jump set, :mod:`analysis.reach.jumpsets`) its reset image, kept when it is finite and its
+    hull no wider in total than :data:`ZONOTOPE_WIDER` times the box route's; the saved ``after`` box holds both."""
     n = len(run.model.state_names)
     rc = np.array([[float(q) for q in row] + [float(off)] for row, off in zip(t.r_matrix, t.r_offset)]
                   + [[0.0] * n + [1.0]])
@@ -355,10 +364,21 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
     image, err = linear_map(_augment(from_box(lo, hi), 1.0), rc, rr)
     start = with_error(image, err).project(n)
     after_lo, after_hi = interval_hull(start)
+    kept, box = None, None
+    if zono is not None:
+        kept = reset_image(zono, t.r_matrix, t.r_offset)
+        zlo, zhi = kept.hull()
+        wide = float(np.sum(zhi - zlo)) > ZONOTOPE_WIDER * float(np.sum(after_hi - after_lo))
+        if wide or not (np.all(np.isfinite(zlo)) and np.all(np.isfinite(zhi))):
+            kept = None
+        else:
+            start = kept.start()
+            box = (np.maximum(zlo, after_lo), np.minimum(zhi, after_hi))  # both hold the states after the jump
+            after_lo, after_hi = np.minimum(zlo, after_lo), np.maximum(zhi, after_hi)
     run.jumps.append(ReachJump(transition=t.name, source=t.source, target=t.target, jumps=work.jumps + 1,
                                t_lo=t_lo, t_hi=t_hi, before_lo=lo, before_hi=hi, after_lo=after_lo,
-                               after_hi=after_hi))
-    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1)
+                               after_hi=after_hi, zonotope=kept))
+    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1, box=box)
 
 
 def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
@@ -372,6 +392,8 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     flowed_guards = [(name, _rows(tuple(g + i for g, _ in polys for i, _ in invariant))) for name, polys in guards]
     collected: dict[str, list[Any]] = {}
     lo, hi = interval_hull(work.start)
+    if work.box is not None:
+        lo, hi = np.maximum(lo, work.box[0]), np.minimum(hi, work.box[1])
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
                                      zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
     _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
@@ -522,4 +544,20 @@ def _collect(run: _Run, collected: dict[str, list[list[Any]]], guards: Sequence[
             last[4] += 1
             last[5] = index
         else:
-            clusters.append([box[0], box[1], t_lo, t_hi, 1, index])
+            last = [box[0], box[1], t_lo, t_hi, 1, index, None, True]
+            clusters.append(last)
+        _collect_zonotope(run, last, z, polyhedra)
+
+
+def _collect_zonotope(run: _Run, cluster: list[Any], z: Zonotope, polyhedra: Sequence[tuple[Any, Any]]) -> None:
+    """Adds the segment's guard part, as a zonotope, to the cluster's zonotope jump set (``cluster[6]``); a cluster
+    of more than :data:`~analysis.reach.jumpsets.JUMP_ZONOTOPES` segments, or a guard ∩ invariant that is a union
+    of polyhedra, keeps the box route (``cluster[7] = False``)."""
+    if not cluster[7]:
+        return
+    if cluster[4] > JUMP_ZONOTOPES or len(polyhedra) != 1:
+        cluster[6], cluster[7] = None, False
+        return
+    part = strip_meet(z, polyhedra[0][0])
+    if part is not None:  # None: proven empty (nothing of this segment jumps)
+        cluster[6] = fold(cluster[6], part, run.order)

@@ -46,6 +46,7 @@ from .deadlock import clip_exact, clock_offsets, contract_zonotope, entry_uncove
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
+from .recheck_jumps import OWN_JUMP_PIECES, own_jump_set
 from .recheck_modal import ModalTracker, modal_tracker
 from .recheck_sets import FZ, exact_image, tube
 
@@ -361,14 +362,18 @@ def own_recheck(model: Any, initial: Box, initial_mode: str, fragment: SafetyFra
 
 
 def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: int, where: str,
-          rows: Sequence[Any] = ()) -> _Work | None:
+          rows: Sequence[Any] = (), pieces: Sequence[FZ] | None = None) -> _Work | None:
     if t_lo > run.end:
         return None  # after the window: nothing to decide there
     if depth + 1 > run.max_jumps:
         raise OwnFailure(f"jumps: {where} may take {t.name!r} at t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s, "
                          f"beyond the jump bound {run.max_jumps}: not every behaviour is covered")
     run.jumps += 1
-    image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
+    image = None
+    if pieces and rows:  # the own zonotope jump set (analysis.reach.recheck_jumps); the box below holds it too
+        image = own_jump_set(pieces, rows, t.r_matrix, t.r_offset)
+    if image is None:
+        image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
     exact = [(sum((min(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off,
               sum((max(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off)
              for row, off in zip(t.r_matrix, t.r_offset)]  # the exact image box (the zonotope's hull is rounded)
@@ -458,13 +463,13 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
                     got = _part([*guard.halfspaces, *inv.halfspaces], clo, chi, piece)
                     if got is not None:
                         part = got if part is None else [(min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(part, got)]
-            _cluster(run, clusters, t, part, k, t_lo, t_hi, limit, work.depth, where, out)
+            _cluster(run, clusters, t, part, k, t_lo, t_hi, limit, work.depth, where, out, piece)
         h = h1
         if terms is not None:
             s_gens, s_box, p = _carry(s_gens, s_box, p, enc)
         k += 1
     for t in model.outgoing(mode):
-        _cluster(run, clusters, t, None, -1, Fraction(0), Fraction(0), 0, work.depth, where, out, flush=True)
+        _cluster(run, clusters, t, None, -1, Fraction(0), Fraction(0), 0, work.depth, where, out, None, flush=True)
     return out
 
 
@@ -481,12 +486,15 @@ def _advance(h: FZ, enc: ExpEnclosure, tracker: ModalTracker | None, r: np.ndarr
 
 
 def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None, k: int, t_lo: Fraction,
-             t_hi: Fraction, limit: int | None, depth: int, where: str, out: list[_Work], flush: bool = False) -> None:
-    """Add a guard part to the transition's open cluster; emit the cluster when it is full, broken or flushed."""
+             t_hi: Fraction, limit: int | None, depth: int, where: str, out: list[_Work], piece: FZ | None = None,
+             flush: bool = False) -> None:
+    """Add a guard part to the transition's open cluster; emit the cluster when it is full, broken or flushed.
+    The cluster keeps its pieces (up to :data:`~analysis.reach.recheck_jumps.OWN_JUMP_PIECES`) for its own zonotope
+    jump set."""
     open_ = clusters.get(t.name)
     if open_ is not None and (flush or (limit is not None and (part is None or k - open_[3] >= limit))):
         new = _jump(run, t, open_[0], open_[1], open_[2], depth, f"{where} steps {open_[3]}..{open_[4]}",
-                    _flowed_rows(run.model, t))
+                    _flowed_rows(run.model, t), open_[5])
         if new is not None:
             out.append(new)
         clusters.pop(t.name)
@@ -494,10 +502,12 @@ def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None
     if part is None or flush:
         return
     if open_ is None:
-        clusters[t.name] = [part, t_lo, t_hi, k, k]
+        open_ = clusters[t.name] = [part, t_lo, t_hi, k, k, []]
     else:
         open_[0] = [(min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(open_[0], part)]
         open_[2], open_[4] = max(open_[2], t_hi), k
+    if open_[5] is not None:
+        open_[5] = open_[5] + [piece] if piece is not None and len(open_[5]) < OWN_JUMP_PIECES else None
 
 
 def _flowed_rows(model: Any, t: Any) -> tuple[Any, ...]:

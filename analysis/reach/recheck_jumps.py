@@ -1,0 +1,160 @@
+"""The independent re-check's own zonotope jump sets, in exact rationals (no code shared with the producer).
+
+The re-check (:mod:`analysis.reach.recheck_own`) collects, per transition, the pieces of its own tube that may
+meet the guard.  When they are few (:data:`OWN_JUMP_PIECES`) and the guard ∩ invariant is one polyhedron, the
+jump set is kept as a zonotope rather than as the box hull (which loses the correlations of coupled states):
+
+1. each piece ``Z = c + Σ g_j ξ_j`` (its error box as generators, :meth:`FZ.exact`) is cut by each row
+   ``a·x <= b`` of the polyhedron (paired with a row ``−a·x <= b'``): with ``s = a·x ∈ [lo, hi]`` (the exact range
+   of ``a·x`` over ``Z`` met with ``[−b', b]``), ``m = (lo + hi)/2``, ``r = (hi − lo)/2`` and *any* ``λ``, every
+   ``x ∈ Z`` with ``a·x ∈ [lo, hi]`` is ``x + λ(s − a·x) = c + λ(m − a·c) + Σ (g_j − λ a·g_j) ξ_j + λ r η`` with
+   ``η = (s − m)/r ∈ [−1, 1]`` — a superset of ``Z ∩ {a·x <= b}``, computed in exact rationals (``λ`` a float
+   suggestion read exactly: any value is sound);
+2. the parts' union: ``Z₁ ∪ Z₂ ⊆ (c₁ + c₂)/2 + (c₁ − c₂)/2 μ + Σ ((g₁_j + g₂_j)/2 ξ_j + (g₁_j − g₂_j)/2 ζ_j)``
+   (zero columns appended to the narrower; ``μ = ±1``, ``ζ = ±ξ`` give ``Z₁`` and ``Z₂``), exact;
+3. the reset ``R x + r`` applied exactly to the centre and every column.
+
+Between the steps the exact sets are rounded to floats, every rounding moved into the error box (rounded up), and
+beyond :data:`OWN_JUMP_GENERATORS` generators per state the smallest are boxed (Girard's reduction: the box of their
+absolute sums, rounded up) — each a superset.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from .recheck_interval import up
+from .recheck_sets import FZ
+
+__all__ = ["OWN_JUMP_PIECES", "OWN_JUMP_GENERATORS", "own_jump_set"]
+
+OWN_JUMP_PIECES = 32
+"""A cluster of at most this many pieces meeting the guard gets a zonotope jump set; more keep the box route."""
+OWN_JUMP_GENERATORS = 10
+"""Generators per state kept in the jump set (the smallest boxed beyond)."""
+
+Exact = tuple[list[Fraction], list[list[Fraction]]]
+
+
+def _cut(z: Exact, rows: Sequence[Any]) -> Exact | None:
+    """Part 1 of the module: ``None`` when the piece is shown outside a row."""
+    center, gens = z
+    done: list[tuple[Fraction, ...]] = []
+    for row in rows:
+        a = tuple(row.normal)
+        if not any(a) or a in done:
+            continue
+        terms = [(i, v) for i, v in enumerate(a) if v]
+        ac = sum((v * center[i] for i, v in terms), Fraction(0))
+        w = [sum((v * g[i] for i, v in terms if g[i]), Fraction(0)) for g in gens]
+        spread = sum((abs(x) for x in w), Fraction(0))
+        lo, hi = ac - spread, ac + spread
+        top, bottom = min(hi, row.offset), lo
+        neg = tuple(-v for v in a)
+        for other in rows:
+            if tuple(other.normal) == neg:
+                bottom = max(bottom, -other.offset)
+        done.extend([a, neg])
+        if bottom > top:
+            return None
+        if (bottom <= lo and top >= hi) or spread == 0:
+            continue
+        wf = np.array([float(x) for x in w])
+        gf = np.array([[float(v) for v in g] for g in gens]).T
+        lam_f = (gf @ wf) / float(wf @ wf)
+        if not np.all(np.isfinite(lam_f)):
+            continue
+        lam = [Fraction(float(v)) for v in lam_f]
+        m, r = (bottom + top) / 2, (top - bottom) / 2
+        center = [c + li * (m - ac) for c, li in zip(center, lam)]
+        gens = [[gi - li * wj for gi, li in zip(g, lam)] for g, wj in zip(gens, w)]
+        if r:
+            gens.append([li * r for li in lam])
+    return center, gens
+
+
+def _union(a: Exact, b: Exact) -> Exact:
+    """Part 2 of the module (exact)."""
+    (c1, g1), (c2, g2) = a, b
+    n = len(c1)
+    zero = [Fraction(0)] * n
+    m = max(len(g1), len(g2))
+    g1 = g1 + [zero] * (m - len(g1))
+    g2 = g2 + [zero] * (m - len(g2))
+    center = [(x + y) / 2 for x, y in zip(c1, c2)]
+    cols = [[(x - y) / 2 for x, y in zip(c1, c2)]]
+    for p, q in zip(g1, g2):
+        cols.append([(x + y) / 2 for x, y in zip(p, q)])
+        cols.append([(x - y) / 2 for x, y in zip(p, q)])
+    return center, cols
+
+
+def _rounded(z: Exact, keep: int) -> FZ:
+    """The exact set as an :class:`FZ` (each number rounded to the nearest float, the roundings in the error box),
+    the smallest generators beyond ``keep`` boxed (Girard's reduction)."""
+    center, gens = z
+    n = len(center)
+    err = [Fraction(0)] * n
+    cf = np.zeros(n)
+    for i, v in enumerate(center):
+        cf[i] = float(v)
+        err[i] += abs(v - Fraction(cf[i]))
+    cols = [g for g in gens if any(g)]
+    gf = np.zeros((n, len(cols)))
+    for j, g in enumerate(cols):
+        for i, v in enumerate(g):
+            if v:
+                gf[i, j] = float(v)
+                err[i] += abs(v - Fraction(gf[i, j]))
+    if len(cols) > keep:
+        cost = np.abs(gf).sum(axis=0) - np.abs(gf).max(axis=0)
+        order = np.argsort(cost, kind="stable")
+        drop = order[:len(cols) - keep + n]
+        for j in drop:
+            for i in range(n):
+                err[i] += abs(Fraction(gf[i, j]))
+        gf = gf[:, np.sort(order[len(cols) - keep + n:])]
+    ef = np.array([float(e) for e in err])
+    ef = np.where([Fraction(float(e)) < e for e in err], up(ef), ef)
+    return FZ(center=cf, gens=gf, err=ef)
+
+
+def own_jump_set(pieces: Sequence[FZ], rows: Sequence[Any], matrix: Sequence[Sequence[Fraction]],
+                 offset: Sequence[Fraction]) -> FZ | None:
+    """The re-check's zonotope jump set of a cluster, mapped by the reset (module); ``None``: every piece is shown
+    outside the guard (the caller keeps its box route).
+
+    Parameters
+    ----------
+    pieces : sequence of FZ
+        The cluster's tube pieces (dimension ``n``).
+    rows : sequence of halfspaces
+        The guard ∩ the source's invariant (one polyhedron; exact ``normal`` and ``offset``).
+    matrix, offset : exact rationals
+        The reset ``R`` (``n × n``) and ``r``.
+
+    Returns
+    -------
+    FZ or None
+        A set holding the reset image of every state of the pieces in the rows.
+    """
+    n = len(matrix)
+    keep = OWN_JUMP_GENERATORS * n
+    kept: FZ | None = None
+    for piece in pieces:
+        part = _cut(piece.exact(), rows)
+        if part is None:
+            continue
+        part_fz = _rounded(part, keep)
+        kept = part_fz if kept is None else _rounded(_union(kept.exact(), part_fz.exact()), keep)
+    if kept is None:
+        return None
+    center, gens = kept.exact()
+    image_c = [sum((a * center[k] for k, a in enumerate(row) if a), Fraction(0)) + off
+               for row, off in zip(matrix, offset)]
+    image_g = [[sum((a * g[k] for k, a in enumerate(row) if a and g[k]), Fraction(0)) for row in matrix] for g in gens]
+    return _rounded((image_c, image_g), keep)
