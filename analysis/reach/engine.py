@@ -32,7 +32,7 @@ import numpy as np
 
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
-from .jumpsets import JUMP_ZONOTOPES, fold, reset_image, strip_meet
+from .jumpsets import JUMP_ZONOTOPES, fold, meet_box, reset_image, strip_meet
 from .model import AffineHybridModel, AffineTransition, affine_model
 from .nonlinear import smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
@@ -365,6 +365,8 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
     start = with_error(image, err).project(n)
     after_lo, after_hi = interval_hull(start)
     kept, box = None, None
+    if zono is not None:
+        zono = meet_box(zono, lo, hi)  # the guard part's box holds the guard part too: keep what both allow
     if zono is not None:
         kept = reset_image(zono, t.r_matrix, t.r_offset)
         zlo, zhi = kept.hull()

@@ -38,7 +38,7 @@ import numpy as np
 from .zonotope import (UNIT_ROUNDOFF, Zonotope, box_generators, interval_hull, linear_map, reduce_order,
                        support_bounds, upper, with_error)
 
-__all__ = ["JUMP_ZONOTOPES", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold"]
+__all__ = ["JUMP_ZONOTOPES", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "meet_box"]
 
 JUMP_ZONOTOPES = 8
 """A jump set of at most this many segments is kept as a zonotope (their union); more: the box hull."""
@@ -76,10 +76,15 @@ def strip_meet(z: Zonotope, halfspaces: Sequence[Any]) -> Zonotope | None:
             return None
         if bottom <= low and top >= high:
             continue  # the strip holds z: nothing to cut
-        z = _cut(z, a, bottom, top)
-        if z is None:
-            continue
+        cut = _cut(z, a, bottom, top)
+        if cut is not None and _width(cut) <= _width(z):
+            z = cut  # a cut that widens the hull (a near-degenerate λ) is not taken: z itself is a superset too
     return z
+
+
+def _width(z: Zonotope) -> float:
+    lo, hi = interval_hull(z)
+    return float(np.sum(hi - lo))
 
 
 def _cut(z: Zonotope, a: np.ndarray, bottom: float, top: float) -> Zonotope | None:
@@ -166,6 +171,24 @@ def reset_image(before: Zonotope, matrix: Sequence[Sequence[Fraction]], offset: 
     aug = Zonotope.of_arrays(np.append(before.center, 1.0), np.vstack([before.generators, np.zeros((1, before.order))]))
     image, err = linear_map(aug, rc, rr)
     return ResetImage(before, image.center[:n].copy(), image.generators[:n].copy(), err[:n].copy())
+
+
+def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
+    """A zonotope holding ``z ∩ [lo, hi]``: :func:`strip_meet` with the rows ``±x_i <= ±bound`` of the coordinates
+    where the hull of ``z`` exceeds the box (``None``: proven empty)."""
+    from .sets import FloatHalfspace
+
+    zlo, zhi = interval_hull(z)
+    n = z.dimension
+    rows = []
+    zero = np.zeros(n)
+    excess = np.maximum(lo - zlo, 0.0) + np.maximum(zhi - hi, 0.0)
+    for i in np.nonzero(excess > 1e-6 * (zhi - zlo))[0]:  # a rounding-level excess is not worth a cut
+        e = np.zeros(n)
+        e[i] = 1.0
+        rows += [FloatHalfspace(normal=e, residual=zero, offset=float(hi[i])),
+                 FloatHalfspace(normal=-e, residual=zero, offset=float(-lo[i]))]
+    return strip_meet(z, rows) if rows else z
 
 
 def fold(kept: Zonotope | None, part: Zonotope, order: int) -> Zonotope:

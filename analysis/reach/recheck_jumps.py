@@ -30,7 +30,7 @@ import numpy as np
 from .recheck_interval import up
 from .recheck_sets import FZ
 
-__all__ = ["OWN_JUMP_PIECES", "OWN_JUMP_GENERATORS", "own_jump_set"]
+__all__ = ["OWN_JUMP_PIECES", "OWN_JUMP_GENERATORS", "own_jump_set", "box_rows"]
 
 OWN_JUMP_PIECES = 32
 """A cluster of at most this many pieces meeting the guard gets a zonotope jump set; more keep the box route."""
@@ -70,11 +70,35 @@ def _cut(z: Exact, rows: Sequence[Any]) -> Exact | None:
             continue
         lam = [Fraction(float(v)) for v in lam_f]
         m, r = (bottom + top) / 2, (top - bottom) / 2
-        center = [c + li * (m - ac) for c, li in zip(center, lam)]
-        gens = [[gi - li * wj for gi, li in zip(g, lam)] for g, wj in zip(gens, w)]
+        new_c = [c + li * (m - ac) for c, li in zip(center, lam)]
+        new_g = [[gi - li * wj for gi, li in zip(g, lam)] for g, wj in zip(gens, w)]
         if r:
-            gens.append([li * r for li in lam])
+            new_g.append([li * r for li in lam])
+        if _width(new_g) <= _width(gens):  # a cut that widens the hull (a near-degenerate λ) is not taken
+            center, gens = new_c, new_g
     return center, gens
+
+
+def _width(gens: Sequence[Sequence[Fraction]]) -> Fraction:
+    """The hull's total width over 2 (exact)."""
+    return sum((abs(v) for g in gens for v in g), Fraction(0))
+
+
+class _Row:
+    __slots__ = ("normal", "offset")
+
+    def __init__(self, normal: tuple[Fraction, ...], offset: Fraction) -> None:
+        self.normal, self.offset = normal, offset
+
+
+def box_rows(box: Sequence[tuple[Fraction, Fraction]]) -> list[Any]:
+    """The rows ``x_i <= hi_i``, ``−x_i <= −lo_i`` of an exact box (a superset of the guard part, met too)."""
+    n = len(box)
+    out = []
+    for i, (lo, hi) in enumerate(box):
+        e = tuple(Fraction(int(k == i)) for k in range(n))
+        out += [_Row(e, hi), _Row(tuple(-v for v in e), -lo)]
+    return out
 
 
 def _union(a: Exact, b: Exact) -> Exact:
@@ -110,21 +134,24 @@ def _rounded(z: Exact, keep: int) -> FZ:
             if v:
                 gf[i, j] = float(v)
                 err[i] += abs(v - Fraction(gf[i, j]))
-    if len(cols) > keep:
+    if len(cols) > keep:  # the boxed generators become diagonal generators (mapped as generators: no wrapping)
         cost = np.abs(gf).sum(axis=0) - np.abs(gf).max(axis=0)
         order = np.argsort(cost, kind="stable")
         drop = order[:len(cols) - keep + n]
-        for j in drop:
-            for i in range(n):
-                err[i] += abs(Fraction(gf[i, j]))
-        gf = gf[:, np.sort(order[len(cols) - keep + n:])]
+        boxed = [sum((abs(Fraction(gf[i, j])) for j in drop), Fraction(0)) for i in range(n)]
+        diag = np.zeros((n, n))
+        for i, v in enumerate(boxed):
+            diag[i, i] = float(v)
+            if Fraction(diag[i, i]) < v:
+                diag[i, i] = float(up(diag[i, i]))
+        gf = np.hstack([gf[:, np.sort(order[len(cols) - keep + n:])], diag[:, np.diag(diag) > 0]])
     ef = np.array([float(e) for e in err])
     ef = np.where([Fraction(float(e)) < e for e in err], up(ef), ef)
     return FZ(center=cf, gens=gf, err=ef)
 
 
 def own_jump_set(pieces: Sequence[FZ], rows: Sequence[Any], matrix: Sequence[Sequence[Fraction]],
-                 offset: Sequence[Fraction]) -> FZ | None:
+                 offset: Sequence[Fraction], box: Sequence[tuple[Fraction, Fraction]] | None = None) -> FZ | None:
     """The re-check's zonotope jump set of a cluster, mapped by the reset (module); ``None``: every piece is shown
     outside the guard (the caller keeps its box route).
 
@@ -136,6 +163,8 @@ def own_jump_set(pieces: Sequence[FZ], rows: Sequence[Any], matrix: Sequence[Seq
         The guard ∩ the source's invariant (one polyhedron; exact ``normal`` and ``offset``).
     matrix, offset : exact rationals
         The reset ``R`` (``n × n``) and ``r``.
+    box : list of (Fraction, Fraction) or None
+        A box holding the guard part (the cluster's own box route): the set is cut by its faces too.
 
     Returns
     -------
@@ -153,6 +182,11 @@ def own_jump_set(pieces: Sequence[FZ], rows: Sequence[Any], matrix: Sequence[Seq
         kept = part_fz if kept is None else _rounded(_union(kept.exact(), part_fz.exact()), keep)
     if kept is None:
         return None
+    if box is not None:  # the cluster's box holds the guard part too: cut by its faces (a superset still)
+        met = _cut(kept.exact(), box_rows(box))
+        if met is None:
+            return None
+        kept = _rounded(met, keep)
     center, gens = kept.exact()
     image_c = [sum((a * center[k] for k, a in enumerate(row) if a), Fraction(0)) + off
                for row, off in zip(matrix, offset)]

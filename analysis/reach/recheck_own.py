@@ -371,7 +371,7 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
     run.jumps += 1
     image = None
     if pieces and rows:  # the own zonotope jump set (analysis.reach.recheck_jumps); the box below holds it too
-        image = own_jump_set(pieces, rows, t.r_matrix, t.r_offset)
+        image = own_jump_set(pieces, rows, t.r_matrix, t.r_offset, box)
     if image is None:
         image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
     exact = [(sum((min(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off,
