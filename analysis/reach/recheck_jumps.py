@@ -34,7 +34,7 @@ __all__ = ["OWN_JUMP_PIECES", "OWN_JUMP_GENERATORS", "own_jump_set", "box_rows"]
 
 OWN_JUMP_PIECES = 32
 """A cluster of at most this many pieces meeting the guard gets a zonotope jump set; more keep the box route."""
-OWN_JUMP_GENERATORS = 10
+OWN_JUMP_GENERATORS = 80
 """Generators per state kept in the jump set (the smallest boxed beyond)."""
 
 Exact = tuple[list[Fraction], list[list[Fraction]]]

@@ -50,7 +50,8 @@ from .recheck_jumps import OWN_JUMP_PIECES, own_jump_set
 from .recheck_modal import ModalTracker, modal_tracker
 from .recheck_sets import FZ, exact_image, tube
 
-__all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS", "INPUT_SPLIT"]
+__all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS", "INPUT_SPLIT",
+           "INPUT_SPLITS"]
 
 MAX_OWN_FLOWPIPES = 4_000
 """Flowpipes the re-check follows before it fails (a run that keeps jumping is not re-checked)."""
@@ -61,6 +62,10 @@ KEPT_INPUTS = 20
 INPUT_SPLIT = 4
 """A mode with inputs is re-checked with a quarter of the schedule's step: each piece carries the current step's
 input response ``[−w, w]`` whole (``w ≈ δ |B| r``), which a shorter step makes smaller."""
+INPUT_SPLITS = (INPUT_SPLIT, 1)
+"""The splits tried one after the other with inputs, until one re-check passes (each a complete re-check on own
+sets): a quarter step first, then the schedule's step (fewer reductions of the carried inputs, which matters for
+long horizons through jumps: PLAD01-BND30)."""
 Box = list[tuple[Fraction, Fraction]]
 
 
@@ -104,6 +109,7 @@ class _Run:
     pieces: int = 0
     jumps: int = 0
     atoms: dict[str, Any] = field(default_factory=dict)
+    split: int = INPUT_SPLIT
 
 
 def _fbox(lo: np.ndarray, hi: np.ndarray) -> Box:
@@ -298,7 +304,7 @@ def _enclosure(run: _Run, mode: str) -> tuple[ExpEnclosure, float, Any]:
     spec = run.inputs.get(mode)
     c = list(m.c) if spec is None else [x + y for x, y in zip(m.c, spec.shift())]
     a = [list(r) for r in m.a]
-    h = step if spec is None else step / INPUT_SPLIT
+    h = step if spec is None else step / run.split
     for _ in range(40):
         try:
             enc = ExpEnclosure(a, c, h)
@@ -346,8 +352,20 @@ def own_recheck(model: Any, initial: Box, initial_mode: str, fragment: SafetyFra
     OwnFailure
         With the part and the place.
     """
+    failures = []
+    for split in (INPUT_SPLITS if inputs else INPUT_SPLITS[:1]):
+        try:
+            return _own_run(model, initial, initial_mode, fragment, steps, cluster, max_jumps, inputs, split)
+        except OwnFailure as fail:
+            failures.append(f"{fail}" if len(failures) == 0 else f"with the input step split {split}: {fail}")
+    raise OwnFailure("; ".join(failures))
+
+
+def _own_run(model: Any, initial: Box, initial_mode: str, fragment: SafetyFragment, steps: Mapping[str, float],
+             cluster: int | None, max_jumps: int, inputs: Mapping[str, InputSet], split: int) -> OwnOutcome:
+    """One complete re-check with the inputs' step split ``split`` (:data:`INPUT_SPLITS`)."""
     run = _Run(model=model, fragment=fragment, steps=dict(steps), cluster=cluster, max_jumps=max_jumps,
-               inputs=inputs, end=Fraction(fragment.end))
+               inputs=inputs, end=Fraction(fragment.end), split=split)
     lo, hi = _round_box(initial)
     queue = deque([_Work(mode=initial_mode, start=FZ.of_box(lo, hi), t_lo=Fraction(0), t_hi=Fraction(0), depth=0,
                          box=initial)])
