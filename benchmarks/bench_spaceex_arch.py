@@ -29,7 +29,7 @@ INSTANCES = (
     ("BLDF01-BDU02", B / "BLDF01.xml", S / "BLDF01-BDU02.cfg", "unsafe", "falsified", ""),
     ("PLAD01-BND42", P / "PLAD01-BND.xml", S / "PLAD01-BND42.cfg", "safe", "not_falsified",
      "re-check with inputs fails (segment 35: looser than the stored boxes)"),
-    ("PLAD01-BND30", P / "PLAD01-BND.xml", S / "PLAD01-BND30.cfg", "safe", "not_falsified", "flowpipe too wide"),
+    ("PLAD01-BND30", P / "PLAD01-BND.xml", S / "PLAD01-BND30.cfg", "safe", "proven", "zonotope jump sets"),
     ("PLAA01-BND42", P / "PLAA01-BND.xml", S / "PLAA01-BND42.cfg", "safe", "incomplete", "Zeno at t = 0"),
     ("PLAN01-UNB50", P / "PLAN01-UNB.xml", S / "PLAN01-UNB50.cfg", "safe", "not_falsified", "finite horizon"),
     ("GRBX01-MES01", ROOT / "Gear" / "SpaceEx" / "GRBX01-MES01.xml", ROOT / "Gear" / "SpaceEx" / "GRBX01-MES01.cfg",

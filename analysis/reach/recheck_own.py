@@ -26,7 +26,13 @@ never a containment target.  Per flowpipe of the re-check (a mode, a start set `
 5. **Jumps.** Each piece's part in a guard ∩ the invariant (exact box clipping, narrowed by the zonotope's
    generator weights) joins the transition's cluster (all of the flowpipe, or runs of consecutive steps of at
    most ``jump_cluster`` schedule steps); each cluster's box hull is mapped exactly by the reset and starts a
-   flowpipe of the target over the cluster's times.  A chain longer than the jump bound fails.
+   flowpipe of the target over the cluster's times — or, for a cluster of at most
+   :data:`~analysis.reach.recheck_jumps.OWN_JUMP_PIECES` pieces and a one-polyhedron guard ∩ invariant, the
+   re-check's own zonotope jump set (:mod:`analysis.reach.recheck_jumps`, exact rationals; the exact image box still
+   serves the entry checks).  A chain longer than the jump bound fails.
+
+With inputs, the whole re-check runs with the step split of :data:`INPUT_SPLITS` one after the other until one
+passes (each complete on its own sets).
 
 Anything the re-check cannot decide fails it with the part and the place (:class:`OwnFailure`).
 """
