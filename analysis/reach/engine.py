@@ -8,7 +8,9 @@ the image of a jump) at a time interval.  Along it (:func:`analysis.reach.flowpi
   a segment proven outside the invariant ends the flowpipe (``"left_invariant"``);
 * every outgoing transition whose guard the segment may meet collects the segment's box clipped
   to the guard; at the end the collected box (the hull over the flowpipe) is mapped by the jump
-  map and starts a flowpipe in the target mode, unless the jump bound is reached;
+  map and starts a flowpipe in the target mode, unless the jump bound is reached — or, when at most
+  :data:`~analysis.reach.jumpsets.JUMP_ZONOTOPES` segments met the guard, their guard parts kept as one
+  zonotope (:mod:`analysis.reach.jumpsets`: the correlations of the states survive the jump);
 * the flowpipe stops at the time horizon, or inconclusively when it blows up (a radius above
   ``size_limit``, a NaN or inf) or exceeds ``max_segments``.
 
@@ -76,6 +78,7 @@ class _Work:
     t_hi: float
     jumps: int
     box: tuple[np.ndarray, np.ndarray] | None = None  # a box holding the start set too (a zonotope jump set's)
+    saved: tuple[np.ndarray, np.ndarray] | None = None  # the entry segment's saved box (the jump's ``after``)
 
 
 @dataclass(slots=True)
@@ -380,7 +383,8 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
     run.jumps.append(ReachJump(transition=t.name, source=t.source, target=t.target, jumps=work.jumps + 1,
                                t_lo=t_lo, t_hi=t_hi, before_lo=lo, before_hi=hi, after_lo=after_lo,
                                after_hi=after_hi, zonotope=kept))
-    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1, box=box)
+    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1, box=box,
+                 saved=None if box is None else (after_lo, after_hi))
 
 
 def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
@@ -394,10 +398,12 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     flowed_guards = [(name, _rows(tuple(g + i for g, _ in polys for i, _ in invariant))) for name, polys in guards]
     collected: dict[str, list[Any]] = {}
     lo, hi = interval_hull(work.start)
-    if work.box is not None:
+    saved = (lo, hi) if work.saved is None else work.saved  # a zonotope jump's entry box: its ``after`` (holds both)
+    if work.box is not None:  # the guard meets below use the tighter meet of both images' hulls
         lo, hi = np.maximum(lo, work.box[0]), np.minimum(hi, work.box[1])
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
-                                     zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
+                                     zonotope=reduce_order(work.start, run.stored_order), lo=saved[0], hi=saved[1],
+                                     entry=True))
     _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
     step = _step(run, work.mode)  # the mode's step, affine or smooth (``mode_time_steps``)
     pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)

@@ -30,6 +30,7 @@ Every step over-approximates; none under-approximates.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
@@ -131,6 +132,7 @@ def union_hull(first: Zonotope, second: Zonotope) -> Zonotope:
     return Zonotope.of_arrays(mean_c, np.hstack([mean_g, half_c.reshape(-1, 1), half_g, box_generators(rounding)]))
 
 
+@dataclass(frozen=True, kw_only=True, slots=True)
 class ResetImage:
     """A reset's image of a zonotope jump set: ``start = center + generators ξ ⊕ [−box, box]`` (module, part 3).
 
@@ -145,10 +147,10 @@ class ResetImage:
         Bounds every rounding and the reset's conversion to floats.
     """
 
-    __slots__ = ("before", "center", "generators", "box")
-
-    def __init__(self, before: Zonotope, center: np.ndarray, generators: np.ndarray, box: np.ndarray) -> None:
-        self.before, self.center, self.generators, self.box = before, center, generators, box
+    before: Zonotope
+    center: np.ndarray
+    generators: np.ndarray
+    box: np.ndarray
 
     def start(self) -> Zonotope:
         """The start set of the target's flowpipe."""
@@ -170,7 +172,8 @@ def reset_image(before: Zonotope, matrix: Sequence[Sequence[Fraction]], offset: 
             rr[i, j] = float(np.nextafter(float(abs(q - Fraction(rc[i, j]))), np.inf))
     aug = Zonotope.of_arrays(np.append(before.center, 1.0), np.vstack([before.generators, np.zeros((1, before.order))]))
     image, err = linear_map(aug, rc, rr)
-    return ResetImage(before, image.center[:n].copy(), image.generators[:n].copy(), err[:n].copy())
+    return ResetImage(before=before, center=image.center[:n].copy(), generators=image.generators[:n].copy(),
+                      box=err[:n].copy())
 
 
 def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:

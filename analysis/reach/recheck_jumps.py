@@ -22,6 +22,7 @@ absolute sums, rounded up) — each a superset.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
@@ -84,11 +85,12 @@ def _width(gens: Sequence[Sequence[Fraction]]) -> Fraction:
     return sum((abs(v) for g in gens for v in g), Fraction(0))
 
 
+@dataclass(frozen=True, kw_only=True, slots=True)
 class _Row:
-    __slots__ = ("normal", "offset")
+    """``normal·x <= offset`` (exact)."""
 
-    def __init__(self, normal: tuple[Fraction, ...], offset: Fraction) -> None:
-        self.normal, self.offset = normal, offset
+    normal: tuple[Fraction, ...]
+    offset: Fraction
 
 
 def box_rows(box: Sequence[tuple[Fraction, Fraction]]) -> list[Any]:
@@ -97,7 +99,7 @@ def box_rows(box: Sequence[tuple[Fraction, Fraction]]) -> list[Any]:
     out = []
     for i, (lo, hi) in enumerate(box):
         e = tuple(Fraction(int(k == i)) for k in range(n))
-        out += [_Row(e, hi), _Row(tuple(-v for v in e), -lo)]
+        out += [_Row(normal=e, offset=hi), _Row(normal=tuple(-v for v in e), offset=-lo)]
     return out
 
 
