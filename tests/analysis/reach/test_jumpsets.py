@@ -147,3 +147,35 @@ def test_strip_union_and_reset_hold_sampled_points(seed):
         assert zonotope_contains(both, other.center + other.generators @ xi, tol=1e-9)
     assert cut.generators.shape[1] >= 5 and strip_meet(z, (to_float(Halfspace(
         normal=tuple(Fraction(v) for v in normal), offset=Fraction(bound - 1e3))),)) is None
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_the_recheck_own_jump_set_holds_sampled_post_jump_points(seed):
+    """analysis.reach.recheck_jumps (exact rationals): two pieces cut by a strip 0 <= t <= 0.05, their union and an
+    exact reset; the reset images of sampled points of the pieces inside the strip lie in its set."""
+    from fractions import Fraction
+
+    from analysis.reach.recheck_jumps import own_jump_set
+    from analysis.reach.recheck_sets import FZ
+
+    rng = np.random.default_rng(seed)
+    pieces = [FZ(center=np.append(rng.normal(size=2), 0.02 * k), gens=np.vstack([rng.normal(size=(2, 4)),
+                                                                                   [0.03, 0.0, 0.01, 0.0]]),
+                 err=np.full(3, 1e-3)) for k in range(2)]
+    rows = [Halfspace(normal=(Fraction(0), Fraction(0), Fraction(1)), offset=Fraction(1, 20)),
+            Halfspace(normal=(Fraction(0), Fraction(0), Fraction(-1)), offset=Fraction(0))]
+    matrix = [[Fraction(int(i == j)) if i < 2 else Fraction(0) for j in range(3)] for i in range(3)]
+    matrix[0][1] = Fraction(1, 3)  # a shear, and t := 0
+    offset = [Fraction(1, 7), Fraction(0), Fraction(0)]
+    got = own_jump_set(pieces, rows, matrix, offset)
+    z = Zonotope(center=got.center, generators=np.hstack([got.gens, np.diag(got.err)]))
+    rm = np.array([[float(v) for v in row] for row in matrix])
+    om = np.array([float(v) for v in offset])
+    hits = 0
+    for piece in pieces:
+        for xi, e in zip(rng.uniform(-1, 1, size=(400, 4)), rng.uniform(-1, 1, size=(400, 3))):
+            x = piece.center + piece.gens @ xi + piece.err * e
+            if 0.0 <= x[2] <= 0.05:
+                hits += 1
+                assert zonotope_contains(z, rm @ x + om, tol=1e-9)
+    assert hits > 50
