@@ -46,9 +46,11 @@ from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_orde
 __all__ = ["ReachError", "ModeInput", "reach"]
 
 
-ZONOTOPE_WIDER = 4.0
-"""A zonotope jump set is used unless its image's box hull is wider in total than this many times the box route's
-(the box route is then kept: a zonotope that loose would lose more than its correlations give)."""
+ZONOTOPE_WIDER = 0.01
+"""A zonotope jump set is used unless its image's box hull is wider than the box route's image in some coordinate by
+more than this fraction of that coordinate's width (plus 10⁻¹²): the box route is then kept (a zonotope looser than
+the box somewhere — an oblique guard, a reset that mixes coordinates — can lose more than its correlations give:
+the gearbox GRBX01-MES01)."""
 
 MAX_STORED_NUMBERS = 25_000_000
 """The stored segments hold at most this many floats (200 MB): memory stays bounded whatever the options."""
@@ -355,7 +357,7 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
           t_hi: float, zono: Zonotope | None = None) -> _Work:
     """The jump of a cluster: the box route (the guard part's box hull mapped by the reset), or with ``zono`` (the
     cluster's zonotope jump set, :mod:`analysis.reach.jumpsets`) its reset image, kept when it is finite and its
-    hull no wider in total than :data:`ZONOTOPE_WIDER` times the box route's; the saved ``after`` box holds both."""
+    hull is nowhere wider than the box route's (:data:`ZONOTOPE_WIDER`); the saved ``after`` box holds both."""
     n = len(run.model.state_names)
     rc = np.array([[float(q) for q in row] + [float(off)] for row, off in zip(t.r_matrix, t.r_offset)]
                   + [[0.0] * n + [1.0]])
@@ -373,7 +375,8 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
     if zono is not None:
         kept = reset_image(zono, t.r_matrix, t.r_offset)
         zlo, zhi = kept.hull()
-        wide = float(np.sum(zhi - zlo)) > ZONOTOPE_WIDER * float(np.sum(after_hi - after_lo))
+        box_width = after_hi - after_lo
+        wide = bool(np.any(zhi - zlo > box_width * (1.0 + ZONOTOPE_WIDER) + 1e-12))
         if wide or not (np.all(np.isfinite(zlo)) and np.all(np.isfinite(zhi))):
             kept = None
         else:

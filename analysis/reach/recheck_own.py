@@ -68,6 +68,9 @@ KEPT_INPUTS = 20
 INPUT_SPLIT = 4
 """A mode with inputs is re-checked with a quarter of the schedule's step: each piece carries the current step's
 input response ``[−w, w]`` whole (``w ≈ δ |B| r``), which a shorter step makes smaller."""
+OWN_WIDER = 1.0
+"""The re-check's own zonotope jump set is used unless its hull is wider than the box route's image in some
+coordinate by more than this fraction of that coordinate's width (plus 10⁻¹²); then the box route."""
 INPUT_SPLITS = (INPUT_SPLIT, 1)
 """The splits tried one after the other with inputs, until one re-check passes (each a complete re-check on own
 sets): a quarter step first, then the schedule's step (fewer reductions of the carried inputs, which matters for
@@ -393,11 +396,14 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
         raise OwnFailure(f"jumps: {where} may take {t.name!r} at t in [{float(t_lo):.6g}, {float(t_hi):.6g}] s, "
                          f"beyond the jump bound {run.max_jumps}: not every behaviour is covered")
     run.jumps += 1
-    image = None
-    if pieces and rows:  # the own zonotope jump set (analysis.reach.recheck_jumps); the box below holds it too
-        image = own_jump_set(pieces, rows, t.r_matrix, t.r_offset, box)
-    if image is None:
-        image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
+    image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
+    if pieces and rows:  # the own zonotope jump set (analysis.reach.recheck_jumps), unless wider than the box's image
+        zono = own_jump_set(pieces, rows, t.r_matrix, t.r_offset, box)
+        if zono is not None:
+            zlo, zhi = zono.hull()
+            blo, bhi = image.hull()
+            if np.all(zhi - zlo <= (bhi - blo) * (1.0 + OWN_WIDER) + 1e-12):
+                image = zono
     exact = [(sum((min(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off,
               sum((max(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off)
              for row, off in zip(t.r_matrix, t.r_offset)]  # the exact image box (the zonotope's hull is rounded)
