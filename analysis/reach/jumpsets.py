@@ -195,6 +195,7 @@ def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
 
 
 def fold(kept: Zonotope | None, part: Zonotope, order: int) -> Zonotope:
-    """``kept ∪ part`` as one zonotope reduced to ``order`` (Girard's reduction, sound); ``part`` when ``kept`` is
-    ``None``."""
-    return part if kept is None else reduce_order(union_hull(kept, part), order)
+    """``kept ∪ part`` as one zonotope reduced to ``order`` (Girard's reduction, sound); ``part`` reduced when ``kept``
+    is ``None`` (always reduced: a flowpipe's start set is never reduced again, so the generators of a chain of jumps
+    would otherwise double at each jump)."""
+    return reduce_order(part if kept is None else union_hull(kept, part), order)
