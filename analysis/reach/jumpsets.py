@@ -39,10 +39,15 @@ import numpy as np
 from .zonotope import (UNIT_ROUNDOFF, Zonotope, box_generators, interval_hull, linear_map, reduce_order,
                        support_bounds, upper, with_error)
 
-__all__ = ["JUMP_ZONOTOPES", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "meet_box"]
+__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "meet_box"]
 
 JUMP_ZONOTOPES = 8
 """A jump set of at most this many segments is kept as a zonotope (their union); more: the box hull."""
+JUMP_ORDER = 80
+"""Generators per state kept in the guard part of a single segment (Girard's reduction beyond; a union of several is
+reduced to the run's ``order``, which measured tighter after the box meet on the platoon): the target's flowpipe
+never reduces its start set again, so the cap bounds a chain of jumps (unbounded, the thermostat over its rates
+doubled its generators at each of its jumps until it ran out of memory)."""
 
 
 def strip_meet(z: Zonotope, halfspaces: Sequence[Any]) -> Zonotope | None:
@@ -195,7 +200,8 @@ def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
 
 
 def fold(kept: Zonotope | None, part: Zonotope, order: int) -> Zonotope:
-    """``kept ∪ part`` as one zonotope reduced to ``order`` (Girard's reduction, sound); ``part`` reduced when ``kept``
-    is ``None`` (always reduced: a flowpipe's start set is never reduced again, so the generators of a chain of jumps
-    would otherwise double at each jump)."""
-    return reduce_order(part if kept is None else union_hull(kept, part), order)
+    """``kept ∪ part`` as one zonotope reduced to ``order`` (Girard's reduction, sound); ``part`` reduced to
+    :data:`JUMP_ORDER` when ``kept`` is ``None``."""
+    if kept is None:
+        return reduce_order(part, max(order, JUMP_ORDER))
+    return reduce_order(union_hull(kept, part), order)
