@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from .sets import FloatHalfspace
 from .zonotope import (UNIT_ROUNDOFF, Zonotope, box_generators, interval_hull, linear_map, reduce_order,
                        support_bounds, upper, with_error)
 
@@ -184,8 +185,6 @@ def reset_image(before: Zonotope, matrix: Sequence[Sequence[Fraction]], offset: 
 def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
     """A zonotope holding ``z ∩ [lo, hi]``: :func:`strip_meet` with the rows ``±x_i <= ±bound`` of the coordinates
     where the hull of ``z`` exceeds the box (``None``: proven empty)."""
-    from .sets import FloatHalfspace
-
     zlo, zhi = interval_hull(z)
     n = z.dimension
     rows = []
