@@ -8,7 +8,9 @@ the image of a jump) at a time interval.  Along it (:func:`analysis.reach.flowpi
   a segment proven outside the invariant ends the flowpipe (``"left_invariant"``);
 * every outgoing transition whose guard the segment may meet collects the segment's box clipped
   to the guard; at the end the collected box (the hull over the flowpipe) is mapped by the jump
-  map and starts a flowpipe in the target mode, unless the jump bound is reached;
+  map and starts a flowpipe in the target mode, unless the jump bound is reached — or, when at most
+  :data:`~analysis.reach.jumpsets.JUMP_ZONOTOPES` segments met the guard, their guard parts kept as one
+  zonotope (:mod:`analysis.reach.jumpsets`: the correlations of the states survive the jump);
 * the flowpipe stops at the time horizon, or inconclusively when it blows up (a radius above
   ``size_limit``, a NaN or inf) or exceeds ``max_segments``.
 
@@ -32,6 +34,7 @@ import numpy as np
 
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
+from .jumpsets import JUMP_ZONOTOPES, fold, meet_box, reset_image, strip_meet
 from .model import AffineHybridModel, AffineTransition, affine_model
 from .nonlinear import ADAPTIVE_LEVELS, ADAPTIVE_RATIO, adaptive_segments, smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
@@ -42,6 +45,12 @@ from .zonotope import Zonotope, from_box, interval_hull, linear_map, reduce_orde
 
 __all__ = ["ReachError", "ModeInput", "reach"]
 
+
+ZONOTOPE_WIDER = 0.01
+"""A zonotope jump set is used unless its image's box hull is wider than the box route's image in some coordinate by
+more than this fraction of that coordinate's width (plus 10⁻¹²): the box route is then kept (a zonotope looser than
+the box somewhere — an oblique guard, a reset that mixes coordinates — can lose more than its correlations give:
+the gearbox GRBX01-MES01)."""
 
 MAX_STORED_NUMBERS = 25_000_000
 """The stored segments hold at most this many floats (200 MB): memory stays bounded whatever the options."""
@@ -70,6 +79,8 @@ class _Work:
     t_lo: float
     t_hi: float
     jumps: int
+    box: tuple[np.ndarray, np.ndarray] | None = None  # a box holding the start set too (a zonotope jump set's)
+    saved: tuple[np.ndarray, np.ndarray] | None = None  # the entry segment's saved box (the jump's ``after``)
 
 
 @dataclass(slots=True)
@@ -361,11 +372,14 @@ def _explore(run: _Run, first: _Work, max_flowpipes: int, progress: Callable[[fl
             continue
         for t in run.model.outgoing(work.mode):
             for cluster in collected.get(t.name, ()):
-                queue.append(_jump(run, work, t, *cluster[:4]))
+                queue.append(_jump(run, work, t, *cluster[:4], zono=cluster[6] if cluster[7] else None))
 
 
 def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.ndarray, t_lo: float,
-          t_hi: float) -> _Work:
+          t_hi: float, zono: Zonotope | None = None) -> _Work:
+    """The jump of a cluster: the box route (the guard part's box hull mapped by the reset), or with ``zono`` (the
+    cluster's zonotope jump set, :mod:`analysis.reach.jumpsets`) its reset image, kept when it is finite and its
+    hull is nowhere wider than the box route's (:data:`ZONOTOPE_WIDER`); the saved ``after`` box holds both."""
     n = len(run.model.state_names)
     rc = np.array([[float(q) for q in row] + [float(off)] for row, off in zip(t.r_matrix, t.r_offset)]
                   + [[0.0] * n + [1.0]])
@@ -377,10 +391,25 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
     image, err = linear_map(_augment(from_box(lo, hi), 1.0), rc, rr)
     start = with_error(image, err).project(n)
     after_lo, after_hi = interval_hull(start)
+    kept, box = None, None
+    if zono is not None:
+        zono = meet_box(zono, lo, hi)  # the guard part's box holds the guard part too: keep what both allow
+    if zono is not None:
+        kept = reset_image(zono, t.r_matrix, t.r_offset)
+        zlo, zhi = kept.hull()
+        box_width = after_hi - after_lo
+        wide = bool(np.any(zhi - zlo > box_width * (1.0 + ZONOTOPE_WIDER) + 1e-12))
+        if wide or not (np.all(np.isfinite(zlo)) and np.all(np.isfinite(zhi))):
+            kept = None
+        else:
+            start = kept.start()
+            box = (np.maximum(zlo, after_lo), np.minimum(zhi, after_hi))  # both hold the states after the jump
+            after_lo, after_hi = np.minimum(zlo, after_lo), np.maximum(zhi, after_hi)
     run.jumps.append(ReachJump(transition=t.name, source=t.source, target=t.target, jumps=work.jumps + 1,
                                t_lo=t_lo, t_hi=t_hi, before_lo=lo, before_hi=hi, after_lo=after_lo,
-                               after_hi=after_hi))
-    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1)
+                               after_hi=after_hi, zonotope=kept))
+    return _Work(mode=t.target, start=start, t_lo=t_lo, t_hi=t_hi, jumps=work.jumps + 1, box=box,
+                 saved=None if box is None else (after_lo, after_hi))
 
 
 def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
@@ -394,8 +423,12 @@ def _flow(run: _Run, work: _Work) -> dict[str, list[Any]]:
     flowed_guards = [(name, _rows(tuple(g + i for g, _ in polys for i, _ in invariant))) for name, polys in guards]
     collected: dict[str, list[Any]] = {}
     lo, hi = interval_hull(work.start)
+    saved = (lo, hi) if work.saved is None else work.saved  # a zonotope jump's entry box: its ``after`` (holds both)
+    if work.box is not None:  # the guard meets below use the tighter meet of both images' hulls
+        lo, hi = np.maximum(lo, work.box[0]), np.minimum(hi, work.box[1])
     run.segments.append(ReachSegment(mode=work.mode, t_lo=work.t_lo, t_hi=work.t_hi, jumps=work.jumps,
-                                     zonotope=reduce_order(work.start, run.stored_order), lo=lo, hi=hi, entry=True))
+                                     zonotope=reduce_order(work.start, run.stored_order), lo=saved[0], hi=saved[1],
+                                     entry=True))
     _collect(run, collected, guards, work.start, lo, hi, work.t_lo, work.t_hi, -1)
     step = _step(run, work.mode)  # the mode's step, affine or smooth (``mode_time_steps``)
     pending: list[Any] = []  # [lo, hi, t_lo, t_hi, count] of the flowed segments not stored yet (merging)
@@ -565,4 +598,20 @@ def _collect(run: _Run, collected: dict[str, list[list[Any]]], guards: Sequence[
             last[4] += 1
             last[5] = index
         else:
-            clusters.append([box[0], box[1], t_lo, t_hi, 1, index])
+            last = [box[0], box[1], t_lo, t_hi, 1, index, None, True]
+            clusters.append(last)
+        _collect_zonotope(run, last, z, polyhedra)
+
+
+def _collect_zonotope(run: _Run, cluster: list[Any], z: Zonotope, polyhedra: Sequence[tuple[Any, Any]]) -> None:
+    """Adds the segment's guard part, as a zonotope, to the cluster's zonotope jump set (``cluster[6]``); a cluster
+    of more than :data:`~analysis.reach.jumpsets.JUMP_ZONOTOPES` segments, or a guard ∩ invariant that is a union
+    of polyhedra, keeps the box route (``cluster[7] = False``)."""
+    if not cluster[7]:
+        return
+    if cluster[4] > JUMP_ZONOTOPES or len(polyhedra) != 1:
+        cluster[6], cluster[7] = None, False
+        return
+    part = strip_meet(z, polyhedra[0][0])
+    if part is not None:  # None: proven empty (nothing of this segment jumps)
+        cluster[6] = fold(cluster[6], part, run.order)

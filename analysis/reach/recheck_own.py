@@ -26,7 +26,13 @@ never a containment target.  Per flowpipe of the re-check (a mode, a start set `
 5. **Jumps.** Each piece's part in a guard ∩ the invariant (exact box clipping, narrowed by the zonotope's
    generator weights) joins the transition's cluster (all of the flowpipe, or runs of consecutive steps of at
    most ``jump_cluster`` schedule steps); each cluster's box hull is mapped exactly by the reset and starts a
-   flowpipe of the target over the cluster's times.  A chain longer than the jump bound fails.
+   flowpipe of the target over the cluster's times — or, for a cluster of at most
+   :data:`~analysis.reach.recheck_jumps.OWN_JUMP_PIECES` pieces and a one-polyhedron guard ∩ invariant, the
+   re-check's own zonotope jump set (:mod:`analysis.reach.recheck_jumps`, exact rationals; the exact image box still
+   serves the entry checks).  A chain longer than the jump bound fails.
+
+With inputs, the whole re-check runs with the step split of :data:`INPUT_SPLITS` one after the other until one
+passes (each complete on its own sets).
 
 Anything the re-check cannot decide fails it with the part and the place (:class:`OwnFailure`).
 """
@@ -46,10 +52,12 @@ from .deadlock import clip_exact, clock_offsets, contract_zonotope, entry_uncove
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
 from .recheck_inputs import InputSet, input_tube, tube_at
+from .recheck_jumps import OWN_JUMP_PIECES, own_jump_set
 from .recheck_modal import ModalTracker, modal_tracker
 from .recheck_sets import FZ, exact_image, tube
 
-__all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS", "INPUT_SPLIT"]
+__all__ = ["own_recheck", "OwnFailure", "OwnOutcome", "MAX_OWN_FLOWPIPES", "SIZE_LIMIT", "KEPT_INPUTS", "INPUT_SPLIT",
+           "INPUT_SPLITS"]
 
 MAX_OWN_FLOWPIPES = 4_000
 """Flowpipes the re-check follows before it fails (a run that keeps jumping is not re-checked)."""
@@ -60,6 +68,13 @@ KEPT_INPUTS = 20
 INPUT_SPLIT = 4
 """A mode with inputs is re-checked with a quarter of the schedule's step: each piece carries the current step's
 input response ``[−w, w]`` whole (``w ≈ δ |B| r``), which a shorter step makes smaller."""
+OWN_WIDER = 1.0
+"""The re-check's own zonotope jump set is used unless its hull is wider than the box route's image in some
+coordinate by more than this fraction of that coordinate's width (plus 10⁻¹²); then the box route."""
+INPUT_SPLITS = (INPUT_SPLIT, 1)
+"""The splits tried one after the other with inputs, until one re-check passes (each a complete re-check on own
+sets): a quarter step first, then the schedule's step (fewer reductions of the carried inputs, which matters for
+long horizons through jumps: PLAD01-BND30)."""
 Box = list[tuple[Fraction, Fraction]]
 
 
@@ -103,6 +118,7 @@ class _Run:
     pieces: int = 0
     jumps: int = 0
     atoms: dict[str, Any] = field(default_factory=dict)
+    split: int = INPUT_SPLIT
 
 
 def _fbox(lo: np.ndarray, hi: np.ndarray) -> Box:
@@ -297,7 +313,7 @@ def _enclosure(run: _Run, mode: str) -> tuple[ExpEnclosure, float, Any]:
     spec = run.inputs.get(mode)
     c = list(m.c) if spec is None else [x + y for x, y in zip(m.c, spec.shift())]
     a = [list(r) for r in m.a]
-    h = step if spec is None else step / INPUT_SPLIT
+    h = step if spec is None else step / run.split
     for _ in range(40):
         try:
             enc = ExpEnclosure(a, c, h)
@@ -345,8 +361,20 @@ def own_recheck(model: Any, initial: Box, initial_mode: str, fragment: SafetyFra
     OwnFailure
         With the part and the place.
     """
+    failures = []
+    for split in (INPUT_SPLITS if inputs else INPUT_SPLITS[:1]):
+        try:
+            return _own_run(model, initial, initial_mode, fragment, steps, cluster, max_jumps, inputs, split)
+        except OwnFailure as fail:
+            failures.append(f"{fail}" if len(failures) == 0 else f"with the input step split {split}: {fail}")
+    raise OwnFailure("; ".join(failures))
+
+
+def _own_run(model: Any, initial: Box, initial_mode: str, fragment: SafetyFragment, steps: Mapping[str, float],
+             cluster: int | None, max_jumps: int, inputs: Mapping[str, InputSet], split: int) -> OwnOutcome:
+    """One complete re-check with the inputs' step split ``split`` (:data:`INPUT_SPLITS`)."""
     run = _Run(model=model, fragment=fragment, steps=dict(steps), cluster=cluster, max_jumps=max_jumps,
-               inputs=inputs, end=Fraction(fragment.end))
+               inputs=inputs, end=Fraction(fragment.end), split=split)
     lo, hi = _round_box(initial)
     queue = deque([_Work(mode=initial_mode, start=FZ.of_box(lo, hi), t_lo=Fraction(0), t_hi=Fraction(0), depth=0,
                          box=initial)])
@@ -361,7 +389,7 @@ def own_recheck(model: Any, initial: Box, initial_mode: str, fragment: SafetyFra
 
 
 def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: int, where: str,
-          rows: Sequence[Any] = ()) -> _Work | None:
+          rows: Sequence[Any] = (), pieces: Sequence[FZ] | None = None) -> _Work | None:
     if t_lo > run.end:
         return None  # after the window: nothing to decide there
     if depth + 1 > run.max_jumps:
@@ -369,6 +397,13 @@ def _jump(run: _Run, t: Any, box: Box, t_lo: Fraction, t_hi: Fraction, depth: in
                          f"beyond the jump bound {run.max_jumps}: not every behaviour is covered")
     run.jumps += 1
     image = exact_image(t.r_matrix, t.r_offset, [a for a, _ in box], [b for _, b in box])
+    if pieces and rows:  # the own zonotope jump set (analysis.reach.recheck_jumps), unless wider than the box's image
+        zono = own_jump_set(pieces, rows, t.r_matrix, t.r_offset, box)
+        if zono is not None:
+            zlo, zhi = zono.hull()
+            blo, bhi = image.hull()
+            if np.all(zhi - zlo <= (bhi - blo) * (1.0 + OWN_WIDER) + 1e-12):
+                image = zono
     exact = [(sum((min(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off,
               sum((max(a * l, a * h) for a, (l, h) in zip(row, box) if a), Fraction(0)) + off)
              for row, off in zip(t.r_matrix, t.r_offset)]  # the exact image box (the zonotope's hull is rounded)
@@ -458,13 +493,13 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
                     got = _part([*guard.halfspaces, *inv.halfspaces], clo, chi, piece)
                     if got is not None:
                         part = got if part is None else [(min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(part, got)]
-            _cluster(run, clusters, t, part, k, t_lo, t_hi, limit, work.depth, where, out)
+            _cluster(run, clusters, t, part, k, t_lo, t_hi, limit, work.depth, where, out, piece)
         h = h1
         if terms is not None:
             s_gens, s_box, p = _carry(s_gens, s_box, p, enc)
         k += 1
     for t in model.outgoing(mode):
-        _cluster(run, clusters, t, None, -1, Fraction(0), Fraction(0), 0, work.depth, where, out, flush=True)
+        _cluster(run, clusters, t, None, -1, Fraction(0), Fraction(0), 0, work.depth, where, out, None, flush=True)
     return out
 
 
@@ -481,12 +516,15 @@ def _advance(h: FZ, enc: ExpEnclosure, tracker: ModalTracker | None, r: np.ndarr
 
 
 def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None, k: int, t_lo: Fraction,
-             t_hi: Fraction, limit: int | None, depth: int, where: str, out: list[_Work], flush: bool = False) -> None:
-    """Add a guard part to the transition's open cluster; emit the cluster when it is full, broken or flushed."""
+             t_hi: Fraction, limit: int | None, depth: int, where: str, out: list[_Work], piece: FZ | None = None,
+             flush: bool = False) -> None:
+    """Add a guard part to the transition's open cluster; emit the cluster when it is full, broken or flushed.
+    The cluster keeps its pieces (up to :data:`~analysis.reach.recheck_jumps.OWN_JUMP_PIECES`) for its own zonotope
+    jump set."""
     open_ = clusters.get(t.name)
     if open_ is not None and (flush or (limit is not None and (part is None or k - open_[3] >= limit))):
         new = _jump(run, t, open_[0], open_[1], open_[2], depth, f"{where} steps {open_[3]}..{open_[4]}",
-                    _flowed_rows(run.model, t))
+                    _flowed_rows(run.model, t), open_[5])
         if new is not None:
             out.append(new)
         clusters.pop(t.name)
@@ -494,10 +532,12 @@ def _cluster(run: _Run, clusters: dict[str, list[Any]], t: Any, part: Box | None
     if part is None or flush:
         return
     if open_ is None:
-        clusters[t.name] = [part, t_lo, t_hi, k, k]
+        open_ = clusters[t.name] = [part, t_lo, t_hi, k, k, []]
     else:
         open_[0] = [(min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(open_[0], part)]
         open_[2], open_[4] = max(open_[2], t_hi), k
+    if open_[5] is not None:
+        open_[5] = open_[5] + [piece] if piece is not None and len(open_[5]) < OWN_JUMP_PIECES else None
 
 
 def _flowed_rows(model: Any, t: Any) -> tuple[Any, ...]:

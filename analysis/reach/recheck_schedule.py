@@ -8,7 +8,9 @@
   about this box);
 * every termination is conclusive and not the jump bound (``"horizon"`` or ``"left_invariant"``);
 * every saved jump is a transition of the model (name, source, target) whose ``after`` box holds the exact reset
-  image of its ``before`` box (a flowpipe saved for another reset is refused);
+  image of its ``before`` box (a flowpipe saved for another reset is refused); a saved zonotope jump set
+  (:mod:`analysis.reach.jumpsets`) likewise: its ``after`` zonotope holds the exact reset image of its ``before``
+  zonotope (:func:`_check_zonotope`, exact rationals);
 * the saved inputs (``B``, ``U``) cover the model's (:func:`analysis.reach.recheck_inputs.checked_inputs`, done
   by the caller).
 
@@ -74,6 +76,45 @@ def _check_saved(data: Mapping[str, Any], model: Any, initial: Box, initial_mode
             if bottom < lo or top > hi:
                 raise OwnFailure(f"jumps: jump {j} ({t.name}): the reset image of the box before is not inside the "
                                  "box after (a flowpipe of another reset)")
+        if "zonotope" in jump:
+            _check_zonotope(jump["zonotope"], t, j)
+
+
+def _exact(values: Any, what: str) -> list[Fraction]:
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+        raise OwnFailure(f"{what}: the saved numbers are malformed (finite numbers expected)")
+    return [Fraction(v) for v in values]
+
+
+def _check_zonotope(saved: Mapping[str, Any], t: Any, j: int) -> None:
+    """A saved zonotope jump set must be well formed: its ``after`` holds the exact reset image of its ``before``.
+
+    ``before = c + G ξ`` and ``after = c₂ + G₂ ξ ⊕ [−d, d]`` (the columns of ``G₂`` matched one for one with
+    ``G``); with the exact image ``c₁ = R c + r``, ``G₁ = R G`` (rationals), ``|c₁ − c₂| + Σ_j |G₁_j − G₂_j| <= d``
+    (componentwise) implies ``R·before + r ⊆ after``: each ``c₁ + G₁ ξ = c₂ + G₂ ξ + ((c₁ − c₂) + (G₁ − G₂) ξ)``
+    and the bracket is within ``d`` for ``|ξ| <= 1``.  Decided in exact rationals (docs/reachability.md)."""
+    what = f"jumps: jump {j} ({t.name}): the saved zonotope jump set"
+    before, after = saved["before"], saved["after"]
+    c = _exact(before["center"], what)
+    gens = [_exact(row, what) for row in before["generators"]]
+    c2 = _exact(after["center"], what)
+    gens2 = [_exact(row, what) for row in after["generators"]]
+    d = _exact(after["box"], what)
+    n = len(t.r_matrix)
+    m = len(gens[0]) if gens else 0
+    if not (len(c) == len(gens) == len(c2) == len(gens2) == len(d) == n) or any(len(r) != m for r in gens + gens2) \
+            or any(v < 0 for v in d):
+        raise OwnFailure(f"{what} is malformed (shapes: n = {n} rows, the same columns before and after, box >= 0)")
+    for i, (row, off) in enumerate(zip(t.r_matrix, t.r_offset)):
+        terms = [(k, a) for k, a in enumerate(row) if a]
+        total = abs(sum((a * c[k] for k, a in terms), Fraction(0)) + off - c2[i])
+        for col in range(m):
+            total += abs(sum((a * gens[k][col] for k, a in terms), Fraction(0)) - gens2[i][col])
+            if total > d[i]:
+                break
+        if total > d[i]:
+            raise OwnFailure(f"{what}: the reset image of its 'before' zonotope is not inside its 'after' zonotope "
+                             f"(coordinate {i}: |c1 - c2| + sum |G1 - G2| = {float(total):.6g} > box {float(d[i]):.6g})")
 
 
 def schedule_recheck(data: Mapping[str, Any], model: Any, initial: Box, initial_mode: str, fragment: Any,

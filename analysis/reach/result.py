@@ -58,7 +58,13 @@ class ReachSegment:
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ReachJump:
-    """A transition that may fire: from the box ``before`` (states in its guard) at times ``[t_lo, t_hi]``."""
+    """A transition that may fire: from the box ``before`` (states in its guard) at times ``[t_lo, t_hi]``.
+
+    ``zonotope``: a jump set kept as a zonotope (:mod:`analysis.reach.jumpsets`), ``None`` for a box jump set.
+    Then ``before`` still holds the guard part, the target's flowpipe starts from ``zonotope.start()`` (which
+    ``after`` holds), and the JSON carries ``zonotope`` as ``{"before": {"center", "generators"}, "after":
+    {"center", "generators", "box"}}`` (the columns of ``after`` are the images of those of ``before``).
+    """
 
     transition: str
     source: str
@@ -70,12 +76,19 @@ class ReachJump:
     before_hi: np.ndarray
     after_lo: np.ndarray
     after_hi: np.ndarray
+    zonotope: Any = None
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view."""
-        return {"transition": self.transition, "source": self.source, "target": self.target, "jumps": self.jumps,
-                "t": [self.t_lo, self.t_hi], "before": [self.before_lo.tolist(), self.before_hi.tolist()],
-                "after": [self.after_lo.tolist(), self.after_hi.tolist()]}
+        """JSON-ready view (``"zonotope"`` only for a zonotope jump set: the JSON of box jumps is unchanged)."""
+        out = {"transition": self.transition, "source": self.source, "target": self.target, "jumps": self.jumps,
+               "t": [self.t_lo, self.t_hi], "before": [self.before_lo.tolist(), self.before_hi.tolist()],
+               "after": [self.after_lo.tolist(), self.after_hi.tolist()]}
+        z = self.zonotope
+        if z is not None:
+            out["zonotope"] = {"before": {"center": z.before.center.tolist(), "generators": z.before.generators.tolist()},
+                               "after": {"center": z.center.tolist(), "generators": z.generators.tolist(),
+                                         "box": z.box.tolist()}}
+        return out
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

@@ -223,10 +223,11 @@ def test_the_recheck_imports_no_set_code_of_the_engine():
     # recheck_inputs: the re-check's own bound of bounded inputs; recheck_schedule, recheck_own, recheck_sets,
     # recheck_interval: the own-set re-check of affine flowpipes; recheck_modal: its own modal error bound;
     # deadlock: the exact face check (boxes); interval_tape: the re-check's own vectorised interval evaluation
-    # (analysis.interval's arithmetic, no code of the producer)
+    # (analysis.interval's arithmetic, no code of the producer); recheck_jumps: the own zonotope jump sets (exact
+    # rationals, not analysis.reach.jumpsets)
     assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth",
                     "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "recheck_modal",
-                    "deadlock", "interval_tape"}, seen
+                    "deadlock", "interval_tape", "recheck_jumps"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
