@@ -17,7 +17,8 @@ Without a step (``time_step=None``) the steps are chosen from the dynamics as fo
 :data:`analysis.reach.autostep.AUTO_INPUT_STEPS`, 3.9, 0.4 and 0.1, then with ``jump_cluster``), one choice after
 the other until one is proven and re-checked; with a step, only the fast modes get one (``κ = 3.9``).  The input's
 centre ``B u_c`` joins the constant column, scaled to at most 1 (so the ``+ 1`` of the bound covers it); the input's
-spread is over-approximated by up to ``e^κ`` per step (``AUTO_INPUT_STEPS``), hence the finer last choice.
+spread is enclosed through sub-steps (:mod:`analysis.reach.input_step`), no longer up to ``e^κ`` times its reach set
+per step; the finer choices of ``AUTO_INPUT_STEPS`` are kept.
 """
 
 from __future__ import annotations
