@@ -348,6 +348,7 @@ def _augment(z: Zonotope, scale: float) -> Zonotope:
 
 def _explore(run: _Run, first: _Work, max_flowpipes: int, progress: Callable[[float], None] | None = None) -> None:
     queue = deque([first])
+    affine_only = all(m.smooth is None for m in run.model.modes.values())
     count = 0
     reached = 0.0
     while queue:
@@ -372,7 +373,10 @@ def _explore(run: _Run, first: _Work, max_flowpipes: int, progress: Callable[[fl
             continue
         for t in run.model.outgoing(work.mode):
             for cluster in collected.get(t.name, ()):
-                queue.append(_jump(run, work, t, *cluster[:4], zono=cluster[6] if cluster[7] else None))
+                # zonotope jump sets in affine automata only: a smooth mode's re-check contains its own tube (from
+                # the reset image of the saved box before the jump) in the saved boxes, so its producer keeps boxes
+                zono = cluster[6] if cluster[7] and affine_only else None
+                queue.append(_jump(run, work, t, *cluster[:4], zono=zono))
 
 
 def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.ndarray, t_lo: float,
