@@ -15,7 +15,6 @@ import numpy as np
 
 from analysis.reach.errorbound import error_tracker
 from analysis.reach.flowpipe import mode_dynamics
-from analysis.reach.zonotope import Zonotope, from_box
 
 PHI = [[Fraction(3, 5), Fraction(-4, 5), Fraction(0), Fraction(0)],
        [Fraction(4, 5), Fraction(3, 5), Fraction(0), Fraction(0)],

@@ -87,19 +87,9 @@ def _check_inside(result, times: np.ndarray, modes: np.ndarray, points: np.ndarr
                                f"t = {times[missing[0]]!r}, x = {points[missing[0]]!r}")
 
 
-def _samples(rhs, lo, hi, horizon, count, seed, every=0.01):
-    rng = np.random.default_rng(seed)
-    corners = np.array(list(itertools.product(*zip(lo, hi))), dtype=float)
-    starts = np.vstack([corners, rng.uniform(lo, hi, size=(count, len(lo)))])
-    t_eval = np.arange(0.0, horizon + 1e-12, every)
-    times, points = [], []
-    for x0 in starts:
-        sol = solve_ivp(rhs, (0.0, horizon), x0, method="DOP853", t_eval=t_eval, rtol=1e-10, atol=1e-12)
-        assert sol.success
-        times.append(sol.t)
-        points.append(sol.y.T)
-    times = np.concatenate(times)
-    return times, np.array(["m"] * times.size), np.vstack(points)
+def _samples(fine_runs, rhs, lo, hi, horizon, count, seed, every=0.01):
+    times, points = fine_runs(rhs, lo, hi, horizon, count, seed, every)
+    return times, np.array(["m"] * times.size), points
 
 
 def _boundary_max(rhs, lo, hi, horizon, coordinate, per_side=60):
@@ -116,20 +106,20 @@ def _boundary_max(rhs, lo, hi, horizon, coordinate, per_side=60):
 
 
 # ---------------------------------------------------------------------------------------------- soundness
-def test_van_der_pol_flowpipe_holds_fine_simulations():
+def test_van_der_pol_flowpipe_holds_fine_simulations(fine_runs):
     """μ = 1 from the VDP01 box (whole, not split) over 7 s: every sampled state lies in the flowpipe."""
     lo, hi = (1.25, 2.35), (1.55, 2.45)
     result = reach(vdp(), {"x": (lo[0], hi[0]), "y": (lo[1], hi[1])}, horizon=7.0, time_step=0.005)
     assert result.status == "complete", result.terminations
-    _check_inside(result, *_samples(_vdp_rhs(1.0), lo, hi, 7.0, 60, seed=11))
+    _check_inside(result, *_samples(fine_runs, _vdp_rhs(1.0), lo, hi, 7.0, 60, seed=11))
 
 
-def test_lotka_volterra_flowpipe_holds_fine_simulations():
+def test_lotka_volterra_flowpipe_holds_fine_simulations(fine_runs):
     """LOVO's parameters and initial box x ∈ [1.3, 1.32], y ∈ [0.99, 1.01] over 3.64 s."""
     lo, hi = (1.3, 0.99), (1.32, 1.01)
     result = reach(lotka_volterra(), {"x": (lo[0], hi[0]), "y": (lo[1], hi[1])}, horizon=3.64, time_step=0.005)
     assert result.status == "complete", result.terminations
-    _check_inside(result, *_samples(_lv_rhs, lo, hi, 3.64, 60, seed=12))
+    _check_inside(result, *_samples(fine_runs, _lv_rhs, lo, hi, 3.64, 60, seed=12))
 
 
 def test_a_hybrid_nonlinear_system_holds_executor_runs():

@@ -8,7 +8,6 @@ never proven.
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import sys
@@ -74,19 +73,8 @@ def _inside(segment, points: np.ndarray) -> np.ndarray:
     return ok & np.all(np.abs((points - segment.zonotope.center) @ normals.T) <= spread, axis=1)
 
 
-def _fine_runs(rhs, box, horizon, count, seed, every=0.005):
-    lo = [box[k][0] for k in NAMES]
-    hi = [box[k][1] for k in NAMES]
-    rng = np.random.default_rng(seed)
-    starts = np.vstack([np.array(list(itertools.product(*zip(lo, hi)))), rng.uniform(lo, hi, size=(count, 2))])
-    t_eval = np.arange(0.0, horizon + 1e-12, every)
-    times, points = [], []
-    for x0 in starts:
-        sol = solve_ivp(rhs, (0.0, horizon), x0, method="DOP853", t_eval=t_eval, rtol=1e-10, atol=1e-12)
-        assert sol.success
-        times.append(sol.t)
-        points.append(sol.y.T)
-    return np.concatenate(times), np.vstack(points)
+def _corners(box) -> tuple[list[float], list[float]]:
+    return [box[k][0] for k in NAMES], [box[k][1] for k in NAMES]
 
 
 def _assert_covered(result, times: np.ndarray, points: np.ndarray) -> None:
@@ -105,7 +93,7 @@ def _steps(result) -> list[float]:
 
 
 # ---------------------------------------------------------------------------------------------- soundness
-def test_adaptive_vdp_piece_holds_fine_runs_on_a_non_uniform_grid():
+def test_adaptive_vdp_piece_holds_fine_runs_on_a_non_uniform_grid(fine_runs):
     """The benchmark's options on the piece of the VDP box that decides the margin (the largest ``x``): the steps
     vary (powers of two times ``time_step``), the segments chain in time exactly, every sample is covered."""
     options = _bench_options()
@@ -122,16 +110,16 @@ def test_adaptive_vdp_piece_holds_fine_runs_on_a_non_uniform_grid():
         assert Fraction(seg.t_lo) <= local and Fraction(seg.t_hi) >= local + Fraction(step)
         local += Fraction(step)
     assert local > 7
-    _assert_covered(result, *_fine_runs(_vdp_rhs, piece, 7.0, 40, seed=27))
+    _assert_covered(result, *fine_runs(_vdp_rhs, *_corners(piece), 7.0, 40, 27, 0.005))
 
 
-def test_adaptive_lovo_holds_fine_runs():
+def test_adaptive_lovo_holds_fine_runs(fine_runs):
     """Lotka–Volterra (LOVO's parameters, a thin box) with the default ratio: every sample covered."""
     box = {"x": (1.3, 1.32), "y": (0.99, 1.01)}
     result = reach(_lovo(), box, horizon=3.64, time_step=0.005, adaptive_step=True)
     assert result.status == "complete", result.terminations
     assert len(set(_steps(result))) >= 2
-    _assert_covered(result, *_fine_runs(_lovo_rhs, box, 3.64, 40, seed=28))
+    _assert_covered(result, *fine_runs(_lovo_rhs, *_corners(box), 3.64, 40, 28, 0.005))
 
 
 # ---------------------------------------------------------------------------------------------- verdicts

@@ -10,7 +10,6 @@ from __future__ import annotations
 from fractions import Fraction
 
 import numpy as np
-import pytest
 from scipy.linalg import expm
 
 import analysis.reach.recheck_own as recheck_own

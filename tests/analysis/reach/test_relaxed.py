@@ -11,8 +11,6 @@ scaled by 0.8 leaves about 17 % of their samples outside (measured), while the r
 
 from __future__ import annotations
 
-import ast
-import pathlib
 
 import numpy as np
 import pytest
@@ -40,7 +38,6 @@ STEP = 0.01
 
 
 def _switched(invariant_a=None, reset=None, invariant_b=None) -> HybridSystem:
-    v = coordinates("x", "y")
     automaton = HybridAutomaton(
         name="switched", modes=(Mode(name="a", invariant=invariant_a), Mode(name="b", invariant=invariant_b)),
         transitions=(Transition(name="ab", source="a", target="b", guard=Const(1.0)),
@@ -227,16 +224,7 @@ def test_inputs_that_differ_give_no_group():
         switching_group(affine_model(_switched()), other)
 
 
-def test_the_relaxed_recheck_imports_no_set_code_of_the_producer():
-    root = pathlib.Path(__file__).resolve().parents[3] / "analysis" / "reach"
-    seen, todo = set(), ["recheck_relaxed"]
-    while todo:
-        name = todo.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        for node in ast.walk(ast.parse((root / f"{name}.py").read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
-                todo.append(node.module)
+def test_the_relaxed_recheck_imports_no_set_code_of_the_producer(reach_imports):
+    seen = reach_imports("recheck_relaxed")
     assert seen == {"recheck_relaxed", "fragment", "model", "affine", "smooth", "recheck_inputs",
                     "recheck_interval", "recheck_sets"}, seen

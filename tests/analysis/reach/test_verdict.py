@@ -9,10 +9,8 @@ common quadratic Lyapunov function ``|x|²`` (``A + Aᵀ ≺ 0`` in both modes, 
 
 from __future__ import annotations
 
-import ast
 import json
 import math
-import pathlib
 import time
 
 import numpy as np
@@ -206,19 +204,8 @@ def test_a_flowpipe_of_another_flow_is_decided_for_the_given_model():
     assert not check.passed and check.failure.startswith("requirement") and "mode 'on'" in check.failure
 
 
-def test_the_recheck_imports_no_set_code_of_the_engine():
-    root = pathlib.Path(__file__).resolve().parents[3] / "analysis" / "reach"
-    seen, todo = set(), ["recheck"]
-    while todo:
-        name = todo.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        for node in ast.walk(ast.parse((root / f"{name}.py").read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
-                todo.append(node.module)
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("analysis.reach."):
-                todo.append(node.module.split(".")[-1])
+def test_the_recheck_imports_no_set_code_of_the_engine(reach_imports):
+    seen = reach_imports("recheck")
     # smooth: the reading of nonlinear flows (no set code); recheck_smooth: the re-check's own nonlinear step;
     # recheck_inputs: the re-check's own bound of bounded inputs; recheck_schedule, recheck_own, recheck_sets,
     # recheck_interval: the own-set re-check of affine flowpipes; recheck_modal: its own modal error bound;
