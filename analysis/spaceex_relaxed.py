@@ -18,7 +18,7 @@ from typing import Any
 
 from analysis.verify.verification import Proof
 
-__all__ = ["relaxed_outcome", "NOT_USED"]
+__all__ = ["relaxed_outcome", "relaxed_flowpipe", "NOT_USED"]
 
 NOT_USED = "arbitrary-switching relaxation not used"
 """The evidence's note when a model has always-enabled switches that do not form a group (the reason follows)."""
@@ -28,6 +28,38 @@ def _has_free_guard(model: Any) -> bool:
     """Whether some transition's guard always holds (a candidate for the relaxation)."""
     return any(any(all(not any(h.normal) and h.offset >= 0 for h in p.halfspaces) for p in t.guard)
                for t in model.transitions)
+
+
+def relaxed_flowpipe(system: Any, matrices: Mapping[str, Any], initial: Mapping[str, tuple[float, float]],
+                     initial_mode: str, *, horizon: float, time_step: float) -> Any:
+    """The relaxed flowpipe from ``initial_mode`` when it belongs to an arbitrary-switching group, else ``None``.
+
+    Parameters
+    ----------
+    system : HybridSystem or AffineHybridModel
+        The input-free model (every input at 0).
+    matrices : mapping {mode: ModeInput}
+    initial : mapping {state: (lo, hi)}
+    initial_mode : str
+    horizon, time_step : float
+        [s], ``0 < time_step <= horizon``.
+
+    Returns
+    -------
+    analysis.reach.result.ReachResult or None
+        Its schedule names the group (``relaxed_group``): :func:`analysis.reach.recheck_relaxed.recheck_relaxed`
+        re-checks it, not the hybrid loop's re-check.
+    """
+    from analysis.reach.model import affine_model
+    from analysis.reach.relaxed import NoGroup, relaxed_reach, switching_group
+    from analysis.reach.verdict import MAX_SEGMENTS
+
+    model = affine_model(system)
+    try:
+        group = switching_group(model, matrices, initial_mode)
+    except NoGroup:
+        return None
+    return relaxed_reach(model, group, initial, horizon=horizon, time_step=time_step, max_segments=MAX_SEGMENTS)
 
 
 def relaxed_outcome(system: Any, matrices: Mapping[str, Any], initial: Mapping[str, tuple[float, float]],
@@ -57,16 +89,18 @@ def relaxed_outcome(system: Any, matrices: Mapping[str, Any], initial: Mapping[s
     """
     from analysis.reach.model import affine_model
     from analysis.reach.recheck_relaxed import recheck_relaxed
-    from analysis.reach.relaxed import NoGroup, relaxed_reach, switching_group
-    from analysis.reach.verdict import MAX_SEGMENTS, decide
+    from analysis.reach.relaxed import NoGroup, switching_group
+    from analysis.reach.verdict import decide
 
     model = affine_model(system)
-    try:
-        group = switching_group(model, matrices, initial_mode)
-    except NoGroup as exc:
-        return f"; {NOT_USED}: {exc}" if _has_free_guard(model) else ""
     end = max(fragment.end, 1e-9)
-    result = relaxed_reach(model, group, initial, horizon=end, time_step=time_step, max_segments=MAX_SEGMENTS)
+    result = relaxed_flowpipe(model, matrices, initial, initial_mode, horizon=end, time_step=time_step)
+    if result is None:
+        try:
+            switching_group(model, matrices, initial_mode)
+        except NoGroup as exc:  # always raised here: relaxed_flowpipe found no group
+            return f"; {NOT_USED}: {exc}" if _has_free_guard(model) else ""
+        return ""
     holds, margin, reason = decide(result, fragment, model, initial)
     check = None
     if holds:
@@ -79,7 +113,7 @@ def relaxed_outcome(system: Any, matrices: Mapping[str, Any], initial: Mapping[s
                  f"{check.margin}")
     else:
         again = f"re-check FAILED ({check.failure})"
-    modes = " and ".join(repr(m) for m in group.modes)
+    modes = " and ".join(repr(m) for m in dict(result.schedule)["relaxed_group"])
     evidence = (f"reachability with inputs {bounds} under arbitrary switching of {modes} (the relaxation "
                 f"ẋ ∈ conv{{A_i x + c_i}} + B U, any number of switches): {reason}"
                 + (f", margin {margin:.6g}" if math.isfinite(margin) else "")

@@ -263,9 +263,12 @@ def _flowpipes(setup: ReachSetup, starts: tuple[Start, ...], end: float, step: f
                            max_jumps=jumps, max_segments=MAX_SEGMENTS, progress=report, **options)
         else:
             from analysis.spaceex_reach import input_flowpipe
+            from analysis.spaceex_relaxed import relaxed_flowpipe
 
-            result = input_flowpipe(setup.model, matrices, initial, horizon=tau_end, time_step=tau_step,
-                                    initial_mode=mode, max_jumps=jumps, options=options, progress=report)
+            result = relaxed_flowpipe(setup.model, matrices, initial, mode, horizon=tau_end, time_step=tau_step)
+            if result is None:  # not an arbitrary-switching group: the hybrid loop
+                result = input_flowpipe(setup.model, matrices, initial, horizon=tau_end, time_step=tau_step,
+                                        initial_mode=mode, max_jumps=jumps, options=options, progress=report)
         out.append((mode, box, result))
     if progress is not None:
         progress(1.0)
@@ -300,8 +303,7 @@ def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...]
             return verdict("met" if met else "inconclusive", where + reason,
                            margin if math.isfinite(margin) else None)
         margins.append(margin)
-        checks.append(recheck_flowpipe(result.to_json(), setup.model if route is None else route.system, initial,
-                                       fragment, initial_mode=mode, inputs=None if route is None else route.matrices))
+        checks.append(_recheck(result, setup, route, initial, fragment, mode))
     margin = min(margins)
     failed = next((c for c in checks if not c.passed), None)
     if failed is not None:
@@ -309,4 +311,23 @@ def _requirement(parsed: Any, req: Any, setup: ReachSetup, runs: tuple[Any, ...]
     again = min(float(c.margin) for c in checks if c.margin is not None) if any(
         c.margin is not None for c in checks) else None
     inputs = "" if route is None else " with the inputs"
-    return verdict("proven", f"holds on every segment of {len(runs)} flowpipe(s), re-checked{inputs}", margin, again)
+    groups = sorted({" and ".join(map(repr, g)) for g in (dict(r.schedule).get("relaxed_group") for _, _, r in runs)
+                     if g})
+    relaxed = "".join(f" (the arbitrary-switching relaxation of {g}: ẋ ∈ conv{{A_i x + c_i}} + B U, any "
+                      f"switches; its own re-check)" for g in groups)
+    return verdict("proven", f"holds on every segment of {len(runs)} flowpipe(s){relaxed}, re-checked{inputs}",
+                   margin, again)
+
+
+def _recheck(result: ReachResult, setup: ReachSetup, route: Any, initial: Mapping[str, tuple[float, float]],
+             fragment: Any, mode: str) -> Any:
+    """The independent re-check of one start's flowpipe: the relaxation's own
+    (:func:`analysis.reach.recheck_relaxed.recheck_relaxed`) for a relaxed flowpipe, else
+    :func:`analysis.reach.recheck.recheck_flowpipe`; both read the saved JSON and the model again."""
+    if route is not None and dict(result.schedule).get("relaxed_group"):
+        from .recheck_relaxed import recheck_relaxed
+
+        return recheck_relaxed(result.to_json(), route.system, initial, fragment, initial_mode=mode,
+                               inputs=route.matrices)
+    return recheck_flowpipe(result.to_json(), setup.model if route is None else route.system, initial, fragment,
+                            initial_mode=mode, inputs=None if route is None else route.matrices)

@@ -123,3 +123,38 @@ def test_a_flow_with_an_input_times_a_state_is_bad_input(tmp_path, cli):
     xml, cfg = _model(tmp_path, "-x*u", 0.5, 1.0, "x >= 2", 1.0, initially="x==1")
     code, out, err = cli("reach", "--problem", xml, "--config", cfg)
     assert code == 2 and "affine" in err and "Traceback" not in err, err
+
+
+def _switching_xml(low: float, high: float) -> str:
+    """Two locations ``ẋ = −x + u`` and ``ẋ = −2x + u`` switching at any time (no guard, no reset)."""
+    inv = f"<invariant>{low!r} &lt;= u &amp; u &lt;= {high!r}</invariant>"
+    labels = "".join(f'<param name="{n}" type="label" local="false"/>\n' for n in ("go", "back"))
+    return (HEAD + '<component id="c">\n' + PARAMS + labels
+            + f'<location id="1" name="slow">{inv}<flow>x\' == -x + u</flow></location>\n'
+            + f'<location id="2" name="fast">{inv}<flow>x\' == -2*x + u</flow></location>\n'
+            + '<transition source="1" target="2"><label>go</label></transition>\n'
+            + '<transition source="2" target="1"><label>back</label></transition>\n</component>\n</sspaceex>\n')
+
+
+@pytest.mark.parametrize("bound, code, status", [(0.105, 0, "proven"), (0.099, 1, "met")])
+def test_arbitrary_switching_is_reached_as_its_relaxation(tmp_path, cli, bound, code, status):
+    # yardstick: for x >= 0, ẋ <= −x + 0.1 in either location, so every switched run has x(t) <= 0.1 (1 − e^{−t})
+    # (with equality staying in 'slow' under u = 0.1); by symmetry |x| <= LAG_MAX over 5 s.  The hybrid loop never
+    # ends (every guard holds at once); the relaxation ẋ ∈ conv{−x, −2x} + u holds every run
+    (tmp_path / "m.xml").write_text(_switching_xml(-0.1, 0.1))
+    (tmp_path / "m.cfg").write_text(f'system = "c"\ninitially = "x==0 & loc(c)==slow"\nforbidden = "x >= {bound}"\n'
+                                    "time-horizon = 5\n")
+    got, out, err = cli("reach", "--problem", str(tmp_path / "m.xml"), "--config", str(tmp_path / "m.cfg"), "--json")
+    assert got == code, out + err
+    data = json.loads(out)
+    (req,) = data["requirements"]
+    assert req["status"] == status, req
+    assert data["starts"][0]["flowpipe"]["schedule"]["relaxed_group"] == ["fast", "slow"] or \
+        data["starts"][0]["flowpipe"]["schedule"]["relaxed_group"] == ["slow", "fast"]
+    if status == "proven":
+        assert "arbitrary-switching relaxation of 'slow' and 'fast'" in req["reason"] or \
+            "arbitrary-switching relaxation of 'fast' and 'slow'" in req["reason"]
+        # both margins are lower bounds of the true slack, and the re-check's is not far below it (step 5 ms)
+        slack = bound - LAG_MAX
+        assert 0.0 < req["margin"] <= slack + 1e-12 and 0.0 < req["recheck_margin"] <= slack + 1e-12
+        assert req["margin"] > slack - 2e-3
