@@ -138,7 +138,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     if isinstance(input_points, bool) or not isinstance(input_points, int) or not 1 <= input_points <= 1000:
         raise SpaceExError("input_points", input_points, "a whole number in [1, 1000]",
                            f"give the number of values of each input's signal (default {INPUT_POINTS})")
-    model = load_spaceex(xml, name, constants=constants)
+    model = load_spaceex(xml, name, constants=constants, initially=cfg.initially)
     if cfg.horizon is None:
         raise SpaceExError(f"{config}: time-horizon", None, "a time horizon [s]", "write time-horizon = 10")
     box, modes = initial_box(model, cfg)
@@ -169,7 +169,7 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         system = InputSignals(system=model.system, input_flows=model.input_flows, inputs=model.inputs,
                               points=input_points, horizon=float(cfg.horizon))
     problem = hybrid_problem(
-        name=f"spaceex-{Path(xml).stem}-{model.system.automaton.name}",
+        name=f"spaceex-{Path(xml).stem}-{model.system.automaton.name}-{Path(config).stem}",  # a campaign per cfg
         system=system, initial=initial, horizon=cfg.horizon, requirements=requirements,
         parameters=parameters, initial_mode=mode, sample_period=period,
         description=f"SpaceEx model {xml} (component {model.system.automaton.name!r}) with {config}. "

@@ -180,6 +180,19 @@ def _names(tree: Any) -> set[str]:
 _FLIP = {"<=": ">=", "<": ">", ">=": "<=", ">": "<", "==": "=="}
 
 
+def _pinned(c: Any, constants: dict[str, float], where: str) -> None:
+    """Check that a constraint of the initial set on constants holds for their values (given or pinned)."""
+    b = _bound(c, set(constants), where)
+    if b is None:
+        raise SpaceExError(f"{where}: initially", c, "bounds on single constants (Tmax == 50)",
+                           "write the constant's value as name == number")
+    var, op, value = b
+    v = constants[var]
+    if not {"<=": v <= value, "<": v < value, ">=": v >= value, ">": v > value, "==": v == value}[op]:
+        raise SpaceExError(f"{where}: initially", f"{var} {op} {value!r}", f"a constraint that holds for {var} = {v!r} "
+                           "(the value given to the constant)", f"give {var} one value in the set and the constants")
+
+
 def _bound(c: Any, variables: set[str], where: str) -> tuple[str, str, float] | None:
     """``(var, op, value)`` for a comparison of one variable with a constant (``None`` for anything else)."""
     if c[0] != "cmp":
@@ -243,6 +256,9 @@ def initial_box(model: SpaceExModel, config: SpaceExConfig) -> tuple[dict[str, t
     for c in _conjuncts(config.initially):
         if c[0] == "loc":
             locs.append((c[1], c[2]))
+            continue
+        if _names(c) and _names(c) <= set(model.constants):  # the value it pins (hybrid.spaceex_import)
+            _pinned(c, model.constants, where)
             continue
         b = _bound(c, states, where)
         unknown = sorted(_names(c) - states - set(model.outputs))

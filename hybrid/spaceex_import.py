@@ -23,19 +23,22 @@ Mapping onto :mod:`hybrid` (docs/spaceex.md):
   suffixes when a label occurs on several transitions.  hybrid fires a
   transition as soon as its guard holds; SpaceEx may also fire it later, while
   the source invariant holds (noted whenever a guard is not implied by the end
-  of the invariant, see the docs).
+  of the invariant, see the docs);
+* a constant of the analysed component that no bind maps takes the value the
+  configuration's initial set pins it to (``Tmax == 50``), as SpaceEx reads it
+  (:attr:`SpaceExModel.constants`); a range (an uncertain constant) is refused.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from .errors import HybridError
 from .model import HybridAutomaton, Mode, Transition
-from .spaceex_flatten import FlatAutomaton, flatten
+from .spaceex_flatten import FlatAutomaton, constant_value, flatten
 from .spaceex_inputs import SpaceExInput, find_inputs, input_signal, is_input_bound, with_inputs
 from .spaceex_model import parse_components
 from .spaceex_syntax import MAX_FILE_BYTES, SpaceExError
@@ -69,6 +72,9 @@ class SpaceExModel:
         ``mode -> flow_map`` reading each input through its placeholder ``Param(input.symbol)`` (empty without
         inputs); :func:`hybrid.spaceex_inputs.with_inputs` puts a signal in.  ``system`` holds every input at the
         middle of its bounds (a one-piece signal of time, which reachability refuses).
+    constants : dict
+        ``name -> value`` of the analysed component's own constants that no bind maps, given by ``constants`` or
+        pinned by the configuration's initial set (``Tmax == 50``); substituted in the model.
     """
 
     system: HybridSystem
@@ -78,6 +84,7 @@ class SpaceExModel:
     notes: tuple[str, ...]
     inputs: tuple[SpaceExInput, ...] = ()
     input_flows: dict[str, Any] = field(default_factory=dict)
+    constants: dict[str, float] = field(default_factory=dict)
 
 
 def read_bytes(path: str | Path, what: str) -> bytes:
@@ -91,32 +98,77 @@ def read_bytes(path: str | Path, what: str) -> bytes:
 
 
 def load_spaceex(path: str | Path, component: str | None = None, *,
-                 constants: dict[str, float] | None = None) -> SpaceExModel:
+                 constants: dict[str, float] | None = None, initially: Any = None) -> SpaceExModel:
     """Import the SpaceEx model in file ``path`` (component ``component``; default: the last one of the file).
 
     ``constants``: values of the component's own constants that no bind maps (else they are an error).
+    ``initially``: the configuration's initial set (a parsed tree, :attr:`hybrid.spaceex_config.SpaceExConfig.
+    initially`); a constant it pins to one value (``Tmax == 50``) takes that value, as in SpaceEx.
 
     Raises
     ------
     SpaceExError
         Naming the file, line and element of anything not supported (docs/spaceex.md).
     """
-    return import_spaceex(read_bytes(path, "SpaceEx model"), component, source=str(path), constants=constants)
+    return import_spaceex(read_bytes(path, "SpaceEx model"), component, source=str(path), constants=constants,
+                          initially=initially)
 
 
 def import_spaceex(data: bytes, component: str | None = None, *, source: str = "<spaceex>",
-                   constants: dict[str, float] | None = None) -> SpaceExModel:
+                   constants: dict[str, float] | None = None, initially: Any = None) -> SpaceExModel:
     """Import a SpaceEx model from its XML bytes (see :func:`load_spaceex`)."""
     try:
         components = parse_components(data, source)
         name = component if component is not None else list(components)[-1]
-        flat = flatten(components, name, source, constants)
-        return build_system(flat, source)
+        given = {**pinned_constants(components.get(name), initially, source, set(constants or {})),
+                 **(constants or {})}
+        flat = flatten(components, name, source, given)
+        return replace(build_system(flat, source), constants=given)
     except SpaceExError:
         raise
     except (HybridError, ArithmeticError, ValueError, RecursionError) as error:  # e.g. 10^1000 in a flow
         raise SpaceExError(source, f"{type(error).__name__}: {error}", "a model hybrid can represent (finite "
                            "constants, integer powers, division by constants)", "fix the expression named") from None
+
+
+_SWAP = {"<=": ">=", "<": ">", ">=": "<=", ">": "<", "==": "=="}
+
+
+def pinned_constants(top: Any, initially: Any, source: str, given: set[str]) -> dict[str, float]:
+    """``{constant: value}`` the initial set pins for component ``top``'s own constants (not in ``given``).
+
+    Raises
+    ------
+    SpaceExError
+        A constant the set bounds by a range rather than one value (an uncertain constant), naming it.
+    """
+    if top is None or initially is None or initially[0] == "true":
+        return {}
+    names = {p.name for p in top.params.values() if p.kind != "label" and p.constant} - given
+    low: dict[str, float] = {}
+    high: dict[str, float] = {}
+    for c in initially[1] if initially[0] == "and" else (initially,):
+        if c[0] != "cmp":
+            continue
+        a, op, b = c[2], c[1], c[3]
+        if a[0] != "name" and b[0] == "name":
+            a, b, op = b, a, _SWAP[op]
+        if a[0] != "name" or a[1] not in names:
+            continue
+        value = constant_value(b, f"{source}: initially")
+        if op in (">=", ">", "=="):
+            low[a[1]] = max(low.get(a[1], -math.inf), value)
+        if op in ("<=", "<", "=="):
+            high[a[1]] = min(high.get(a[1], math.inf), value)
+    out = {}
+    for n in sorted(set(low) | set(high)):
+        lo, hi = low.get(n, -math.inf), high.get(n, math.inf)
+        if not lo == hi:
+            raise SpaceExError(f"{source}: initially", f"{lo!r} <= {n} <= {hi!r}", f"one value for the constant {n!r} "
+                               f"of component {top.id!r} ({n} == value)", f"write {n} == <value> in the initial set, "
+                               "or map the constant to a number in a <bind>; an uncertain constant is not supported")
+        out[n] = lo
+    return out
 
 
 _FUNCS = {"sin": sin, "cos": cos, "exp": exp, "sqrt": sqrt, "log": log}

@@ -17,6 +17,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex"
 GEAR = DATA / "arch2017" / "Gear" / "SpaceEx"
 BUILDING = DATA / "arch2017" / "Building" / "SpaceEx"
 BALL = DATA / "spaceexparser" / "bball" / "bball.xml"
+HEATER = DATA / "hyst" / "heaterLygeros" / "heaterLygeros.xml"
 
 
 def test_specs():
@@ -66,6 +67,33 @@ def test_the_building_problem_and_its_published_verdict():
     result = assert_verified(problem, budget=2)
     assert result.verdict == "not_falsified"
     assert 0.0051 - 0.0040 <= result.requirement("safe").robustness <= 0.0051 - 0.0030
+
+
+def test_the_hyst_thermostat_is_proven_inside_its_invariants_and_falsified_above_28_9():
+    # HyST's thermostat with visnav's forbidden sets: its invariants keep x in [18, 29] (x >= 18 in off, x <= 29 in
+    # on), so x <= 17.95 or x >= 29.05 is never reached (true slack 0.05 at the turning points); the constant Tmax
+    # comes from the cfg's initial set (Tmax == 50)
+    problem = spaceex_problem(HEATER, DATA / "visnav" / "heater_bounds.cfg")
+    assert problem.name == "spaceex-heaterLygeros-sys1-heater_bounds"  # one campaign folder per cfg
+    assert problem.requirements[0].formula == "always[0, 25.0] not ((x <= 17.95) or (x >= 29.05))"
+    result = assert_verified(problem, budget=4)
+    assert result.verdict == "proven"
+    proof = result.requirement("safe").proof
+    assert proof.holds and proof.proven, proof.evidence
+    assert 0.0 < proof.margin <= 0.05 + 1e-12
+    assert 0.0 < float(proof.evidence.split("exact margin ")[1].split()[0]) <= 0.05 + 1e-12
+    # heating from 18.1 (x = 37 - 18.9 e^{-s/10}) reaches 28.9 at s = 10 ln(18.9 / 8.1) after the switch at
+    # 10 ln(18.2 / 18.1): the first violation of x >= 28.9 (the executor switches as soon as the guard holds)
+    import math
+
+    from analysis.spaceex import TRACE_SAMPLES
+    from analysis.verify.verdicts import verify
+
+    result = verify(spaceex_problem(HEATER, DATA / "visnav" / "heater_unsafe.cfg"), budget=4, seed=0)
+    assert result.verdict == "falsified"
+    first = 10.0 * math.log(18.2 / 18.1) + 10.0 * math.log(18.9 / 8.1)
+    found = result.requirement("safe").counterexample.first_time
+    assert first <= found <= first + 25.0 / TRACE_SAMPLES + 1e-9  # the first trace sample after the crossing
 
 
 def test_load_problem_takes_the_config_option():

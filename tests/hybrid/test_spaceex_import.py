@@ -20,6 +20,7 @@ from hybrid.spaceex_syntax import SpaceExError, parse_constraints
 DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex"
 ARCH = DATA / "arch2017"
 JL = DATA / "spaceexparser"
+HEATER = DATA / "hyst" / "heaterLygeros"
 
 # files that are not imported, and the variable or construct the error must name: an input read by a jump (the
 # ball's nondeterministic bounce w2), SpaceEx's internal "support_function" flattening output, a constant of the
@@ -36,14 +37,18 @@ REFUSED = {
 # the component analysed when the file's last component is not the system (the .cfg's system = ...)
 SYSTEMS = {"PLAA01-BND.xml": "sys_platoon", "PLAD01-BND.xml": "sys_platoon_Global_clock",
            "PLAN01-UNB.xml": "sys_platoon_Global_clock"}
+# files whose top component has a constant that only the .cfg's initial set gives a value (SpaceEx reads it there)
+CONFIGS = {"heaterLygeros.xml": HEATER / "heaterLygeros.cfg"}
 ALL = sorted(DATA.rglob("*.xml"))
 
 
 def test_the_data_is_there_with_its_sources():
-    assert len(ALL) == 30  # 27 + the spacecraft rendezvous SRNA01, SRA01, SRA02 written from the ARCH equations
+    assert len(ALL) == 31  # 27 + the spacecraft rendezvous SRNA01, SRA01, SRA02 written from the ARCH equations
+    # + HyST's thermostat
     for name in ("SRNA01", "SRA01", "SRA02"):
         assert name in (DATA / "visnav" / "SOURCE.md").read_text()
-    for folder in (ARCH, JL, DATA / "visnav"):
+    assert "GNU LESSER GENERAL PUBLIC LICENSE" in (DATA / "hyst" / "LICENSE").read_text()
+    for folder in (ARCH, JL, DATA / "visnav", DATA / "hyst"):
         text = (folder / "SOURCE.md").read_text()
         assert "Source" in text or "visnav" in text
     assert "MIT" in (JL / "LICENSE").read_text()
@@ -59,7 +64,9 @@ def test_every_shipped_file_imports_or_names_what_it_cannot_import(path):
         assert REFUSED[path.name] in message and str(path) in message
         assert re.search(r"\.xml:\d+", message), message  # the line
         return
-    model = load_spaceex(path, SYSTEMS.get(path.name))
+    cfg = CONFIGS.get(path.name)
+    initially = None if cfg is None else parse_config(cfg.read_text(), str(cfg)).initially
+    model = load_spaceex(path, SYSTEMS.get(path.name), initially=initially)
     system = model.system
     assert system.dimension >= 1 and system.automaton.modes
     x0 = tuple(0.5 for _ in system.state_names)
@@ -90,6 +97,35 @@ def test_the_timed_ball_fires_as_soon_as_its_guard_holds():
     expected = bouncing_ball_impact_times(gravity=1.0, restitution=0.75, h0=9.9, count=2)
     assert [e.time for e in run.events] == pytest.approx(expected, abs=1e-8)
     assert run.final_state[2] == pytest.approx(12.0, abs=1e-9)
+
+
+def test_the_hyst_thermostat_takes_its_constant_from_the_cfg_and_switches_at_the_closed_form_times():
+    cfg = parse_config((HEATER / "heaterLygeros.cfg").read_text(), "heaterLygeros.cfg")
+    with pytest.raises(SpaceExError, match="Tmax"):  # without the cfg the constant has no value
+        load_spaceex(HEATER / "heaterLygeros.xml", cfg.system)
+    model = load_spaceex(HEATER / "heaterLygeros.xml", cfg.system, initially=cfg.initially)
+    assert model.constants == {"Tmax": 50.0} and model.system.state_names == ("x", "t")
+    assert initial_box(model, cfg) == ({"x": (18.2, 18.2), "t": (0.0, 0.0)}, ["off"])
+    run = simulate_continuous(model.system, (18.2, 0.0), duration=25.0, initial_mode="off")
+    # off: x = x0 e^{-t/10} until x = 18.1; on: x = 37 - (37 - x0) e^{-t/10} until x = 29
+    cool, heat = 10.0 * math.log(29.0 / 18.1), 10.0 * math.log((37.0 - 18.1) / (37.0 - 29.0))
+    first = 10.0 * math.log(18.2 / 18.1)
+    expected = [first, first + heat, first + heat + cool, first + 2 * heat + cool]
+    assert [e.time for e in run.events] == pytest.approx(expected, abs=1e-8)
+    assert [e.target for e in run.events] == ["on", "off", "on", "off"]
+
+
+@pytest.mark.parametrize("initially, constants, message", [
+    ("x==18.2 & t==0 & 40 <= Tmax & Tmax <= 50", None, "one value for the constant 'Tmax'"),
+    ("x==18.2 & t==0 & Tmax >= 40", None, "one value for the constant 'Tmax'"),
+    ("x==18.2 & t==0 & Tmax == 50", {"Tmax": 40.0}, "holds for Tmax = 40.0"),
+])
+def test_a_constant_the_cfg_does_not_pin_to_one_value_is_named(initially, constants, message):
+    cfg = parse_config(f'system = sys1\ninitially = "{initially} & loc(ofOnn_1)==off"\n', "h.cfg")
+    with pytest.raises(SpaceExError, match=message) as info:
+        model = load_spaceex(HEATER / "heaterLygeros.xml", cfg.system, constants=constants, initially=cfg.initially)
+        initial_box(model, cfg)
+    assert "fix:" in str(info.value)
 
 
 def test_the_circle_switches_at_half_turns():
