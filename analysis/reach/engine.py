@@ -34,7 +34,7 @@ import numpy as np
 
 from .flowpipe import ModeDynamics, mode_dynamics, segments
 from .initial import ReachError, initial_zonotope
-from .jumpsets import JUMP_ZONOTOPES, fold, meet_box, reset_image, strip_meet
+from .jumpsets import JUMP_ORDER, JUMP_ZONOTOPES, fold, meet_box, reduce_jump, reset_image, strip_meet
 from .model import AffineHybridModel, AffineTransition, affine_model
 from .nonlinear import ADAPTIVE_LEVELS, ADAPTIVE_RATIO, adaptive_segments, smooth_segments
 from .result import ReachJump, ReachResult, ReachSegment, Termination
@@ -397,7 +397,7 @@ def _jump(run: _Run, work: _Work, t: AffineTransition, lo: np.ndarray, hi: np.nd
     after_lo, after_hi = interval_hull(start)
     kept, box = None, None
     if zono is not None:
-        zono = meet_box(zono, lo, hi)  # the guard part's box holds the guard part too: keep what both allow
+        zono = meet_box(reduce_jump(zono), lo, hi)  # the guard part's box holds it too: keep what both allow
     if zono is not None:
         kept = reset_image(zono, t.r_matrix, t.r_offset)
         zlo, zhi = kept.hull()
@@ -515,7 +515,11 @@ def _mode_segments(run: _Run, work: _Work, step: float) -> Any:
     dyn, scale = _dynamics(run, work.mode)
     if dyn.step != step:  # one step for the segments and their times (both from _step)
         raise AssertionError(f"mode {work.mode!r}: flowpipe step {dyn.step!r} != {step!r}")
-    return segments(dyn, _augment(work.start, scale), run.order)
+    # a mode that may jump in an affine automaton (zonotope jump sets) carries its inputs' correlations to the jump
+    may_jump = bool(run.model.outgoing(work.mode)) and all(
+        m.smooth is None for m in run.model.modes.values())
+    return segments(dyn, _augment(work.start, scale), run.order,
+                    input_order=max(run.order, JUMP_ORDER) if may_jump else run.order)
 
 
 def _stop_reason(run: _Run, work: _Work, k: int, segment: Zonotope | str, n: int, t_lo: float,
@@ -618,4 +622,4 @@ def _collect_zonotope(run: _Run, cluster: list[Any], z: Zonotope, polyhedra: Seq
         return
     part = strip_meet(z, polyhedra[0][0])
     if part is not None:  # None: proven empty (nothing of this segment jumps)
-        cluster[6] = fold(cluster[6], part, run.order)
+        cluster[6] = fold(cluster[6], part)

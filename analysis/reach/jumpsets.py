@@ -40,15 +40,15 @@ from .sets import FloatHalfspace
 from .zonotope import (UNIT_ROUNDOFF, Zonotope, box_generators, interval_hull, linear_map, reduce_order,
                        support_bounds, upper, with_error)
 
-__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "meet_box"]
+__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "reduce_jump", "meet_box"]
 
 JUMP_ZONOTOPES = 8
 """A jump set of at most this many segments is kept as a zonotope (their union); more: the box hull."""
 JUMP_ORDER = 80
-"""Generators per state kept in the guard part of a single segment (Girard's reduction beyond; a union of several is
-reduced to the run's ``order``, which measured tighter after the box meet on the platoon): the target's flowpipe
-never reduces its start set again, so the cap bounds a chain of jumps (unbounded, the thermostat over its rates
-doubled its generators at each of its jumps until it ran out of memory)."""
+"""Generators per state kept in a jump set (Girard's reduction of the folded guard parts, once, before the reset) and
+in the input sum of a mode that may jump (:mod:`analysis.reach.input_sum`): the target's flowpipe never reduces its
+start set again, so the cap bounds a chain of jumps (unbounded, the thermostat over its rates doubled its generators
+at each of its jumps until it ran out of memory)."""
 
 
 def strip_meet(z: Zonotope, halfspaces: Sequence[Any]) -> Zonotope | None:
@@ -198,9 +198,25 @@ def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
     return strip_meet(z, rows) if rows else z
 
 
-def fold(kept: Zonotope | None, part: Zonotope, order: int) -> Zonotope:
-    """``kept ∪ part`` as one zonotope reduced to ``order`` (Girard's reduction, sound); ``part`` reduced to
-    :data:`JUMP_ORDER` when ``kept`` is ``None``."""
+def fold(kept: Zonotope | None, part: Zonotope) -> Zonotope:
+    """``kept ∪ part`` as one zonotope whose first columns stay paired with those of the parts (``part`` itself when
+    ``kept`` is ``None``).
+
+    :func:`union_hull` gives ``[(G₁+G₂)/2, (c₁−c₂)/2, (G₁−G₂)/2, rounding box]``; everything after the ``m`` mean
+    columns (``m`` the wider part's count) is boxed (Girard's box of those columns, sound).  The mean columns keep the
+    parts' indices, so the next part pairs with them again (consecutive segments hold the same generators at the
+    same indices: :mod:`analysis.reach.input_sum`), and the differences of consecutive segments are small.  Nothing is
+    reduced here: :func:`reduce_jump` caps the fold once, before the reset.
+    """
     if kept is None:
-        return reduce_order(part, max(order, JUMP_ORDER))
-    return reduce_order(union_hull(kept, part), order)
+        return part
+    union = union_hull(kept, part)
+    m = max(kept.order, part.order)
+    rest = union.generators[:, m:]
+    return Zonotope.of_arrays(union.center, np.hstack(
+        [union.generators[:, :m], box_generators(upper(np.abs(rest).sum(axis=1), rest.shape[1]))]))
+
+
+def reduce_jump(z: Zonotope) -> Zonotope:
+    """The folded jump set reduced to :data:`JUMP_ORDER` generators per state (Girard's reduction, sound)."""
+    return reduce_order(z, JUMP_ORDER)

@@ -103,8 +103,12 @@ def box_rows(box: Sequence[tuple[Fraction, Fraction]]) -> list[Any]:
     return out
 
 
-def _union(a: Exact, b: Exact) -> Exact:
-    """Part 2 of the module (exact)."""
+def _union(a: Exact, b: Exact, box: list[Fraction]) -> tuple[Exact, list[Fraction]]:
+    """Part 2 of the module (exact), the differences boxed: ``(Z₁ ⊕ [−e, e]) ∪ Z₂ ⊆ c̄ + Σ ḡ_j ξ_j ⊕ [−e', e']``,
+    ``c̄ = (c₁ + c₂)/2``, ``ḡ_j = (g₁_j + g₂_j)/2``, ``e' = e + |c₁ − c₂|/2 + Σ_j |g₁_j − g₂_j|/2`` (a point
+    ``c₁ + Σ g₁_j ξ_j`` is ``c̄ + Σ ḡ_j ξ_j + (c₁ − c̄) + Σ (g₁_j − ḡ_j) ξ_j``; the same for ``Z₂``).  The mean
+    columns keep the indices of the pieces' (their carried inputs stay in their slots:
+    :mod:`analysis.reach.recheck_carry`), so the next piece pairs with them again."""
     (c1, g1), (c2, g2) = a, b
     n = len(c1)
     zero = [Fraction(0)] * n
@@ -112,11 +116,14 @@ def _union(a: Exact, b: Exact) -> Exact:
     g1 = g1 + [zero] * (m - len(g1))
     g2 = g2 + [zero] * (m - len(g2))
     center = [(x + y) / 2 for x, y in zip(c1, c2)]
-    cols = [[(x - y) / 2 for x, y in zip(c1, c2)]]
+    spread = [e + abs(x - y) / 2 for e, x, y in zip(box, c1, c2)]
+    cols = []
     for p, q in zip(g1, g2):
         cols.append([(x + y) / 2 for x, y in zip(p, q)])
-        cols.append([(x - y) / 2 for x, y in zip(p, q)])
-    return center, cols
+        for i, (x, y) in enumerate(zip(p, q)):
+            if x != y:
+                spread[i] += abs(x - y) / 2
+    return (center, cols), spread
 
 
 def _rounded(z: Exact, keep: int) -> FZ:
@@ -175,15 +182,17 @@ def own_jump_set(pieces: Sequence[FZ], rows: Sequence[Any], matrix: Sequence[Seq
     """
     n = len(matrix)
     keep = OWN_JUMP_GENERATORS * n
-    kept: FZ | None = None
+    union: Exact | None = None
+    spread = [Fraction(0)] * n
     for piece in pieces:
         part = _cut(piece.exact(), rows)
         if part is None:
             continue
-        part_fz = _rounded(part, keep)
-        kept = part_fz if kept is None else _rounded(_union(kept.exact(), part_fz.exact()), keep)
-    if kept is None:
+        union, spread = (part, spread) if union is None else _union(union, part, spread)
+    if union is None:
         return None
+    kept = _rounded((union[0], union[1] + [[v if i == k else Fraction(0) for i in range(n)]
+                                           for k, v in enumerate(spread) if v]), keep)
     if box is not None:  # the cluster's box holds the guard part too: cut by its faces (a superset still)
         met = _cut(kept.exact(), box_rows(box))
         if met is None:
