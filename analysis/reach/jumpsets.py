@@ -40,7 +40,8 @@ from .sets import FloatHalfspace
 from .zonotope import (UNIT_ROUNDOFF, Zonotope, box_generators, interval_hull, linear_map, reduce_order,
                        support_bounds, upper, with_error)
 
-__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "reduce_jump", "meet_box"]
+__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "JumpFold", "paired_fold", "fold",
+           "reduce_jump", "meet_box"]
 
 JUMP_ZONOTOPES = 8
 """A jump set of at most this many segments is kept as a zonotope (their union); more: the box hull."""
@@ -198,15 +199,32 @@ def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
     return strip_meet(z, rows) if rows else z
 
 
-def fold(kept: Zonotope | None, part: Zonotope) -> Zonotope:
+@dataclass(frozen=True, kw_only=True, slots=True)
+class JumpFold:
+    """Two folds of a cluster's guard parts, both holding their union (the jump picks one: :func:`reset_candidates`).
+
+    Attributes
+    ----------
+    paired : Zonotope
+        :func:`paired_fold`: the mean columns keep the parts' indices, their differences boxed.  Tight when the parts
+        are consecutive segments that differ little column by column (the platoon's input sums).
+    reduced : Zonotope
+        :func:`union_hull` kept whole and reduced to the run's order (Girard) at each fold: the differences stay
+        generators.  Tight when the cut parts differ in every column (oblique guards: the gearbox GRBX01).
+    """
+
+    paired: Zonotope
+    reduced: Zonotope
+
+
+def paired_fold(kept: Zonotope | None, part: Zonotope) -> Zonotope:
     """``kept ∪ part`` as one zonotope whose first columns stay paired with those of the parts (``part`` itself when
     ``kept`` is ``None``).
 
     :func:`union_hull` gives ``[(G₁+G₂)/2, (c₁−c₂)/2, (G₁−G₂)/2, rounding box]``; everything after the ``m`` mean
     columns (``m`` the wider part's count) is boxed (Girard's box of those columns, sound).  The mean columns keep the
     parts' indices, so the next part pairs with them again (consecutive segments hold the same generators at the
-    same indices: :mod:`analysis.reach.input_sum`), and the differences of consecutive segments are small.  Nothing is
-    reduced here: :func:`reduce_jump` caps the fold once, before the reset.
+    same indices: :mod:`analysis.reach.input_sum`).  Nothing is reduced here: :func:`reduce_jump` caps the fold once.
     """
     if kept is None:
         return part
@@ -215,6 +233,14 @@ def fold(kept: Zonotope | None, part: Zonotope) -> Zonotope:
     rest = union.generators[:, m:]
     return Zonotope.of_arrays(union.center, np.hstack(
         [union.generators[:, :m], box_generators(upper(np.abs(rest).sum(axis=1), rest.shape[1]))]))
+
+
+def fold(kept: JumpFold | None, part: Zonotope, order: int) -> JumpFold:
+    """Both folds of ``kept ∪ part`` (:class:`JumpFold`); the reduced one starts from ``part`` reduced to
+    :data:`JUMP_ORDER` and reduces each union to ``order``."""
+    if kept is None:
+        return JumpFold(paired=part, reduced=reduce_order(part, max(order, JUMP_ORDER)))
+    return JumpFold(paired=paired_fold(kept.paired, part), reduced=reduce_order(union_hull(kept.reduced, part), order))
 
 
 def reduce_jump(z: Zonotope) -> Zonotope:
