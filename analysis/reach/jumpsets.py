@@ -16,7 +16,10 @@ box hull loses the correlations of the coupled states at the switch; when the se
    A row whose normal is not a float (a residual) is not intersected (a superset still).
 2. **Union** (:func:`union_hull`).  ``Z₁ ∪ Z₂ ⊆ (c₁ + c₂)/2 + (c₁ − c₂)/2 μ + (G₁ + G₂)/2 ξ + (G₁ − G₂)/2 ζ``
    for any ``G₁, G₂`` of the same width (zero columns appended to the narrower): ``μ = 1, ζ = ξ`` gives
-   ``Z₁``, ``μ = −1, ζ = −ξ`` gives ``Z₂``.  Roundings (``<= 2u`` of each entry) join an error box.
+   ``Z₁``, ``μ = −1, ζ = −ξ`` gives ``Z₂``.  Roundings (``<= 2u`` of each entry) join an error box.  Of a cluster
+   two folds are kept (:class:`JumpFold`): the paired one boxes everything after the mean columns, which then stay
+   paired with the next part's (:func:`paired_fold`), the reduced one keeps the whole union reduced to the run's
+   order; the engine takes the paired one unless it is too wide.
 3. **Reset** (:func:`reset_image`).  The affine reset ``R x + r`` as an interval-matrix map of the augmented
    zonotope (``R``, ``r`` exact rationals, their float roundings as the radius,
    :func:`analysis.reach.zonotope.linear_map`).  The image keeps the columns of the jump set one for one

@@ -11,7 +11,9 @@ jump set is kept as a zonotope rather than as the box hull (which loses the corr
    ``η = (s − m)/r ∈ [−1, 1]`` — a superset of ``Z ∩ {a·x <= b}``, computed in exact rationals (``λ`` a float
    suggestion read exactly: any value is sound);
 2. the parts' union: ``Z₁ ∪ Z₂ ⊆ (c₁ + c₂)/2 + (c₁ − c₂)/2 μ + Σ ((g₁_j + g₂_j)/2 ξ_j + (g₁_j − g₂_j)/2 ζ_j)``
-   (zero columns appended to the narrower; ``μ = ±1``, ``ζ = ±ξ`` give ``Z₁`` and ``Z₂``), exact;
+   (zero columns appended to the narrower; ``μ = ±1``, ``ζ = ±ξ`` give ``Z₁`` and ``Z₂``), exact — or, paired, the
+   differences boxed (:func:`_paired_union`), which keeps the mean columns paired with the next piece's; the paired
+   one is used unless its image is wider (:data:`PAIRED_WIDER`);
 3. the reset ``R x + r`` applied exactly to the centre and every column.
 
 Between the steps the exact sets are rounded to floats, every rounding moved into the error box (rounded up), and
@@ -31,7 +33,7 @@ import numpy as np
 from .recheck_interval import up
 from .recheck_sets import FZ
 
-__all__ = ["OWN_JUMP_PIECES", "OWN_JUMP_GENERATORS", "own_jump_set", "box_rows"]
+__all__ = ["OWN_JUMP_PIECES", "OWN_JUMP_GENERATORS", "PAIRED_WIDER", "own_jump_set", "box_rows"]
 
 OWN_JUMP_PIECES = 32
 """A cluster of at most this many pieces meeting the guard gets a zonotope jump set; more keep the box route."""

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from analysis.reach.input_sum import add_in_place
-from analysis.reach.jumpsets import fold
+from analysis.reach.jumpsets import fold, paired_fold
 from analysis.reach.recheck_carry import carry
 from analysis.reach.recheck_sets import FZ
 from analysis.reach.result import zonotope_contains
@@ -83,16 +83,20 @@ def test_the_fold_holds_every_part_and_pairs_their_columns(seed):
     base = rng.normal(size=(3, 6))
     parts = [Zonotope(center=0.1 * k + rng.normal(size=3) * 0.01, generators=base + 0.01 * rng.normal(size=(3, 6)))
              for k in range(3)]
-    kept = None
+    kept, both = None, None
     for part in parts:
-        kept = fold(kept, part)
+        kept = paired_fold(kept, part)
+        both = fold(both, part, 2)
     for part in parts:
         for xi in rng.uniform(-1, 1, size=(200, 6)):
-            assert zonotope_contains(kept, part.center + part.generators @ xi, tol=1e-9)
+            x = part.center + part.generators @ xi
+            assert zonotope_contains(kept, x, tol=1e-9)
+            assert zonotope_contains(both.paired, x, tol=1e-9) and zonotope_contains(both.reduced, x, tol=1e-9)
+    assert both.reduced.order <= 2 * 3 and np.array_equal(both.paired.generators, kept.generators)
     # columns paired by index: the fold is about as wide as one part (the differences are small), where a union
     # that pairs unrelated columns would add up both
     width = np.abs(kept.generators).sum(axis=1)
     one = np.abs(base).sum(axis=1)
     assert np.all(width <= one + 0.1 + 0.1 * 3 * 6)
-    shuffled = fold(fold(None, parts[0]), Zonotope(center=parts[1].center, generators=parts[1].generators[:, ::-1]))
+    shuffled = paired_fold(parts[0], Zonotope(center=parts[1].center, generators=parts[1].generators[:, ::-1]))
     assert np.abs(shuffled.generators).sum(axis=1).sum() > width.sum()
