@@ -37,6 +37,7 @@ import numpy as np
 
 from .errorbound import ErrorTracker, error_tracker
 from .input_step import input_step_set
+from .input_sum import add_in_place
 from .series import MatrixEnclosure, bloating_matrices, exp_enclosure
 from .zonotope import (
     UNIT_ROUNDOFF,
@@ -143,17 +144,22 @@ def first_segment(dyn: ModeDynamics, start: Zonotope) -> Zonotope:
     return Zonotope.of_arrays(mean_c, np.hstack(parts))
 
 
-def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotope]:
+def segments(dyn: ModeDynamics, start: Zonotope, order: int, input_order: int | None = None) -> Iterator[Zonotope]:
     """``R_0, R_1, ...`` (augmented zonotopes), one per step of local time ``[kδ, (k+1)δ]``; endless.
 
-    The caller stops the iteration (horizon, invariant, size limits).
+    The caller stops the iteration (horizon, invariant, size limits).  The input sum keeps ``input_order``
+    (default ``order``) generators per dimension, box included, each generator in its slot
+    (:func:`analysis.reach.input_sum.add_in_place`: consecutive segments stay column-aligned for the union of a
+    zonotope jump set).
     """
     main = first_segment(dyn, start)
     dim = start.dimension
     error = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
     mapped_input = dyn.input_step
     input_error = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
-    input_sum = Zonotope(center=np.zeros(dim), generators=np.zeros((dim, 0)))
+    input_gens, input_box = np.zeros((dim, 0)), np.zeros(dim)
+    input_sum = Zonotope(center=np.zeros(dim), generators=input_gens)
+    input_limit = ((order if input_order is None else input_order) - 1) * dim
     phi_c, phi_r = dyn.phi.center, dyn.phi.radius
     tracker = dyn.tracker
     bound = tracker.start() if tracker is not None else None
@@ -173,8 +179,9 @@ def segments(dyn: ModeDynamics, start: Zonotope, order: int) -> Iterator[Zonotop
             if tracker is not None:  # the input's rounding errors, bounded without wrapping as the main ones
                 box_in = tracker.box(bound_in)
                 input_error = Zonotope.of_arrays(np.zeros(dim), box_generators(box_in))
-            input_sum = reduce_order(Zonotope.of_arrays(input_sum.center, np.hstack(
-                [input_sum.generators, mapped_input.generators, input_error.generators])), order)
+            input_gens, input_box = add_in_place(
+                input_gens, input_box, np.hstack([mapped_input.generators, input_error.generators]), input_limit)
+            input_sum = Zonotope.of_arrays(np.zeros(dim), np.hstack([input_gens, box_generators(input_box)]))
             mapped_input, e_in = linear_map(mapped_input, phi_c, phi_r)
             if tracker is not None:
                 bound_in = tracker.step(bound_in, e_in, box_in)

@@ -16,7 +16,10 @@ box hull loses the correlations of the coupled states at the switch; when the se
    A row whose normal is not a float (a residual) is not intersected (a superset still).
 2. **Union** (:func:`union_hull`).  ``Z₁ ∪ Z₂ ⊆ (c₁ + c₂)/2 + (c₁ − c₂)/2 μ + (G₁ + G₂)/2 ξ + (G₁ − G₂)/2 ζ``
    for any ``G₁, G₂`` of the same width (zero columns appended to the narrower): ``μ = 1, ζ = ξ`` gives
-   ``Z₁``, ``μ = −1, ζ = −ξ`` gives ``Z₂``.  Roundings (``<= 2u`` of each entry) join an error box.
+   ``Z₁``, ``μ = −1, ζ = −ξ`` gives ``Z₂``.  Roundings (``<= 2u`` of each entry) join an error box.  Of a cluster
+   two folds are kept (:class:`JumpFold`): the paired one boxes everything after the mean columns, which then stay
+   paired with the next part's (:func:`paired_fold`), the reduced one keeps the whole union reduced to the run's
+   order; the engine takes the paired one unless it is too wide.
 3. **Reset** (:func:`reset_image`).  The affine reset ``R x + r`` as an interval-matrix map of the augmented
    zonotope (``R``, ``r`` exact rationals, their float roundings as the radius,
    :func:`analysis.reach.zonotope.linear_map`).  The image keeps the columns of the jump set one for one
@@ -40,15 +43,16 @@ from .sets import FloatHalfspace
 from .zonotope import (UNIT_ROUNDOFF, Zonotope, box_generators, interval_hull, linear_map, reduce_order,
                        support_bounds, upper, with_error)
 
-__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "fold", "meet_box"]
+__all__ = ["JUMP_ZONOTOPES", "JUMP_ORDER", "strip_meet", "union_hull", "reset_image", "ResetImage", "JumpFold",
+           "paired_fold", "fold", "reduce_jump", "meet_box"]
 
 JUMP_ZONOTOPES = 8
 """A jump set of at most this many segments is kept as a zonotope (their union); more: the box hull."""
 JUMP_ORDER = 80
-"""Generators per state kept in the guard part of a single segment (Girard's reduction beyond; a union of several is
-reduced to the run's ``order``, which measured tighter after the box meet on the platoon): the target's flowpipe
-never reduces its start set again, so the cap bounds a chain of jumps (unbounded, the thermostat over its rates
-doubled its generators at each of its jumps until it ran out of memory)."""
+"""Generators per state kept in a jump set (Girard's reduction of the folded guard parts, once, before the reset) and
+in the input sum of a mode that may jump (:mod:`analysis.reach.input_sum`): the target's flowpipe never reduces its
+start set again, so the cap bounds a chain of jumps (unbounded, the thermostat over its rates doubled its generators
+at each of its jumps until it ran out of memory)."""
 
 
 def strip_meet(z: Zonotope, halfspaces: Sequence[Any]) -> Zonotope | None:
@@ -198,9 +202,50 @@ def meet_box(z: Zonotope, lo: np.ndarray, hi: np.ndarray) -> Zonotope | None:
     return strip_meet(z, rows) if rows else z
 
 
-def fold(kept: Zonotope | None, part: Zonotope, order: int) -> Zonotope:
-    """``kept ∪ part`` as one zonotope reduced to ``order`` (Girard's reduction, sound); ``part`` reduced to
-    :data:`JUMP_ORDER` when ``kept`` is ``None``."""
+@dataclass(frozen=True, kw_only=True, slots=True)
+class JumpFold:
+    """Two folds of a cluster's guard parts, both holding their union (the jump picks one: :func:`reset_candidates`).
+
+    Attributes
+    ----------
+    paired : Zonotope
+        :func:`paired_fold`: the mean columns keep the parts' indices, their differences boxed.  Tight when the parts
+        are consecutive segments that differ little column by column (the platoon's input sums).
+    reduced : Zonotope
+        :func:`union_hull` kept whole and reduced to the run's order (Girard) at each fold: the differences stay
+        generators.  Tight when the cut parts differ in every column (oblique guards: the gearbox GRBX01).
+    """
+
+    paired: Zonotope
+    reduced: Zonotope
+
+
+def paired_fold(kept: Zonotope | None, part: Zonotope) -> Zonotope:
+    """``kept ∪ part`` as one zonotope whose first columns stay paired with those of the parts (``part`` itself when
+    ``kept`` is ``None``).
+
+    :func:`union_hull` gives ``[(G₁+G₂)/2, (c₁−c₂)/2, (G₁−G₂)/2, rounding box]``; everything after the ``m`` mean
+    columns (``m`` the wider part's count) is boxed (Girard's box of those columns, sound).  The mean columns keep the
+    parts' indices, so the next part pairs with them again (consecutive segments hold the same generators at the
+    same indices: :mod:`analysis.reach.input_sum`).  Nothing is reduced here: :func:`reduce_jump` caps the fold once.
+    """
     if kept is None:
-        return reduce_order(part, max(order, JUMP_ORDER))
-    return reduce_order(union_hull(kept, part), order)
+        return part
+    union = union_hull(kept, part)
+    m = max(kept.order, part.order)
+    rest = union.generators[:, m:]
+    return Zonotope.of_arrays(union.center, np.hstack(
+        [union.generators[:, :m], box_generators(upper(np.abs(rest).sum(axis=1), rest.shape[1]))]))
+
+
+def fold(kept: JumpFold | None, part: Zonotope, order: int) -> JumpFold:
+    """Both folds of ``kept ∪ part`` (:class:`JumpFold`); the reduced one starts from ``part`` reduced to
+    :data:`JUMP_ORDER` and reduces each union to ``order``."""
+    if kept is None:
+        return JumpFold(paired=part, reduced=reduce_order(part, max(order, JUMP_ORDER)))
+    return JumpFold(paired=paired_fold(kept.paired, part), reduced=reduce_order(union_hull(kept.reduced, part), order))
+
+
+def reduce_jump(z: Zonotope) -> Zonotope:
+    """The folded jump set reduced to :data:`JUMP_ORDER` generators per state (Girard's reduction, sound)."""
+    return reduce_order(z, JUMP_ORDER)

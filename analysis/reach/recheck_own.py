@@ -57,6 +57,7 @@ import numpy as np
 from .deadlock import clip_exact, clock_offsets, contract_zonotope, entry_uncovered, face_uncovered, image_covered, open_rows, reached_late
 from .fragment import Conj, LabelAtom, LinearAtom, Nnf, SafetyFragment, label_holds
 from .recheck_interval import TINY, U, ExpEnclosure, add_up, float_interval, nn_up, point_product, sum_up, up
+from .recheck_carry import KEPT_INPUTS, KEPT_JUMP_INPUTS, carry
 from .recheck_inputs import InputSet, input_tube
 from .recheck_jumps import OWN_JUMP_PIECES, own_jump_set
 from .recheck_modal import ModalTracker, modal_tracker
@@ -69,8 +70,6 @@ MAX_OWN_FLOWPIPES = 4_000
 """Flowpipes the re-check follows before it fails (a run that keeps jumping is not re-checked)."""
 SIZE_LIMIT = 1e6
 """A set whose half-width exceeds this (or is not finite) fails the re-check (it blew up)."""
-KEPT_INPUTS = 20
-"""Generators of the carried inputs per state before the smallest are boxed (Girard's reduction, sound)."""
 INPUT_SPLIT = 4
 """A mode with inputs is re-checked with a quarter of the schedule's step: each piece holds the inputs' reach set one
 step ahead (``S_{k+1}``, module docstring, 2.), whose excess over the piece a shorter step makes smaller."""
@@ -479,6 +478,7 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
     clusters: dict[str, list[Any]] = {}
     h, s_gens, s_box = work.start, np.zeros((lo.size, 0)), np.zeros(lo.size)
     p = terms
+    keep = KEPT_JUMP_INPUTS if model.outgoing(mode) else KEPT_INPUTS  # carried into its own jump sets
     key = (mode, step)
     if key not in run.modal:
         run.modal[key] = modal_tracker(enc.phi[0])
@@ -491,7 +491,7 @@ def _flowpipe(run: _Run, work: _Work, index: int) -> list[_Work]:
         h1, r = _advance(h, enc, tracker, r)
         piece = tube(h, h1, enc)
         if p is not None:  # S_{k+1} = S_k ⊕ P_k holds the inputs' part at every time of the piece (module, 2.)
-            s_gens, s_box = _carry(s_gens, s_box, p)
+            s_gens, s_box = carry(s_gens, s_box, p, keep)
             piece = piece.plus(FZ(center=np.zeros(lo.size), gens=s_gens, err=s_box))
             p, rp = _advance(p, enc, tracker, rp, shifted=False)
         radius = piece.radius()
@@ -596,17 +596,3 @@ def _clip_invariant(invariant: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[np.
         glo[support], ghi[support] = slo, shi
         found = (glo, ghi) if found is None else (np.minimum(found[0], glo), np.maximum(found[1], ghi))
     return found
-
-
-def _carry(s_gens: np.ndarray, s_box: np.ndarray, p: FZ) -> tuple[np.ndarray, np.ndarray]:
-    """``S_{k+1} = S_k ⊕ P_k`` (the smallest generators boxed beyond :data:`KEPT_INPUTS` per state)."""
-    n = s_box.size
-    gens = np.hstack([s_gens, p.gens])
-    box = add_up(s_box, p.err)
-    if gens.shape[1] > KEPT_INPUTS * n:
-        absg = np.abs(gens)
-        order = np.argsort(absg.sum(axis=0) - absg.max(axis=0), kind="stable")
-        drop = order[:gens.shape[1] - (KEPT_INPUTS - 1) * n]
-        box = add_up(box, sum_up(absg[:, drop], axis=1))
-        gens = gens[:, np.sort(order[gens.shape[1] - (KEPT_INPUTS - 1) * n:])]
-    return gens, box

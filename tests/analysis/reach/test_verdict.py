@@ -211,10 +211,10 @@ def test_the_recheck_imports_no_set_code_of_the_engine(reach_imports):
     # recheck_interval: the own-set re-check of affine flowpipes; recheck_modal: its own modal error bound;
     # deadlock: the exact face check (boxes); interval_tape: the re-check's own vectorised interval evaluation
     # (analysis.interval's arithmetic, no code of the producer); recheck_jumps: the own zonotope jump sets (exact
-    # rationals, not analysis.reach.jumpsets)
+    # rationals, not analysis.reach.jumpsets); recheck_carry: its own carried input sum (not analysis.reach.input_sum)
     assert seen == {"recheck", "recheck_inputs", "fragment", "model", "affine", "smooth", "recheck_smooth",
                     "recheck_schedule", "recheck_own", "recheck_sets", "recheck_interval", "recheck_modal",
-                    "deadlock", "interval_tape", "recheck_jumps"}, seen
+                    "deadlock", "interval_tape", "recheck_jumps", "recheck_carry"}, seen
 
 
 def test_inconclusive_or_capped_flowpipes_prove_nothing():
