@@ -71,8 +71,8 @@ def cycle_of(model: Any, box: Mapping[str, tuple[float, float]], modes: list[str
     if len(modes) != 1:
         return None
     try:
-        zero, _ = _input_free(model.system, model.input_flows, tuple(model.inputs))
-        return cycle_model(affine_model(zero), modes[0], box)
+        zero, matrices = _input_free(model.system, model.input_flows, tuple(model.inputs))
+        return cycle_model(affine_model(zero), modes[0], box, matrices)
     except (NoCycle, AffineError, ParameterError, ModelDefinitionError):
         return None
 
@@ -210,7 +210,7 @@ class CycleInductionProof:
 
         initial = {k: (lo, hi) for k, lo, hi in self.initial}
         zero, matrices = _input_free(self.system, self.input_flows, self.inputs)
-        cycle = cycle_model(affine_model(zero), self.initial_mode, initial)
+        cycle = cycle_model(affine_model(zero), self.initial_mode, initial, matrices)
         return induction(cycle, matrices, self.body, self.text, initial)
 
     def __call__(self) -> Proof:

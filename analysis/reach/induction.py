@@ -91,7 +91,8 @@ def _constant_row(t: Any, k: int) -> Fraction | None:
     return None if any(t.r_matrix[k]) else t.r_offset[k]
 
 
-def cycle_model(model: AffineHybridModel, home: str, initial: Mapping[str, tuple[float, float]]) -> CycleModel:
+def cycle_model(model: AffineHybridModel, home: str, initial: Mapping[str, tuple[float, float]],
+                inputs: Mapping[str, Any] | None = None) -> CycleModel:
     """The cycle model of ``model`` at ``home`` with its exact cycle bound.
 
     Parameters
@@ -102,6 +103,8 @@ def cycle_model(model: AffineHybridModel, home: str, initial: Mapping[str, tuple
         The initial location, through which every cycle passes.
     initial : mapping {state: (lo, hi)}
         The initial box; the reset states must be points there, at their reset constants.
+    inputs : mapping {mode: ModeInput} or None
+        The bounded inputs (a clock's row of ``B`` must be zero: its rate is then exactly 1).
 
     Raises
     ------
@@ -137,15 +140,19 @@ def cycle_model(model: AffineHybridModel, home: str, initial: Mapping[str, tuple
     surgery = AffineHybridModel(name=f"{model.name} (cycle at {home})", state_names=model.state_names, modes=modes,
                                 transitions=transitions, initial_mode=home)
     fixed = {k for k, _ in reset}
-    bound = cycle_bound(surgery, home, {k: v for k, v in reset})
+    driven = {m: frozenset(k for k, row in enumerate(spec.matrix) if any(float(v) != 0.0 for v in row))
+              for m, spec in dict(inputs or {}).items()}
+    bound = cycle_bound(surgery, home, {k: v for k, v in reset}, driven)
     return CycleModel(model=surgery, home=home, reset=tuple(reset),
                       carried=tuple(k for k in range(n) if k not in fixed),
                       redirected=tuple(t.name for t in into), bound=bound)
 
 
-def _clock_bound(mode: AffineMode, entries: Sequence[Mapping[int, Fraction | None]]) -> Fraction | None:
-    """The longest dwell in ``mode``: ``u − v`` for a clock ``k`` (flow exactly 1, invariant ``x_k <= u`` in its one
-    polyhedron) that every entry sets to a constant ``>= v``; ``None`` without such a clock."""
+def _clock_bound(mode: AffineMode, entries: Sequence[Mapping[int, Fraction | None]],
+                 driven: frozenset[int] = frozenset()) -> Fraction | None:
+    """The longest dwell in ``mode``: ``u − v`` for a clock ``k`` (flow exactly 1, no input in its row: ``driven``
+    holds the states an input drives, invariant ``x_k <= u`` in its one polyhedron) that every entry sets to a
+    constant ``>= v``; ``None`` without such a clock."""
     if len(mode.invariant) != 1:
         return None
     best = None
@@ -154,7 +161,7 @@ def _clock_bound(mode: AffineMode, entries: Sequence[Mapping[int, Fraction | Non
         if len(ks) != 1 or h.normal[ks[0]] <= 0:
             continue
         k = ks[0]
-        if any(mode.a[k]) or mode.c[k] != 1:
+        if any(mode.a[k]) or mode.c[k] != 1 or k in driven:
             continue
         values = [e.get(k) for e in entries]
         if not values or any(v is None for v in values):
@@ -164,8 +171,10 @@ def _clock_bound(mode: AffineMode, entries: Sequence[Mapping[int, Fraction | Non
     return best
 
 
-def cycle_bound(model: AffineHybridModel, home: str, start: Mapping[int, Fraction]) -> Fraction:
-    """The longest duration of a run from ``home`` until :data:`ENTERED` (exact) [s].
+def cycle_bound(model: AffineHybridModel, home: str, start: Mapping[int, Fraction],
+                driven: Mapping[str, frozenset[int]] | None = None) -> Fraction:
+    """The longest duration of a run from ``home`` until :data:`ENTERED` (exact) [s]; ``driven``: per mode, the
+    states a bounded input drives (no clock).
 
     Raises
     ------
@@ -197,7 +206,7 @@ def cycle_bound(model: AffineHybridModel, home: str, start: Mapping[int, Fractio
         entries = [start] if mode == home else [
             {k: _constant_row(t, k) for k in range(len(model.state_names))}
             for t in model.transitions if t.target == mode]
-        dwell = _clock_bound(model.modes[mode], entries)
+        dwell = _clock_bound(model.modes[mode], entries, dict(driven or {}).get(mode, frozenset()))
         if dwell is None:
             raise NoCycle(f"no clock bounds the dwell in {mode!r} (a state with flow exactly 1, set to a constant on "
                           "every entry, bounded above by the invariant)")

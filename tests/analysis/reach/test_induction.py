@@ -31,12 +31,12 @@ GROW_FAST = np.array([[0.6, 0.0], [0.0, -1.0]])
 GROW_SLOW = np.array([[0.3, 0.0], [0.0, -1.0]])
 
 
-def _flow(a: np.ndarray) -> str:
+def _flow(a: np.ndarray, clock: str = "1") -> str:
     c = [[repr(float(v)) for v in row] for row in a]
-    return f"x' == {c[0][0]}*x + {c[0][1]}*y + u &amp; y' == {c[1][0]}*x + {c[1][1]}*y &amp; t' == 1"
+    return f"x' == {c[0][0]}*x + {c[0][1]}*y + u &amp; y' == {c[1][0]}*x + {c[1][1]}*y &amp; t' == {clock}"
 
 
-def _xml(fast: np.ndarray, slow: np.ndarray, fast_invariant: str = "t &lt;= 2") -> str:
+def _xml(fast: np.ndarray, slow: np.ndarray, fast_invariant: str = "t &lt;= 2", fast_clock: str = "1") -> str:
     params = "".join(f'<param name="{v}" type="real" local="false" d1="1" d2="1" dynamics="any" />' for v in "xyt")
     return f"""<?xml version="1.0" encoding="iso-8859-1"?>
 <sspaceex xmlns="http://www-verimag.imag.fr/xml-namespaces/sspaceex" version="0.2" math="SpaceEx">
@@ -47,7 +47,7 @@ def _xml(fast: np.ndarray, slow: np.ndarray, fast_invariant: str = "t &lt;= 2") 
     <param name="rst" type="label" local="false" />
     <location id="1" name="fast">
       <invariant>{fast_invariant} &amp; -1 &lt;= u &lt;= 1</invariant>
-      <flow>{_flow(fast)}</flow>
+      <flow>{_flow(fast, fast_clock)}</flow>
     </location>
     <location id="2" name="slow">
       <invariant>t &lt;= 1 &amp; -1 &lt;= u &lt;= 1</invariant>
@@ -60,9 +60,10 @@ def _xml(fast: np.ndarray, slow: np.ndarray, fast_invariant: str = "t &lt;= 2") 
 """
 
 
-def _files(tmp_path, fast=FAST, slow=SLOW, forbidden="x >= 3", horizon="-1", fast_invariant="t &lt;= 2"):
+def _files(tmp_path, fast=FAST, slow=SLOW, forbidden="x >= 3", horizon="-1", fast_invariant="t &lt;= 2",
+           fast_clock="1"):
     xml = tmp_path / "dwell.xml"
-    xml.write_text(_xml(fast, slow, fast_invariant))
+    xml.write_text(_xml(fast, slow, fast_invariant, fast_clock))
     cfg = tmp_path / "dwell.cfg"
     cfg.write_text(f'system = dwell\ninitially = "x == 0 & y == 0 & t == 0 & loc() == fast"\n'
                    f'forbidden = "{forbidden}"\ntime-horizon = {horizon}\n')
@@ -149,6 +150,12 @@ def test_no_clock_bounding_a_dwell_is_refused_by_name(tmp_path):
     assert not proof.holds and not proof.rechecked
     assert "no clock bounds the dwell in 'fast'" in proof.evidence
     assert problem.horizon == 100.0  # no bounded cycle: SAMPLED_HORIZON
+
+
+def test_a_clock_driven_by_the_input_bounds_no_dwell(tmp_path):
+    xml, cfg = _files(tmp_path, fast_clock="1 + 0.5*u")  # t' in [0.5, 1.5]: t <= 2 no longer bounds the dwell by 2 s
+    proof = spaceex_problem(xml, cfg).proofs["safe"]()
+    assert not proof.holds and "no clock bounds the dwell in 'fast'" in proof.evidence
 
 
 def test_a_loop_avoiding_home_is_refused():
