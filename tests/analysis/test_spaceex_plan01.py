@@ -78,20 +78,32 @@ def _w(evidence: str) -> dict[str, tuple[float, float]]:
 
 
 @pytest.mark.skipif(not HEAVY, reason="minutes: set VISNAV_REACH_HEAVY=1 (docs/reachability.md has the figures)")
-def test_plan01_unb50_is_proven_for_all_time_and_w_holds_the_simulated_entries():
+def test_plan01_unb50_the_producer_closes_the_induction_and_w_holds_the_simulated_entries():
+    """The producer closes the induction at its second round; the cycle's flowpipe (23,167 flowpipes) is above the
+    re-check's limit, so the proof does not hold as proven and the verdict stays sampled (docs/reachability.md)."""
     problem = spaceex_problem(XML, CFG)
-    result = verify(problem, budget=2, seed=0)
-    proof = result.requirement("safe").proof
-    assert result.requirement("safe").verdict == "proven", proof.evidence
-    assert proof.holds and proof.rechecked and "re-checked from the saved flowpipe with the inputs" in proof.evidence
+    proof = problem.proofs["safe"]()
+    assert proof.holds and not proof.rechecked and not proof.proven, proof.evidence
+    assert "round 2: closed" in proof.evidence and "NOT re-checked" in proof.evidence
     assert "the initial box lies in W" in proof.evidence and "all time t >= 0 (unbounded)" in proof.assumptions
+    margin = float(proof.evidence.split("margin ")[1].split(";")[0])
     w = _w(proof.evidence)
     names = ("e1", "v1", "a1", "e2", "v2", "a2", "e3", "v3", "a3")
     assert set(w) == set(names)
     entries, lowest = _runs(seed=3, runs=24, cycles=6)
     assert lowest > -50.0
+    # the producer's margin bounds the true slack from below (the lowest gap of the set it holds, and W's slack)
+    assert 0.0 < margin <= lowest + 50.0
     for k, name in enumerate(names):
         lo, hi = w[name]
         assert np.all(entries[:, k] >= lo - 1e-9) and np.all(entries[:, k] <= hi + 1e-9), (name, w[name])
     # W is no toy bound: the simulated entries reach a fair part of it in e1 (the gap that matters)
     assert entries[:, 0].min() < 0.4 * w["e1"][0]
+
+
+@pytest.mark.skipif(not HEAVY, reason="minutes: set VISNAV_REACH_HEAVY=1 (docs/reachability.md has the figures)")
+@pytest.mark.xfail(strict=True, reason="the cycle's flowpipe is above the re-check's limit (RECHECK_MAX_FLOWPIPES); "
+                                       "on a 10.4 s part the re-check's own sets miss W by 1.76 (docs/reachability.md)")
+def test_plan01_unb50_is_proven_for_all_time():
+    problem = spaceex_problem(XML, CFG)
+    assert problem.proofs["safe"]().proven
