@@ -229,7 +229,7 @@ class CycleInductionProof:
         from analysis.reach.affine import AffineError
         from analysis.reach.induction import NoCycle
 
-        method = ("cycle induction over [0, ∞): a box W of the carried states closed by one cycle's flowpipe"
+        method = ("cycle induction for all t >= 0, a box W of the carried states closed by one cycle's flowpipe"
                   + (" with bounded non-deterministic inputs" if self.inputs else "") + ", re-checked")
         bounds = ", ".join(f"{i.name} in [{i.low:g}, {i.high:g}]" for i in self.inputs)
         assumptions = (f"the initial box {dict((k, (lo, hi)) for k, lo, hi in self.initial)}",
