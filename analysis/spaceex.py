@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +33,18 @@ from analysis.verify.requirements import Requirement
 from analysis.verify.verification import Parameter, VerificationProblem
 
 __all__ = ["spaceex_problem", "split_spaceex_spec", "is_spaceex_spec", "InitialLocation", "LOCATION_PARAMETER",
-           "TRACE_SAMPLES", "INPUT_POINTS", "InputSignals", "input_parameters"]
+           "TRACE_SAMPLES", "INPUT_POINTS", "InputSignals", "input_parameters", "SAMPLED_CYCLES", "SAMPLED_HORIZON", "config_unbounded"]
+
+SAMPLED_CYCLES = 3
+"""An unbounded property (``time-horizon = -1``) is simulated and falsified over this many longest cycles
+(:func:`analysis.reach.induction.cycle_model`; PLAN01: 3 × 40 s), unless ``sampled_horizon`` is given."""
+
+SAMPLED_HORIZON = 100.0
+"""The sampled horizon [s] of an unbounded property whose automaton has no bounded cycle (no induction either)."""
+
+UNBOUNDED_NOTE = ("time-horizon < 0: the property is for all t >= 0; the simulations and falsification cover "
+                  "[0, {horizon:g}] s only (sampled_horizon), reachability decides it for all time by cycle induction "
+                  "only (a bounded flowpipe proves nothing here)")
 
 INPUT_POINTS = 10
 """Values of each input's piecewise-constant signal over the horizon (one problem parameter each).
@@ -101,7 +112,8 @@ def split_spaceex_spec(spec: str) -> tuple[str, str | None]:
 def spaceex_problem(xml: str | Path, config: str | Path, component: str | None = None, *,
                     sample_period: float | None = None, input_points: int = INPUT_POINTS,
                     constants: dict[str, float] | None = None,
-                    reach_options: dict[str, Any] | None = None) -> VerificationProblem:
+                    reach_options: dict[str, Any] | None = None,
+                    sampled_horizon: float | None = None) -> VerificationProblem:
     """The verification problem of a SpaceEx model and configuration.
 
     Parameters
@@ -125,6 +137,11 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
         ``{"time_step": 0.5, "mode_time_steps": {"P3": 0.02}}`` for a model with a fast location.  Without a
         ``time_step`` here, the configuration's ``sampling-time`` is the step (when it has one); without
         either, the steps are chosen from the dynamics (:mod:`analysis.reach.autostep`).
+    sampled_horizon : float or None
+        Only for an unbounded ``time-horizon`` (negative, SpaceEx's ``-1``): the horizon [s] of the simulations and
+        of falsification, which cover ``[0, sampled_horizon]`` only (default: :data:`SAMPLED_CYCLES` longest cycles,
+        else :data:`SAMPLED_HORIZON`).  The property for all ``t >= 0`` is decided by cycle induction only
+        (:mod:`analysis.spaceex_induction`); the requirement's formula is ``always[0, sampled_horizon] ...``.
 
     Raises
     ------
@@ -142,6 +159,8 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     if cfg.horizon is None:
         raise SpaceExError(f"{config}: time-horizon", None, "a time horizon [s]", "write time-horizon = 10")
     box, modes = initial_box(model, cfg)
+    unbounded = cfg.unbounded
+    cfg = replace(cfg, horizon=_sampled_horizon(model, cfg, box, modes, sampled_horizon, str(config)))
     initial: dict[str, Parameter | float] = {}
     for s, (lo, hi) in box.items():
         initial[s] = lo if lo == hi else Parameter(name=f"{s}_0", low=lo, high=hi)
@@ -149,9 +168,10 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
     if formula is None:
         raise SpaceExError(f"{config}: forbidden", None, "a forbidden set (the property to verify)",
                            'write forbidden = "x >= 10" (the states that must never be reached)')
+    always = f", for all t >= 0 (unbounded; sampled over [0, {cfg.horizon:g}] s)" if unbounded else ""
     requirements = (Requirement(name="safe", formula=formula,
-                                description=f"the forbidden set of {Path(config).name} is never reached"),)
-    notes = list(model.notes)
+                                description=f"the forbidden set of {Path(config).name} is never reached{always}"),)
+    notes = [*model.notes, *([UNBOUNDED_NOTE.format(horizon=cfg.horizon)] if unbounded else [])]
     period = sample_period or cfg.horizon / TRACE_SAMPLES
     if instant is not None:
         period = instant / math.ceil(instant / period)  # the instant on the sampling grid
@@ -176,7 +196,41 @@ def spaceex_problem(xml: str | Path, config: str | Path, component: str | None =
                     + " ".join(notes),
         source=f"{xml}:{model.system.automaton.name} --config {config}", reach_options=reach_options,
     )
+    if unbounded:
+        from analysis.spaceex_induction import induction_proofs
+
+        return replace(problem, proofs=induction_proofs(model, problem.parsed, initial, mode))
     return _with_input_proofs(problem, model, initial, mode, reach_options)
+
+
+def config_unbounded(config: str | Path) -> bool:
+    """Whether the ``.cfg`` at ``config`` has an unbounded horizon (a negative ``time-horizon``; ``False`` when it
+    cannot be read: the problem's loading reports that)."""
+    try:
+        text = read_bytes(config, "SpaceEx configuration (--config)").decode("utf-8", "replace")
+        return parse_config(text, str(config)).unbounded
+    except SpaceExError:
+        return False
+
+
+def _sampled_horizon(model: SpaceExModel, cfg: Any, box: Mapping[str, tuple[float, float]], modes: list[str],
+                     given: float | None, where: str) -> float:
+    """The problem's horizon: a bounded one as it is (``given`` refused), an unbounded one's sampled horizon: ``given``
+    (checked), else :data:`SAMPLED_CYCLES` longest cycles, else :data:`SAMPLED_HORIZON`."""
+    if not cfg.unbounded:
+        if given is not None:
+            raise SpaceExError("sampled_horizon", given, f"no value: {where} has a bounded time-horizon "
+                               f"({cfg.horizon!r} s)", "leave sampled_horizon out (it is for time-horizon = -1 only)")
+        return cfg.horizon
+    if given is not None:
+        if isinstance(given, bool) or not isinstance(given, (int, float)) or not (0.0 < given < math.inf):
+            raise SpaceExError("sampled_horizon", given, "a finite time > 0 [s]",
+                               f"give e.g. sampled_horizon=100.0 (the simulated part of {where}'s unbounded property)")
+        return float(given)
+    from analysis.spaceex_induction import cycle_of
+
+    cycle = cycle_of(model, box, modes)
+    return SAMPLED_HORIZON if cycle is None else SAMPLED_CYCLES * float(cycle.bound)
 
 
 def _choices(model: SpaceExModel, cfg: object, modes: list[str], input_points: int,
@@ -221,8 +275,6 @@ def _instant_formula(model: SpaceExModel, cfg: object, box: Mapping[str, tuple[f
     is ``rest`` at time ``c``, i.e. ``always[c, c] not (rest)``.  Read as an atom, the equality would be
     measure-zero on a sampled run (robustness at most 0: never a counterexample).
     """
-    from dataclasses import replace
-
     tree = cfg.forbidden
     parts = list(tree[1]) if tree is not None and tree[0] == "and" else []
     for k, c in enumerate(parts):
@@ -243,8 +295,6 @@ def _with_input_proofs(problem: VerificationProblem, model: SpaceExModel, initia
                        mode: object, reach_options: Mapping[str, Any]) -> VerificationProblem:
     """The problem with reachability proofs taking the model's inputs (none without inputs), with the step and the
     jump bound of ``reach_options`` (steps chosen from the dynamics without a step)."""
-    from dataclasses import replace
-
     from analysis.spaceex_reach import input_proofs
 
     if not model.inputs:

@@ -15,6 +15,10 @@ location's invariant (SpaceEx intersects the initial set with the invariant).
 Anything else (a disjunction, a constraint over two variables) is refused: the
 problem's initial set is a box, and a bounding box would be a different set.
 The forbidden set becomes the requirement ``always[0, T] not (forbidden)``.
+
+A negative ``time-horizon`` (SpaceEx's ``time-horizon = -1``, with ``iter-max = -1``: no bound) is an *unbounded*
+horizon: :attr:`SpaceExConfig.horizon` is ``math.inf`` (:attr:`SpaceExConfig.unbounded`); the property holds for
+all ``t >= 0``.  Zero, NaN, infinities and text are refused.
 """
 
 from __future__ import annotations
@@ -53,7 +57,7 @@ class SpaceExConfig:
     initially, forbidden : tree or None
         Constraint trees (:mod:`hybrid.spaceex_syntax`), ``None`` when absent or empty.
     horizon : float or None
-        ``time-horizon`` [s].
+        ``time-horizon`` [s]; ``math.inf`` for a negative ``time-horizon`` (unbounded, SpaceEx's ``-1``).
     sampling_time : float or None
         ``sampling-time`` [s], ``0 < sampling_time <= horizon``: the flowpipe's step the user chose
         (``None`` when absent or in a scenario of :data:`STEP_FREE_SCENARIOS`).
@@ -73,6 +77,11 @@ class SpaceExConfig:
     ignored: tuple[str, ...]
     source: str
     sampling_time: float | None = None
+
+    @property
+    def unbounded(self) -> bool:
+        """Whether the horizon is unbounded (a negative ``time-horizon``: the property is for all ``t >= 0``)."""
+        return self.horizon is not None and math.isinf(self.horizon)
 
 
 def _values(text: str, source: str) -> dict[str, tuple[str, int]]:
@@ -114,8 +123,8 @@ def parse_config(text: str, source: str = "<cfg>") -> SpaceExConfig:
     Raises
     ------
     SpaceExError
-        A malformed line, a set outside the expression language, a horizon that is not a finite number > 0, a
-        ``sampling-time`` that is not a finite number in ``(0, time-horizon]``.
+        A malformed line, a set outside the expression language, a horizon that is neither a finite number > 0 nor
+        a negative number (unbounded), a ``sampling-time`` that is not a finite number in ``(0, time-horizon]``.
     """
     values = _values(text, source)
 
@@ -132,9 +141,11 @@ def parse_config(text: str, source: str = "<cfg>") -> SpaceExConfig:
             horizon = float(value)
         except ValueError:
             horizon = math.nan
-        if not (math.isfinite(horizon) and horizon > 0.0):
-            raise SpaceExError(f"{source}:{line}: time-horizon", value, "a finite time > 0 [s]",
-                               "write e.g. time-horizon = 10")
+        if not math.isfinite(horizon) or horizon == 0.0:
+            raise SpaceExError(f"{source}:{line}: time-horizon", value, "a finite time > 0 [s], or a negative number "
+                               "(SpaceEx's time-horizon = -1: unbounded, for all t >= 0)",
+                               "write e.g. time-horizon = 10, or time-horizon = -1 for an unbounded property")
+        horizon = math.inf if horizon < 0.0 else horizon
     outputs = tuple(v.strip() for v in values.get("output-variables", ("", 0))[0].split(",") if v.strip())
     scenario = values.get("scenario", ("", 0))[0].strip().strip('"').lower()
     sampling = None if scenario in STEP_FREE_SCENARIOS else _sampling_time(values, horizon, source)
@@ -155,8 +166,8 @@ def _sampling_time(values: dict[str, tuple[str, int]], horizon: float | None, so
         step = math.nan
     top = math.inf if horizon is None else horizon
     if not (math.isfinite(step) and 0.0 < step <= top):
-        bound = "" if horizon is None else f" <= time-horizon = {horizon!r}"
-        example = 0.01 if horizon is None else horizon / 1000.0
+        bound = "" if horizon is None or math.isinf(horizon) else f" <= time-horizon = {horizon!r}"
+        example = 0.01 if horizon is None or math.isinf(horizon) else horizon / 1000.0
         raise SpaceExError(f"{source}:{line}: sampling-time", value, f"a finite time step 0 < sampling-time{bound} [s]",
                            f"write e.g. sampling-time = {example!r}, or remove the line (the steps are then chosen "
                            "from the dynamics)")
@@ -326,8 +337,18 @@ def _stl(tree: Any, model: SpaceExModel, where: str) -> str:
 
 
 def forbidden_formula(model: SpaceExModel, config: SpaceExConfig, horizon: float) -> str | None:
-    """``always[0, T] not (forbidden)`` in the STL of docs/stl.md, or ``None`` without a forbidden set."""
+    """``always[0, T] not (forbidden)`` in the STL of docs/stl.md, or ``None`` without a forbidden set.
+
+    Raises
+    ------
+    SpaceExError
+        ``horizon`` is not finite (the STL needs a bounded window: an unbounded ``time-horizon`` is written over its
+        sampled horizon, :func:`analysis.spaceex.spaceex_problem`).
+    """
     if config.forbidden is None:
         return None
+    if not (isinstance(horizon, (int, float)) and math.isfinite(horizon) and horizon > 0):
+        raise SpaceExError(f"{config.source}: time-horizon", horizon, "a finite window [0, T] for the STL formula",
+                           "an unbounded time-horizon (< 0) is written over a finite sampled horizon: give that T")
     text = _stl(substitute_tree(config.forbidden, model.outputs), model, f"{config.source}: forbidden")
     return f"always[0, {horizon!r}] not {text}"

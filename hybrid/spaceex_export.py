@@ -404,7 +404,8 @@ def spaceex_cfg(system: HybridSystem, initial: Mapping[str, tuple[float, float]]
     initial : Mapping[str, tuple[float, float]]
         ``state -> (low, high)`` for every state (``low == high`` writes ``x == value``).
     horizon : float
-        ``time-horizon`` [s], finite and > 0.
+        ``time-horizon`` [s], finite and > 0, or ``math.inf`` (unbounded: written as SpaceEx's ``time-horizon = -1``,
+        without a ``sampling-time``).
     initial_mode : str or None
         The initial location (default: the automaton's).
     forbidden : str or None
@@ -422,8 +423,10 @@ def spaceex_cfg(system: HybridSystem, initial: Mapping[str, tuple[float, float]]
     if unknown or missing:
         raise SpaceExError("spaceex_cfg: initial", dict(initial), f"one range per state {list(system.state_names)}",
                            f"unknown: {unknown}, missing: {missing}")
-    if not (isinstance(horizon, (int, float)) and math.isfinite(horizon) and horizon > 0):
-        raise SpaceExError("spaceex_cfg: horizon", horizon, "a finite time > 0 [s]", "give horizon=10.0")
+    if not (isinstance(horizon, (int, float)) and not isinstance(horizon, bool) and horizon > 0
+            and (math.isfinite(horizon) or horizon == math.inf)):
+        raise SpaceExError("spaceex_cfg: horizon", horizon, "a finite time > 0 [s], or math.inf (unbounded)",
+                           "give horizon=10.0, or horizon=math.inf for time-horizon = -1")
     mode = initial_mode or a.initial_mode or a.mode_names[0]
     if mode not in a.mode_names:
         raise SpaceExError("spaceex_cfg: initial_mode", mode, f"a mode of {list(a.mode_names)}", "name a mode")
@@ -439,7 +442,8 @@ def spaceex_cfg(system: HybridSystem, initial: Mapping[str, tuple[float, float]]
              f'initially = "{" & ".join(parts)}"']
     if forbidden:
         lines.append(f'forbidden = "{forbidden}"')
-    lines += [f"time-horizon = {float(horizon)!r}", 'scenario = "supp"', 'directions = "oct"',
-              "sampling-time = " + repr(float(horizon) / 100.0),
+    bounded = math.isfinite(horizon)
+    lines += [f"time-horizon = {float(horizon)!r}" if bounded else "time-horizon = -1", 'scenario = "supp"',
+              'directions = "oct"', *(["sampling-time = " + repr(float(horizon) / 100.0)] if bounded else []),
               f'output-variables = "{", ".join(names[s] for s in system.state_names)}"', "iter-max = -1"]
     return "\n".join(lines) + "\n"

@@ -148,7 +148,7 @@ def test_the_configuration_refuses_what_is_not_a_box():
         with pytest.raises(SpaceExError) as info:
             initial_box(model, cfg)
         assert expected in str(info.value) and "bad.cfg" in str(info.value), initially
-    for text, expected in (("time-horizon = -1", "finite time > 0"), ("what is this", "key = value"),
+    for text, expected in (("time-horizon = 0", "finite time > 0"), ("time-horizon = nan", "negative number"), ("what is this", "key = value"),
                            ('initially = "x == 1', "closing quote"), ('forbidden = "x >> 1"', "forbidden")):
         with pytest.raises(SpaceExError) as info:
             parse_config(text + "\n", "bad.cfg")

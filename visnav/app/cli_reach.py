@@ -137,6 +137,12 @@ def _cmd_reach(args: argparse.Namespace) -> int:
         return _bad(error.render(), error.user_traceback)
     except ParameterError as error:
         return _bad(_words(error.render()))
+    unbounded = _unbounded(args)
+    if unbounded and args.horizon is None:
+        return _bad(f"--config {args.config}: time-horizon < 0 is unbounded (for all t >= 0): visnav reach computes a "
+                    "flowpipe over a bounded horizon only; give --horizon H for the flowpipe over [0, H] (its verdicts "
+                    "then hold over [0, H] only), or run visnav verify, which decides it for all time by cycle "
+                    "induction")
     horizon = args.horizon if args.horizon is not None else problem.horizon
     if args.time_step is not None and args.time_step > horizon:
         return _bad(f"--time-step {args.time_step:g}: larger than the horizon {horizon:g} s; give a step "
@@ -169,6 +175,13 @@ def _cmd_reach(args: argparse.Namespace) -> int:
     else:
         print(_human(result, written))
     return exit_code(result)
+
+
+def _unbounded(args: argparse.Namespace) -> bool:
+    """Whether ``--config`` names a SpaceEx configuration with an unbounded horizon (``time-horizon < 0``)."""
+    from analysis.spaceex import config_unbounded
+
+    return args.config is not None and config_unbounded(args.config)
 
 
 class _Foreign(Exception):
