@@ -235,6 +235,11 @@ class CycleInductionProof:
         assumptions = (f"the initial box {dict((k, (lo, hi)) for k, lo, hi in self.initial)}",
                        *((f"the inputs {bounds} (any measurable signal)",) if self.inputs else ()),
                        "all time t >= 0 (unbounded)")
+        relaxed = relaxed_proof(self.system, self.input_flows, self.inputs, self.initial_mode,
+                                {k: (lo, hi) for k, lo, hi in self.initial}, self.body, self.text,
+                                assumptions=assumptions)
+        if isinstance(relaxed, Proof):
+            return relaxed
         try:
             outcome = self.run()
         except NoCycle as exc:
@@ -245,5 +250,61 @@ class CycleInductionProof:
                          rechecked=False, assumptions=assumptions)
         last = outcome.search.steps[-1]
         holds = outcome.search.holds and outcome.start_in_w and outcome.uncut
-        return Proof(holds=holds, method=method, evidence=_evidence(outcome), rechecked=outcome.proven,
+        return Proof(holds=holds, method=method, evidence=_evidence(outcome) + f"; {relaxed}", rechecked=outcome.proven,
                      assumptions=assumptions, margin=last.margin if holds and math.isfinite(last.margin) else None)
+
+
+RELAXED_METHOD = ("induction over the arbitrary-switching relaxation for all t >= 0 (the clocks projected out, a box W "
+                  "the relaxation maps into itself), re-checked")
+
+
+def relaxed_proof(system: HybridSystem, input_flows: Mapping[str, Any], inputs: tuple[SpaceExInput, ...],
+                  initial_mode: str, initial: Mapping[str, tuple[float, float]], body: Any, text: str, *,
+                  assumptions: tuple[str, ...]) -> Proof | str:
+    """The relaxation's induction (:mod:`analysis.reach.relaxed_induction`) when it holds, re-checked: the
+    projection by :func:`analysis.reach.recheck_projection.recheck_projection`, each of the four decisions by
+    :func:`analysis.reach.recheck_relaxed.recheck_relaxed` on its own sets.  A :class:`Proof` when the producer's
+    decisions all hold (``rechecked`` only when every re-check passed), else the reason in words (for the evidence
+    of the cycle induction that runs then)."""
+    from hybrid.errors import ModelDefinitionError, ParameterError
+
+    from analysis.reach.affine import AffineError
+    from analysis.reach.model import affine_model
+    from analysis.reach.recheck_projection import recheck_projection
+    from analysis.reach.recheck_relaxed import recheck_relaxed
+    from analysis.reach.relaxed import NoGroup
+    from analysis.reach.relaxed_induction import relaxed_induction
+
+    try:
+        zero, matrices = _input_free(system, input_flows, inputs)
+        found = relaxed_induction(affine_model(zero), matrices, initial_mode, initial, body, text)
+    except NoGroup as exc:
+        return f"the relaxation's induction does not apply: {exc}"
+    except (AffineError, ParameterError, ModelDefinitionError) as exc:
+        return f"the relaxation's induction cannot read the model: {exc}"
+    if not found.holds:
+        return f"the relaxation's induction does not hold: {found.reason}"
+    cf = found.projection
+    failure = recheck_projection(zero, cf.model, cf.kept, matrices, cf.inputs)
+    margins = []
+    for result, box, fragment, _, _, _ in found.checks:
+        if failure:
+            break
+        saved = {"time_step": result.time_step, "schedule": dict(result.schedule)}
+        check = recheck_relaxed(saved, cf.model, box, fragment, initial_mode=initial_mode, inputs=cf.inputs)
+        failure = "" if check.passed else f"{fragment.text}: {check.failure}"
+        margins.append(check.margin)
+    again = (f"re-check FAILED ({failure})" if failure else
+             f"re-checked: the projection exactly, the four decisions on the re-check's own sets of the relaxation "
+             f"(exact margins {', '.join(str(m) for m in margins)})")
+    evidence = (f"the clocks {', '.join(cf.clocks)} projected out (no flow, reset or requirement of the other states "
+                f"reads them; every transition keeps those): every run solves the relaxation "
+                f"ẋ ∈ conv{{A_i x + c_i}} + B U; W = " + ", ".join(f"{k} in [{lo:.6g}, {hi:.6g}]"
+                                                                  for k, (lo, hi) in found.w.items())
+                + f"; P = {found.probe:g} s, T = {found.period:.6g} s, step {found.time_step:.4g} s: from the initial "
+                f"box safe over [0, P + T] and in W at P, from W safe over [T, 2T] and back in W at T (so x(P + kT) "
+                f"in W for every k and every later state in the flowpipe from W over [T, 2T]), margin "
+                f"{found.margin:.6g}; {again}")
+    return Proof(holds=True, method=RELAXED_METHOD, evidence=evidence, rechecked=not failure,
+                 assumptions=assumptions + ("any switching of the locations (the relaxation covers every timing)",),
+                 margin=found.margin)
