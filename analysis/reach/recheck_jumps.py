@@ -111,14 +111,17 @@ def box_rows(box: Sequence[tuple[Fraction, Fraction]]) -> list[Any]:
     return out
 
 
+def _padded(a: Exact, b: Exact) -> tuple[Exact, Exact]:
+    """The two zonotopes with as many generators each (zero columns appended)."""
+    (c1, g1), (c2, g2) = a, b
+    zero = [Fraction(0)] * len(c1)
+    m = max(len(g1), len(g2))
+    return (c1, g1 + [zero] * (m - len(g1))), (c2, g2 + [zero] * (m - len(g2)))
+
+
 def _spread_union(a: Exact, b: Exact) -> Exact:
     """Part 2 of the module (exact), the differences kept as generators."""
-    (c1, g1), (c2, g2) = a, b
-    n = len(c1)
-    zero = [Fraction(0)] * n
-    m = max(len(g1), len(g2))
-    g1 = g1 + [zero] * (m - len(g1))
-    g2 = g2 + [zero] * (m - len(g2))
+    (c1, g1), (c2, g2) = _padded(a, b)
     center = [(x + y) / 2 for x, y in zip(c1, c2)]
     cols = [[(x - y) / 2 for x, y in zip(c1, c2)]]
     for p, q in zip(g1, g2):
@@ -133,12 +136,7 @@ def _paired_union(a: Exact, b: Exact, box: list[Fraction]) -> tuple[Exact, list[
     ``c₁ + Σ g₁_j ξ_j`` is ``c̄ + Σ ḡ_j ξ_j + (c₁ − c̄) + Σ (g₁_j − ḡ_j) ξ_j``; the same for ``Z₂``).  The mean
     columns keep the indices of the pieces' (their carried inputs stay in their slots:
     :mod:`analysis.reach.recheck_carry`), so the next piece pairs with them again."""
-    (c1, g1), (c2, g2) = a, b
-    n = len(c1)
-    zero = [Fraction(0)] * n
-    m = max(len(g1), len(g2))
-    g1 = g1 + [zero] * (m - len(g1))
-    g2 = g2 + [zero] * (m - len(g2))
+    (c1, g1), (c2, g2) = _padded(a, b)
     center = [(x + y) / 2 for x, y in zip(c1, c2)]
     spread = [e + abs(x - y) / 2 for e, x, y in zip(box, c1, c2)]
     cols = []

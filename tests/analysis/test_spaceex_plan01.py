@@ -19,7 +19,6 @@ import pytest
 from scipy.linalg import expm
 
 from analysis.spaceex import spaceex_problem
-from analysis.verify.verdicts import verify
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "spaceex" / "arch2017"
 XML = DATA / "Platoon" / "SpaceEx" / "PLAN01-UNB.xml"
